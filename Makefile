@@ -1,0 +1,54 @@
+# flow_node: `make demo` runs the product on the bundled bag, `make test` lints and runs the tests.
+# Everything installs into .venv from requirements.txt (no system ROS needed).
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba_cache
+
+.PHONY: all venv test lint demo bench bench-venv paper clean
+
+all: test
+
+$(STAMP): requirements.txt setup.py
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -r requirements.txt
+	$(PY) -m pip install --quiet --no-deps -e .
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check flow_node test bench
+
+test: lint
+	$(PY) -m pytest -q test
+
+demo: $(STAMP)
+	$(PY) -m flow_node.demo
+
+# Benchmarks need peers (opencv-contrib DualTVL1, scikit-image) that conflict with the runtime's
+# opencv-python-headless, so they get their own venv.
+BENCH_VENV := .venv-bench
+BENCH_STAMP := $(BENCH_VENV)/.installed
+$(BENCH_STAMP): bench/requirements.txt requirements.txt setup.py
+	test -x $(BENCH_VENV)/bin/python || $(PYTHON) -m venv $(BENCH_VENV)
+	$(BENCH_VENV)/bin/pip install --quiet --upgrade pip
+	$(BENCH_VENV)/bin/pip install --quiet -r bench/requirements.txt
+	$(BENCH_VENV)/bin/pip install --quiet --no-deps -e .
+	touch $(BENCH_STAMP)
+
+bench-venv: $(BENCH_STAMP)
+
+bench: $(BENCH_STAMP)
+	$(BENCH_VENV)/bin/python -m bench.accuracy
+
+paper: $(BENCH_STAMP)
+	$(BENCH_VENV)/bin/python -m bench.paper
+
+clean:
+	rm -rf $(VENV) $(BENCH_VENV) build install log *.egg-info

@@ -1,0 +1,113 @@
+"""The engine's public entry: validate two frames, convert them to grey [0, 1], run coarse-to-fine."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .backends import select_backend
+from .config import FlowConfig
+from .errors import InputError
+from .pyramid import SolveStats, coarse_to_fine
+
+log = logging.getLogger("flow_node")
+
+# ITU-R BT.601 luma weights for R, G, B
+_LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
+
+
+def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") -> np.ndarray:
+    """Validate an image and convert it to float32 grey (H, W) in [0, 1].
+
+    Accepts (H, W), (H, W, 1), (H, W, 3) and (H, W, 4) arrays; uint8 is divided by 255, uint16 by 65535,
+    floating point is taken as already in [0, 1] (must be finite). ``channel_order`` is ``rgb`` or
+    ``bgr`` for colour input (alpha, if present, is ignored). Raises InputError naming the problem.
+    """
+    if not isinstance(img, np.ndarray):
+        raise InputError(f"{name}: expected a numpy array, got {type(img).__name__}")
+    if img.ndim == 3 and img.shape[2] in (1, 3, 4):
+        channels = img.shape[2]
+    elif img.ndim == 2:
+        channels = 0
+    else:
+        raise InputError(f"{name}: expected shape (H, W) or (H, W, 1|3|4), got {img.shape}")
+    if img.shape[0] < 2 or img.shape[1] < 2:
+        raise InputError(f"{name}: image is {img.shape[1]}x{img.shape[0]} px; need at least 2x2")
+    if img.dtype == np.uint8:
+        out = img.astype(np.float32) / 255.0
+    elif img.dtype == np.uint16:
+        out = img.astype(np.float32) / 65535.0
+    elif img.dtype in (np.float32, np.float64, np.float16):
+        out = img.astype(np.float32)
+        if not np.isfinite(out).all():
+            raise InputError(f"{name}: contains NaN or infinite values")
+    else:
+        raise InputError(f"{name}: unsupported dtype {img.dtype}; use uint8, uint16 or float in [0, 1]")
+    if channels == 1:
+        out = out[:, :, 0]
+    elif channels >= 3:
+        rgb = out[:, :, :3] if channel_order == "rgb" else out[:, :, 2::-1]
+        out = rgb @ _LUMA
+    return np.ascontiguousarray(out, dtype=np.float32)
+
+
+@dataclass
+class FlowResult:
+    """Flow (H, W, 2) float32 px/frame plus what the solve did."""
+
+    flow: np.ndarray
+    stats: SolveStats
+    seconds: float
+    backend: str
+
+
+class FlowEstimator:
+    """A configured engine: resolves the backend once, then estimates flow for pairs of frames.
+
+    The node and the bag tools keep one of these; ``config`` may be swapped between calls.
+    """
+
+    def __init__(self, config: FlowConfig | None = None) -> None:
+        self._config = config if config is not None else FlowConfig()
+        self.backend, self._solve = select_backend(self._config.backend, self._config.threads)
+
+    @property
+    def config(self) -> FlowConfig:
+        return self._config
+
+    @config.setter
+    def config(self, cfg: FlowConfig) -> None:
+        if (cfg.backend, cfg.threads) != (self._config.backend, self._config.threads):
+            self.backend, self._solve = select_backend(cfg.backend, cfg.threads)
+        self._config = cfg
+
+    def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
+                 channel_order: str = "rgb") -> FlowResult:
+        """Flow from frame0 to frame1 (both images of the same size), I1(x + flow) ~ I0(x)."""
+        i0 = to_grey(frame0, "frame0", channel_order)
+        i1 = to_grey(frame1, "frame1", channel_order)
+        if i0.shape != i1.shape:
+            raise InputError(f"frames differ in size: frame0 is {i0.shape[1]}x{i0.shape[0]}, "
+                             f"frame1 is {i1.shape[1]}x{i1.shape[0]}")
+        init = None
+        if initial_flow is not None:
+            if initial_flow.shape != i0.shape + (2,):
+                raise InputError(f"initial_flow: expected shape {i0.shape + (2,)}, got {initial_flow.shape}")
+            init = np.moveaxis(initial_flow.astype(np.float32), -1, 0)
+        start = time.perf_counter()
+        flow, stats = coarse_to_fine(i0, i1, self._config, self._solve, init)
+        seconds = time.perf_counter() - start
+        return FlowResult(np.ascontiguousarray(np.moveaxis(flow, 0, -1), dtype=np.float32), stats,
+                          seconds, self.backend)
+
+
+def estimate_flow(frame0: np.ndarray, frame1: np.ndarray, config: FlowConfig | None = None, *,
+                  initial_flow: np.ndarray | None = None) -> np.ndarray:
+    """Dense optical flow from frame0 to frame1: float32 (H, W, 2), channel 0 = u (x), 1 = v (y), px/frame.
+
+    Colour input is taken as RGB. ``config`` defaults to ``FlowConfig()``; see FlowConfig.preset.
+    """
+    return FlowEstimator(config).estimate(frame0, frame1, initial_flow).flow

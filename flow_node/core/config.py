@@ -1,0 +1,238 @@
+"""The one typed configuration object of the engine, its validation, presets and YAML loading.
+
+Every entry point (Python API, ``flow_estimate``, the ROS node's parameters, ``flow_bag``) maps onto
+:class:`FlowConfig`; defaults, ranges and descriptions live only here (in each field's metadata), so the node
+builds its parameter descriptors and the CLI its help from the same table.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import ConfigError, FileFormatError
+
+MODELS = ("l2_l2", "l2_tv", "l1_tv", "l1_tv_l2", "l1_tv_tv")
+TV_NORMS = ("isotropic", "anisotropic")
+GRADIENT_SCHEMES = ("forward", "central", "interpolated")
+BACKENDS = ("auto", "numpy", "numba")
+
+
+def _f(default: Any, help: str, *, lo: float | None = None, hi: float | None = None,
+       choices: tuple[Any, ...] | None = None, lo_open: bool = False) -> Any:
+    """A dataclass field carrying its description and its valid range or choices."""
+    meta = {"help": help, "lo": lo, "hi": hi, "choices": choices, "lo_open": lo_open}
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class FlowConfig:
+    """All settings of the flow engine. Construct, ``replace`` or load; every path validates.
+
+    Weights refer to grey images scaled to [0, 1] and flow in pixels per frame. The energy minimised on
+    each warp is ``D(v) + alpha * R(v)`` (paper, "Models"); for the extended models
+    ``R(v, w) = ||grad v - w||_1 + (alpha1 / alpha) * S(w)`` i.e. ``alpha`` is the paper's alpha_0 and
+    ``alpha1`` its alpha_1, both absolute.
+    """
+
+    model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1)",
+                    choices=MODELS)
+    alpha: float = _f(0.025, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv)",
+                      lo=0.0, hi=1000.0, lo_open=True)
+    alpha1: float = _f(0.5, "second weight alpha_1: of (1/2)|w|^2 in l1_tv_l2, of |grad w|_1 in l1_tv_tv",
+                       lo=0.0, hi=10000.0)
+    tv_norm: str = _f("isotropic", "vector norm of the TV terms: isotropic (joint Euclidean) or "
+                      "anisotropic (sum of absolute values)", choices=TV_NORMS)
+    gradient_scheme: str = _f("central", "image gradient: forward, central, or interpolated "
+                              "(central on the mean of frame 0 and warped frame 1)",
+                              choices=GRADIENT_SCHEMES)
+    bregman_iterations: int = _f(0, "contrast-restoring Bregman iterations after the finest warp",
+                                 lo=0, hi=50)
+    iterations: int = _f(50, "maximum primal-dual iterations per warp", lo=1, hi=100000)
+    tolerance: float = _f(0.0, "stop a warp early when the RMS flow update per iteration (px) falls "
+                          "below this; 0 runs all iterations", lo=0.0, hi=1.0)
+    levels: int = _f(5, "maximum pyramid levels (1 = no coarse-to-fine)", lo=1, hi=30)
+    scale_factor: float = _f(0.5, "pyramid downscale factor between levels", lo=0.2, hi=0.95)
+    min_size: int = _f(16, "smallest image side allowed on the coarsest level (px)", lo=4, hi=100000)
+    warps: int = _f(5, "warps (re-linearisations) per pyramid level", lo=1, hi=100)
+    median_filter: int = _f(5, "median filter size applied to the flow after each warp (0 = off)",
+                            choices=(0, 3, 5))
+    level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
+                                   "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
+    backend: str = _f("auto", "solver backend: numba kernels, numpy reference, or auto (numba if importable)",
+                      choices=BACKENDS)
+    threads: int = _f(0, "threads for the numba backend (0 = all cores)", lo=0, hi=1024)
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _check_field(f, getattr(self, f.name)))
+        if self.model in ("l1_tv_l2", "l1_tv_tv") and self.alpha1 <= 0.0:
+            raise ConfigError(f"alpha1 must be > 0 for model {self.model!r} (got {self.alpha1})")
+
+    # ----------------------------------------------------------------------------------------- builders
+    @classmethod
+    def preset(cls, name: str) -> FlowConfig:
+        """The named preset (``quality``, ``balanced``, ``realtime``, ``fastest``)."""
+        if name not in PRESETS:
+            raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
+        return cls(**PRESETS[name])
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any], base: FlowConfig | None = None) -> FlowConfig:
+        """Build from a mapping of field names; a ``preset`` key selects the base first.
+
+        Keys that are not config fields are an error (a typo must not be silently ignored).
+        """
+        values = dict(values)
+        if "preset" in values:
+            preset = values.pop("preset")
+            if preset not in (None, ""):
+                base = cls.preset(str(preset))
+        base = base if base is not None else cls()
+        unknown = sorted(set(values) - set(field_names()))
+        if unknown:
+            raise ConfigError(f"unknown parameter(s) {', '.join(unknown)}; "
+                              f"valid: {', '.join(field_names())}")
+        return base.replace(**values)
+
+    @classmethod
+    def from_yaml(cls, path: str | Path, base: FlowConfig | None = None) -> FlowConfig:
+        """Load a YAML file: a plain mapping, or a ROS params file (``node: {ros__parameters: {...}}``).
+
+        In a ROS params file, keys the engine does not know (node-only parameters such as QoS overrides)
+        are ignored; in a plain mapping they are an error.
+        """
+        import yaml
+
+        try:
+            data = yaml.safe_load(Path(path).read_text())
+        except OSError as exc:
+            raise FileFormatError(f"cannot read parameter file {path}: {exc.strerror}") from exc
+        except yaml.YAMLError as exc:
+            raise FileFormatError(f"{path} is not valid YAML: {exc}") from exc
+        if data is None:
+            data = {}
+        if not isinstance(data, dict):
+            raise FileFormatError(f"{path}: expected a mapping at top level, got {type(data).__name__}")
+        ros = ros_parameters(data)
+        if ros is not None:
+            keep = {k: v for k, v in ros.items() if k in field_names() or k == "preset"}
+            return cls.from_mapping(keep, base)
+        return cls.from_mapping(data, base)
+
+    def replace(self, **changes: Any) -> FlowConfig:
+        """A validated copy with ``changes`` applied."""
+        unknown = sorted(set(changes) - set(field_names()))
+        if unknown:
+            raise ConfigError(f"unknown parameter(s) {', '.join(unknown)}")
+        return dataclasses.replace(self, **changes)
+
+    def with_overrides(self, assignments: Iterable[str]) -> FlowConfig:
+        """Apply ``key=value`` strings (CLI ``--set``), parsed by each field's type."""
+        changes: dict[str, Any] = {}
+        for item in assignments:
+            key, sep, text = item.partition("=")
+            key = key.strip()
+            if not sep or not key:
+                raise ConfigError(f"expected key=value, got {item!r}")
+            if key not in field_names():
+                raise ConfigError(f"unknown parameter {key!r}; valid: {', '.join(field_names())}")
+            changes[key] = parse_value(key, text.strip())
+        return self.replace(**changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict of every field, in declaration order."""
+        return dataclasses.asdict(self)
+
+
+PRESETS: dict[str, dict[str, Any]] = {
+    "quality": dict(model="l1_tv", alpha=0.025, iterations=50, warps=5, levels=6, median_filter=5,
+                    gradient_scheme="interpolated", tolerance=0.0),
+    "balanced": dict(model="l1_tv", alpha=0.025, iterations=30, warps=3, levels=5, median_filter=5,
+                     gradient_scheme="interpolated", tolerance=1e-3),
+    "realtime": dict(model="l1_tv", alpha=0.025, iterations=15, warps=2, levels=4, median_filter=3,
+                     gradient_scheme="interpolated", tolerance=2e-3),
+}
+
+
+@dataclass(frozen=True)
+class FieldInfo:
+    """What an entry point needs to expose a config field (ROS descriptor, CLI help)."""
+
+    name: str
+    type: type
+    default: Any
+    help: str
+    lo: float | None
+    hi: float | None
+    choices: tuple[Any, ...] | None
+
+
+def field_names() -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(FlowConfig))
+
+
+def fields_info() -> list[FieldInfo]:
+    """Name, type, default, description and range of every field."""
+    types = {"int": int, "float": float, "str": str}
+    out = []
+    for f in dataclasses.fields(FlowConfig):
+        m = f.metadata
+        out.append(FieldInfo(f.name, types[str(f.type)], f.default, m["help"], m["lo"], m["hi"],
+                             m["choices"]))
+    return out
+
+
+def ros_parameters(data: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The ``ros__parameters`` mapping of a ROS params file (first node, or ``/**``), else None."""
+    for value in data.values():
+        if isinstance(value, dict) and isinstance(value.get("ros__parameters"), dict):
+            return dict(value["ros__parameters"])
+    return None
+
+
+def parse_value(key: str, text: str) -> Any:
+    """Parse ``text`` for field ``key`` by the field's declared type."""
+    info = {i.name: i for i in fields_info()}[key]
+    try:
+        if info.type is int:
+            return int(text)
+        if info.type is float:
+            return float(text)
+    except ValueError:
+        raise ConfigError(f"{key}: expected {info.type.__name__}, got {text!r}") from None
+    return text
+
+
+def _check_field(f: dataclasses.Field, value: Any) -> Any:
+    """Type-check, coerce (int -> float) and range-check one field value; returns the value to store."""
+    name, m = f.name, f.metadata
+    kind = str(f.type)
+    if kind == "str":
+        if not isinstance(value, str):
+            raise ConfigError(f"{name}: expected a string, got {type(value).__name__} {value!r}")
+    elif kind == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            if isinstance(value, float) and value.is_integer():
+                value = int(value)
+            else:
+                raise ConfigError(f"{name}: expected an integer, got {type(value).__name__} {value!r}")
+    elif kind == "float":
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{name}: expected a number, got {type(value).__name__} {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"{name}: must be finite, got {value}")
+    if m["choices"] is not None and value not in m["choices"]:
+        raise ConfigError(f"{name}: {value!r} is not one of {', '.join(map(str, m['choices']))}")
+    lo, hi = m["lo"], m["hi"]
+    if lo is not None and (value < lo or (m["lo_open"] and value == lo)):
+        op = ">" if m["lo_open"] else ">="
+        raise ConfigError(f"{name}: must be {op} {lo}, got {value}")
+    if hi is not None and value > hi:
+        raise ConfigError(f"{name}: must be <= {hi}, got {value}")
+    return value

@@ -1,0 +1,23 @@
+"""The exceptions of flow_node: one base class, a few specific kinds.
+
+Every error a user can cause (bad parameters, bad images, unreadable files) is raised as one of these with
+a message that names the problem; callers catch :class:`FlowError` to handle all of them.
+"""
+
+from __future__ import annotations
+
+
+class FlowError(Exception):
+    """Base class of every error flow_node raises on purpose."""
+
+
+class ConfigError(FlowError, ValueError):
+    """An invalid configuration: unknown key, wrong type, value out of range, bad combination."""
+
+
+class InputError(FlowError, ValueError):
+    """Input data the engine cannot use: wrong shape, dtype, size mismatch, NaN/inf, too small."""
+
+
+class FileFormatError(FlowError, OSError):
+    """A file that cannot be read or written in the expected format (.flo, PNG, YAML, bag)."""

@@ -1,0 +1,97 @@
+"""Discrete operators of the paper ("Discretization and Parameters"), numpy reference versions.
+
+Arrays are channel-first: a scalar field is (H, W), a vector field (2, H, W) with index 0 = x (columns,
+rightwards) and 1 = y (rows, downwards). ``grad`` is the forward difference with Neumann boundary (zero in
+the last column/row) and ``div`` the backward difference chosen so that ``<grad f, p> = -<f, div p>`` holds
+exactly: these are the blocks of the paper's K and K*.
+
+Image derivatives (the paper's Table 2 schemes) are separate from ``grad``: they feed the data term only.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def grad(f: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Forward-difference gradient with Neumann boundary. f: (..., H, W) -> (2, ..., H, W)."""
+    if out is None:
+        out = np.zeros((2,) + f.shape, dtype=f.dtype)
+    out[0, ..., :-1] = f[..., 1:] - f[..., :-1]
+    out[0, ..., -1] = 0.0
+    out[1, ..., :-1, :] = f[..., 1:, :] - f[..., :-1, :]
+    out[1, ..., -1, :] = 0.0
+    return out
+
+
+def div(p: np.ndarray) -> np.ndarray:
+    """Backward-difference divergence, the negative adjoint of :func:`grad`. p: (2, ..., H, W) -> (..., H, W)."""
+    px, py = p[0], p[1]
+    d = np.zeros(px.shape, dtype=p.dtype)
+    d[..., 0] = px[..., 0]
+    d[..., 1:-1] = px[..., 1:-1] - px[..., :-2]
+    d[..., -1] = -px[..., -2]
+    d[..., 0, :] += py[..., 0, :]
+    d[..., 1:-1, :] += py[..., 1:-1, :] - py[..., :-2, :]
+    d[..., -1, :] -= py[..., -2, :]
+    return d
+
+
+def image_gradient(img: np.ndarray, scheme: str) -> np.ndarray:
+    """Spatial derivative of an image for the data term. img: (H, W) -> (2, H, W), intensity per pixel.
+
+    ``forward``: I(x+1) - I(x), zero in the last column/row. ``central`` (and ``interpolated``, which
+    applies it to a temporally interpolated image): (I(x+1) - I(x-1)) / 2, zero on the border as in the
+    paper. Note the paper writes the central difference without the 1/2; we keep the true derivative so
+    that flow is in pixels, and the paper's weights map onto ours by alpha_ours = alpha_paper / 2.
+    """
+    g = np.zeros((2,) + img.shape, dtype=np.float32)
+    if scheme == "forward":
+        g[0, :, :-1] = img[:, 1:] - img[:, :-1]
+        g[1, :-1, :] = img[1:, :] - img[:-1, :]
+    else:
+        g[0, :, 1:-1] = 0.5 * (img[:, 2:] - img[:, :-2])
+        g[1, 1:-1, :] = 0.5 * (img[2:, :] - img[:-2, :])
+    return g
+
+
+def warp_maps(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sampling maps x + u, y + v for cv2.remap and the mask of points that stay inside the image.
+
+    flow: (2, H, W) px. Returns map_x, map_y (H, W) float32 and inside (H, W) bool.
+    """
+    h, w = flow.shape[1:]
+    xs = np.arange(w, dtype=np.float32)[None, :]
+    ys = np.arange(h, dtype=np.float32)[:, None]
+    map_x = (xs + flow[0]).astype(np.float32)
+    map_y = (ys + flow[1]).astype(np.float32)
+    inside = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
+    return map_x, map_y, inside
+
+
+def warp(img: np.ndarray, map_x: np.ndarray, map_y: np.ndarray) -> np.ndarray:
+    """Bicubic sample of img (H, W) or (C, H, W) at (map_x, map_y); border replicated."""
+    if img.ndim == 3:
+        return np.stack([warp(c, map_x, map_y) for c in img])
+    return cv2.remap(img, map_x, map_y, interpolation=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+
+
+def linearise(i0: np.ndarray, i1: np.ndarray, grad_i0: np.ndarray, grad_i1: np.ndarray,
+              flow0: np.ndarray, scheme: str) -> tuple[np.ndarray, np.ndarray]:
+    """Linearised brightness constancy around flow0 (paper, "Large Displacements").
+
+    rho(v) = I1(x + v0) + grad I1(x + v0) . (v - v0) - I0(x) = a . v + c, with a the image gradient of the
+    chosen scheme. Returns a (2, H, W) and c (H, W); both are zero where x + v0 leaves the image, which
+    removes those pixels from the data term. Without warping (v0 = 0) c is the paper's u_t = I1 - I0.
+    """
+    map_x, map_y, inside = warp_maps(flow0)
+    i1w = warp(i1, map_x, map_y)
+    if scheme == "interpolated":
+        a = 0.5 * (grad_i0 + warp(grad_i1, map_x, map_y))
+    else:
+        a = warp(grad_i1, map_x, map_y)
+    c = i1w - i0 - a[0] * flow0[0] - a[1] * flow0[1]
+    a *= inside
+    c *= inside
+    return a.astype(np.float32), c.astype(np.float32)
