@@ -84,6 +84,16 @@ class FlowEstimator:
             self.backend, self._solve = select_backend(cfg.backend, cfg.threads)
         self._config = cfg
 
+    def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
+        """Run one small solve with the current config so JIT compilation (numba) happens now, not on the
+        first real frame. Returns the seconds it took."""
+        rng = np.random.default_rng(0)
+        f0 = rng.random(shape, dtype=np.float32)
+        f1 = np.roll(f0, 1, axis=1)
+        start = time.perf_counter()
+        self.estimate(f0, f1)
+        return time.perf_counter() - start
+
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
                  channel_order: str = "rgb") -> FlowResult:
         """Flow from frame0 to frame1 (both images of the same size), I1(x + flow) ~ I0(x)."""

@@ -1,0 +1,10 @@
+"""Test-wide setup: isolate DDS traffic to this machine and this run, keep numba's cache in the venv."""
+
+import os
+import random
+
+# Set before rclpy is imported anywhere: localhost-only discovery and a per-run domain id, so parallel
+# runs and other ROS processes on the machine never see our topics.
+os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+os.environ.setdefault("ROS_DOMAIN_ID", str(random.SystemRandom().randint(1, 100)))
+os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
