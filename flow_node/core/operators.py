@@ -29,12 +29,11 @@ def div(p: np.ndarray) -> np.ndarray:
     """Backward-difference divergence, the negative adjoint of :func:`grad`. p: (2, ..., H, W) -> (..., H, W)."""
     px, py = p[0], p[1]
     d = np.zeros(px.shape, dtype=p.dtype)
-    d[..., 0] = px[..., 0]
-    d[..., 1:-1] = px[..., 1:-1] - px[..., :-2]
-    d[..., -1] = -px[..., -2]
-    d[..., 0, :] += py[..., 0, :]
-    d[..., 1:-1, :] += py[..., 1:-1, :] - py[..., :-2, :]
-    d[..., -1, :] -= py[..., -2, :]
+    # div_x p[j] = p[j] (j < W-1) - p[j-1] (j > 0); the last column of p is never produced by grad
+    d[..., :-1] += px[..., :-1]
+    d[..., 1:] -= px[..., :-1]
+    d[..., :-1, :] += py[..., :-1, :]
+    d[..., 1:, :] -= py[..., :-1, :]
     return d
 
 
