@@ -151,18 +151,22 @@ class Scene:
         xs, ys = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
         return np.stack([xs, ys], axis=-1)
 
-    def _visible(self, t: float) -> tuple[np.ndarray, list[np.ndarray]]:
-        """Index (H, W) of the top layer at every pixel of frame t, and each layer's texture coordinates."""
-        x = self.pixel_grid()
+    def _visible(self, t: float, x: np.ndarray | None = None) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Index (...) of the top layer at image points x (..., 2) of frame t (default: every pixel), and
+        each layer's texture coordinates there."""
+        x = self.pixel_grid() if x is None else x
         coords = [layer.motion.inverse(x, t) for layer in self.layers]
         top = np.zeros(x.shape[:2], np.int32)
         for i, (layer, p) in enumerate(zip(self.layers, coords, strict=True)):
             top[layer.covers(p)] = i
         return top, coords
 
-    def render(self, t: int) -> np.ndarray:
-        """Frame t as float64 RGB (H, W, 3) in [0, 1]: texture grey times layer tint times the gain."""
-        top, coords = self._visible(t)
+    def render(self, t: int, x: np.ndarray | None = None) -> np.ndarray:
+        """Frame t as float64 RGB (H, W, 3) in [0, 1]: texture grey times layer tint times the gain.
+
+        ``x`` (..., 2) samples the continuous frame at arbitrary image points instead of the pixel grid.
+        """
+        top, coords = self._visible(t, x)
         out = np.zeros(top.shape + (3,))
         for i, (layer, p) in enumerate(zip(self.layers, coords, strict=True)):
             m = top == i
