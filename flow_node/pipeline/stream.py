@@ -1,0 +1,203 @@
+"""The per-frame state machine shared by the ROS node and ``flow_bag eval``.
+
+A :class:`FlowStream` keeps the previous frame (grey float32 at processing resolution) and a
+:class:`~flow_node.core.api.FlowEstimator`. Each :meth:`FlowStream.process` call takes the next decoded frame
+and its stamp and returns None (first frame, or a reset) or a :class:`FlowOutput` with the flow from the
+previous to this frame. Rules, in order:
+
+* settings changed with :meth:`FlowStream.update` (config, input scale, colour scale) take effect at the start
+  of the next ``process`` call; a change of ``input_scale`` resets (the stored frame has the old size);
+* the stream resets (drops the previous frame, returns None) when the frame size or the encoding label
+  changes, or when the stamp goes backwards (a looping bag); :meth:`FlowStream.reset` does it by hand;
+* ``input_scale`` < 1 shrinks both frames (area interpolation) before solving, and the flow is returned AT
+  THAT RESOLUTION in pixels of the shrunk image; multiply by ``1 / input_scale`` for full-resolution pixels.
+
+No rclpy or rosbags here: the caller decodes messages with :mod:`flow_node.pipeline.codec`.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field, replace
+
+import cv2
+import numpy as np
+
+from ..core.api import FlowEstimator, to_grey
+from ..core.config import FlowConfig
+from ..core.errors import ConfigError
+from ..core.flowio import flow_to_color
+from ..core.pyramid import SolveStats
+
+
+@dataclass(frozen=True)
+class StreamSettings:
+    """Everything a stream needs besides the frames. ``color_max_flow``: flow (px) at full colour
+    saturation in the colour image; 0 scales each frame by its own maximum."""
+
+    config: FlowConfig = field(default_factory=FlowConfig)
+    input_scale: float = 1.0
+    color_max_flow: float = 10.0
+
+    def __post_init__(self) -> None:
+        if not (0.05 <= self.input_scale <= 1.0) or not math.isfinite(self.input_scale):
+            raise ConfigError(f"input_scale: must be in [0.05, 1.0], got {self.input_scale}")
+        if not (0.0 <= self.color_max_flow <= 1e4) or not math.isfinite(self.color_max_flow):
+            raise ConfigError(f"color_max_flow: must be in [0, 10000], got {self.color_max_flow}")
+
+
+@dataclass(frozen=True)
+class FlowSummary:
+    """Statistics of the flow magnitude over one frame (px/frame)."""
+
+    mean: float
+    p95: float
+    max: float
+
+
+def magnitude(flow: np.ndarray) -> np.ndarray:
+    """Per-pixel flow length (H, W) float32 in px/frame, from flow (H, W, 2)."""
+    return np.sqrt(flow[..., 0] ** 2 + flow[..., 1] ** 2, dtype=np.float32)
+
+
+def summarise(mag: np.ndarray) -> FlowSummary:
+    """Mean, 95th percentile (nearest rank) and maximum of a magnitude image."""
+    flat = mag.reshape(-1)
+    k = min(flat.size - 1, int(math.ceil(0.95 * flat.size)) - 1)
+    p95 = float(np.partition(flat, k)[k])
+    return FlowSummary(float(flat.mean()), p95, float(flat.max()))
+
+
+def scaled_shape(shape: tuple[int, int], scale: float) -> tuple[int, int]:
+    """(H, W) after scaling by ``scale`` (rounded, at least 2x2)."""
+    return max(2, int(round(shape[0] * scale))), max(2, int(round(shape[1] * scale)))
+
+
+@dataclass
+class FlowOutput:
+    """One result: flow from the previous frame to the frame stamped ``stamp_ns``.
+
+    ``flow`` (H, W, 2) float32 and ``magnitude`` (H, W) float32 are in px/frame at the processing
+    resolution (``scale`` times the input size). The colour image is computed on first use only.
+    """
+
+    flow: np.ndarray
+    magnitude: np.ndarray
+    summary: FlowSummary
+    stamp_ns: int
+    previous_stamp_ns: int
+    seconds: float
+    stats: SolveStats
+    backend: str
+    model: str
+    scale: float
+    color_max_flow: float
+    _color: np.ndarray | None = field(default=None, repr=False)
+
+    def color(self) -> np.ndarray:
+        """Middlebury colour coding, (H, W, 3) uint8 in B, G, R order (bgr8), cached."""
+        if self._color is None:
+            self._color = flow_to_color(self.flow, self.color_max_flow, bgr=True)
+        return self._color
+
+
+class FlowStream:
+    """Previous frame + engine; see the module docstring for the rules. Thread-safe for ``update`` and
+    ``reset`` called from another thread while ``process`` runs (they apply before the next frame)."""
+
+    def __init__(self, settings: StreamSettings | None = None) -> None:
+        self._settings = settings if settings is not None else StreamSettings()
+        self._estimator = FlowEstimator(self._settings.config)
+        self._pending: StreamSettings | None = None
+        self._reset_requested = False
+        self._lock = threading.Lock()
+        self._prev: np.ndarray | None = None
+        self._prev_key: tuple[tuple[int, ...], str] | None = None
+        self._prev_stamp: int = 0
+        self.last_reset_reason: str = "first frame"
+
+    # ----------------------------------------------------------------------------------------- settings
+    @property
+    def settings(self) -> StreamSettings:
+        """The settings in effect (pending changes not yet applied are not included)."""
+        return self._settings
+
+    @property
+    def backend(self) -> str:
+        return self._estimator.backend
+
+    def update(self, config: FlowConfig | None = None, input_scale: float | None = None,
+               color_max_flow: float | None = None) -> StreamSettings:
+        """Schedule new settings for the next frame; validates now (raises ConfigError) and returns them."""
+        with self._lock:
+            base = self._pending if self._pending is not None else self._settings
+            changes = {k: v for k, v in (("config", config), ("input_scale", input_scale),
+                                         ("color_max_flow", color_max_flow)) if v is not None}
+            self._pending = replace(base, **changes)
+            return self._pending
+
+    def reset(self) -> None:
+        """Drop the previous frame before the next one (that frame then starts a new pair)."""
+        with self._lock:
+            self._reset_requested = True
+
+    def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
+        """Compile/warm the engine with the current config; returns seconds."""
+        return self._estimator.warmup(shape)
+
+    def _apply_pending(self) -> str | None:
+        """Apply scheduled settings and reset requests; returns a reset reason or None."""
+        with self._lock:
+            pending, self._pending = self._pending, None
+            reset, self._reset_requested = self._reset_requested, False
+        reason = "reset requested" if reset else None
+        if pending is not None:
+            if pending.input_scale != self._settings.input_scale:
+                reason = reason or "input_scale changed"
+            if pending.config != self._settings.config:
+                self._estimator.config = pending.config
+            self._settings = pending
+        return reason
+
+    # -------------------------------------------------------------------------------------------- frames
+    def _prepare(self, frame: np.ndarray, channel_order: str) -> np.ndarray:
+        """Grey float32 [0, 1] at processing resolution."""
+        grey = to_grey(frame, "frame", channel_order)
+        scale = self._settings.input_scale
+        if scale == 1.0:
+            return grey
+        h, w = scaled_shape(grey.shape, scale)
+        return cv2.resize(grey, (w, h), interpolation=cv2.INTER_AREA)
+
+    def _start(self, grey: np.ndarray, key: tuple[tuple[int, ...], str], stamp_ns: int, reason: str) -> None:
+        self._prev, self._prev_key, self._prev_stamp = grey, key, stamp_ns
+        self.last_reset_reason = reason
+
+    def process(self, frame: np.ndarray, stamp_ns: int, encoding: str = "",
+                channel_order: str = "rgb") -> FlowOutput | None:
+        """Feed the next frame (decoded array, stamp in ns, encoding label); None if it starts a new pair.
+
+        Raises InputError for an unusable frame (state unchanged) and ConfigError never (settings are
+        validated in ``update``). ``self.last_reset_reason`` says why the last None was returned.
+        """
+        reason = self._apply_pending()
+        grey = self._prepare(frame, channel_order)
+        key = (tuple(frame.shape), encoding)
+        if reason is None and self._prev is None:
+            reason = "first frame"
+        elif reason is None and key != self._prev_key:
+            reason = (f"size changed {self._prev_key[0]} -> {key[0]}" if key[0] != self._prev_key[0]
+                      else f"encoding changed {self._prev_key[1]!r} -> {encoding!r}")
+        elif reason is None and stamp_ns < self._prev_stamp:
+            reason = f"stamp went back {(self._prev_stamp - stamp_ns) / 1e9:.3f} s"
+        if reason is not None:
+            self._start(grey, key, stamp_ns, reason)
+            return None
+        prev, prev_stamp = self._prev, self._prev_stamp
+        result = self._estimator.estimate(prev, grey)
+        self._prev, self._prev_stamp = grey, stamp_ns
+        mag = magnitude(result.flow)
+        s = self._settings
+        return FlowOutput(result.flow, mag, summarise(mag), stamp_ns, prev_stamp, result.seconds, result.stats,
+                          result.backend, s.config.model, s.input_scale, s.color_max_flow)
