@@ -71,12 +71,12 @@ def open_bag(path: str | Path) -> Iterator[Reader]:
 
 
 def find_connections(reader: Reader, topic: str | None, msgtypes: Sequence[str], what: str,
-                     required: bool = True) -> list[Connection]:
-    """Connections of ``topic`` (or, if None, of the single topic whose type is in ``msgtypes``).
-
-    Raises BagError when the topic is missing, of the wrong type, or ambiguous (and ``required``).
+                     required: bool = True, exclude: Sequence[str] = ()) -> list[Connection]:
+    """Connections of ``topic`` (or, if None, of the single topic not in ``exclude`` whose type is in
+    ``msgtypes``). Raises BagError when the topic is missing, of the wrong type, or ambiguous (and
+    ``required``).
     """
-    conns = [c for c in reader.connections if c.msgtype in msgtypes]
+    conns = [c for c in reader.connections if c.msgtype in msgtypes and c.topic not in exclude]
     if topic is not None:
         named = [c for c in reader.connections if c.topic == topic]
         if not named:

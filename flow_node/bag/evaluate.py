@@ -1,0 +1,310 @@
+"""`flow_bag eval`: replay a bag through the node's per-frame pipeline and write an output bag and a report.
+
+Every image goes through :mod:`flow_node.pipeline` exactly as the node does it (codec decode, then
+``FlowStream.process``), once per model, so the flows written here are what the node would have published.
+Ground truth (32FC2, flow from the previous frame, stamped like the newer frame) is matched by header stamp.
+Output is written to a hidden sibling folder and renamed to ``DIR`` only when everything succeeded.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import time
+from collections.abc import Sequence
+from contextlib import nullcontext
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..core.config import FlowConfig
+from ..core.errors import InputError
+from ..core.metrics import aee, angular_error, valid_mask
+from ..pipeline.codec import array_to_image_fields, decode, image_to_array
+from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
+from .bagio import (
+    IMAGE,
+    IMAGE_TYPES,
+    BagError,
+    BagWriter,
+    deserialize,
+    find_connections,
+    image_message,
+    open_bag,
+    read_messages,
+    stamp_ns,
+)
+
+NODE_NAMESPACE = "/flow_node"  # the node's default name: its ~/flow is /flow_node/flow
+OUTPUT_TOPICS = ("flow", "magnitude", "flow_color")
+DEFAULT_GT_TOPIC = "/camera/flow_gt"
+
+
+@dataclass(frozen=True)
+class EvalOptions:
+    """Topics (None: detect), colour scale in px (None: the node's default), PNG frame choice ('auto',
+    'all', 'none' or comma-separated frame indices), and whether to show a progress bar."""
+
+    image_topic: str | None = None
+    gt_topic: str | None = None
+    max_flow: float | None = None
+    png_frames: str = "auto"
+    progress: bool = True
+
+
+@dataclass
+class FrameRecord:
+    """One processed image: its bag index and stamps; for a pair, time, iterations, magnitude statistics
+    and (with ground truth) AEE px and AE degrees. ``skipped`` holds the reason an image was unusable."""
+
+    index: int
+    stamp_ns: int
+    previous_stamp_ns: int | None = None
+    seconds: float | None = None
+    iterations: int | None = None
+    magnitude: dict[str, float] | None = None
+    aee: float | None = None
+    ae: float | None = None
+    skipped: str | None = None
+
+
+@dataclass
+class ModelRun:
+    """The records of one configuration over the whole bag."""
+
+    label: str
+    config: FlowConfig
+    stream: FlowStream
+    records: list[FrameRecord] = field(default_factory=list)
+
+    def topic(self, name: str, primary: bool) -> str:
+        """Output topic: the node's names for the first model, ``/flow_node/<model>/...`` for the others."""
+        return f"{NODE_NAMESPACE}/{name}" if primary else f"{NODE_NAMESPACE}/{self.label}/{name}"
+
+
+@dataclass
+class Drawn:
+    """What the PNGs of one chosen frame need: the frame, the flows per model and the ground truth."""
+
+    index: int
+    stamp_ns: int
+    frame: np.ndarray
+    flows: dict[str, np.ndarray] = field(default_factory=dict)
+    gt: np.ndarray | None = None
+
+
+@dataclass
+class EvalResult:
+    """Everything the report is made of."""
+
+    bag: str
+    image_topic: str
+    gt_topic: str | None
+    images: int
+    runs: list[ModelRun]
+    drawn: list[Drawn]
+    color_max_flow: float
+    wall_seconds: float = 0.0
+
+
+def read_ground_truth(msg: Any, shape: tuple[int, int], stamp: int) -> np.ndarray:
+    """A 32FC2 ground-truth message -> (H, W, 2) float32; BagError unless it matches the image ``shape``."""
+    if str(msg.encoding) != "32FC2":
+        raise BagError(f"ground truth at stamp {stamp} has encoding {msg.encoding}, expected 32FC2")
+    try:
+        gt = image_to_array(msg)
+    except InputError as exc:
+        raise BagError(f"ground truth at stamp {stamp} is malformed: {exc}") from exc
+    if gt.shape[:2] != shape:
+        raise BagError(f"ground truth at stamp {stamp} is {gt.shape[1]}x{gt.shape[0]} but the images are "
+                       f"{shape[1]}x{shape[0]}")
+    return gt
+
+
+def choose_frames(spec: str, count: int) -> set[int]:
+    """Image indices to draw: 'auto' (second, middle and last), 'all', 'none' or '3,7,...'."""
+    if spec == "none" or count < 2:
+        return set()
+    if spec == "all":
+        return set(range(1, count))
+    if spec == "auto":
+        return {1, max(1, count // 2), count - 1}
+    try:
+        return {int(x) for x in spec.split(",") if x.strip()}
+    except ValueError:
+        raise InputError(f"--png-frames: expected auto, all, none or indices like 1,5,9; got {spec!r}") from None
+
+
+class Progress:
+    """A one-line progress bar on stderr (nothing when disabled)."""
+
+    def __init__(self, total: int, enabled: bool, width: int = 30) -> None:
+        self.total, self.enabled, self.width = max(total, 1), enabled, width
+        self.start = time.monotonic()
+
+    def update(self, done: int) -> None:
+        if not self.enabled:
+            return
+        fill = int(self.width * min(done, self.total) / self.total)
+        rate = done / max(time.monotonic() - self.start, 1e-9)
+        sys.stderr.write(f"\r  [{'#' * fill}{'.' * (self.width - fill)}] {done}/{self.total} frames "
+                         f"{rate:5.1f} fps")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def _record(index: int, out: FlowOutput) -> FrameRecord:
+    s = out.summary
+    return FrameRecord(index, out.stamp_ns, out.previous_stamp_ns, out.seconds, out.stats.total_iterations,
+                       {"mean": s.mean, "p95": s.p95, "max": s.max})
+
+
+def _score(rec: FrameRecord, flow: np.ndarray, gt: np.ndarray) -> None:
+    if valid_mask(gt).any():
+        rec.aee, rec.ae = aee(flow, gt), angular_error(flow, gt)
+
+
+def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig], opts: EvalOptions) -> EvalResult:
+    """Run every config over the bag; write the output bag to ``out_bag`` (if given). Returns the records."""
+    settings = [StreamSettings(config=c) if opts.max_flow is None else
+                StreamSettings(config=c, color_max_flow=opts.max_flow) for c in configs]
+    runs = [ModelRun(c.model, c, FlowStream(s)) for c, s in zip(configs, settings, strict=True)]
+    with open_bag(bag) as reader:
+        gt_topic = opts.gt_topic
+        if gt_topic is None and any(c.topic == DEFAULT_GT_TOPIC for c in reader.connections):
+            gt_topic = DEFAULT_GT_TOPIC
+        gt_conns = find_connections(reader, gt_topic, (IMAGE,), "gt") if gt_topic else []
+        image_conns = find_connections(reader, opts.image_topic, IMAGE_TYPES, "image",
+                                       exclude=(gt_topic,) if gt_topic else ())
+        total = sum(c.msgcount for c in image_conns)
+        chosen = choose_frames(opts.png_frames, total)
+        result = EvalResult(str(bag), image_conns[0].topic, gt_topic, 0, runs, [], settings[0].color_max_flow)
+        with BagWriter(out_bag, "mcap") if out_bag is not None else nullcontext() as writer:
+            if writer is not None:
+                writer.add_topic(image_conns[0].topic, image_conns[0].msgtype, like=image_conns[0])
+                for k, run in enumerate(runs):
+                    for name in OUTPUT_TOPICS:
+                        writer.add_topic(run.topic(name, k == 0), IMAGE)
+            for run in runs:
+                run.stream.warmup()  # JIT compilation (numba) now, not inside the first frame's time
+            _replay(reader, image_conns, gt_conns, result, chosen, writer, Progress(total, opts.progress))
+    if result.images == 0:
+        raise BagError(f"{bag}: the image topic {result.image_topic} has no messages")
+    return result
+
+
+def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, chosen: set[int],
+            writer: BagWriter | None, progress: Progress) -> None:
+    """The single pass over the bag: decode, process per model, write outputs, score against GT."""
+    gts: dict[int, Any] = {}  # stamp -> GT message not yet matched
+    pending: dict[int, list[tuple[FrameRecord, np.ndarray | None]]] = {}  # stamp -> outputs awaiting GT
+    shape: tuple[int, int] | None = None
+    gt_ids = {c.id for c in gt_conns}
+    for conn, t, raw in read_messages(reader, list(image_conns) + list(gt_conns)):
+        msg = deserialize(raw, conn.msgtype)
+        stamp = stamp_ns(msg)
+        if conn.id in gt_ids:
+            if stamp in pending and shape is not None:
+                gt = read_ground_truth(msg, shape, stamp)
+                for rec, flow in pending.pop(stamp):
+                    _score(rec, flow, gt)
+                _keep_gt(result, stamp, gt)
+            else:
+                gts[stamp] = msg
+            continue
+        index = result.images
+        result.images += 1
+        try:
+            frame, label = decode(msg)
+        except InputError as exc:
+            for run in result.runs:
+                run.records.append(FrameRecord(index, stamp, skipped=str(exc)))
+            progress.update(result.images)
+            continue
+        shape = frame.shape[:2]
+        if writer is not None:
+            writer.write_raw(result.image_topic, t, raw)
+        draw = Drawn(index, stamp, frame) if index in chosen else None
+        gt = read_ground_truth(gts.pop(stamp), shape, stamp) if stamp in gts else None
+        waiting = []
+        for k, run in enumerate(result.runs):
+            out = run.stream.process(frame, stamp, label)
+            if out is None:
+                run.records.append(FrameRecord(index, stamp, skipped=run.stream.last_reset_reason))
+                continue
+            rec = _record(index, out)
+            run.records.append(rec)
+            if writer is not None:
+                _write_outputs(writer, run, k == 0, t, msg.header, out)
+            if draw is not None:
+                draw.flows[run.label] = out.flow
+            if gt is not None:
+                _score(rec, out.flow, gt)
+            else:
+                waiting.append((rec, out.flow))
+        if waiting and gt_conns:
+            pending[stamp] = waiting
+        if draw is not None:
+            draw.gt = gt
+            result.drawn.append(draw)
+        progress.update(result.images)
+    progress.close()
+
+
+def _keep_gt(result: EvalResult, stamp: int, gt: np.ndarray) -> None:
+    """Attach a ground truth that arrived after its image to the drawn frame with that stamp, if any."""
+    for d in result.drawn:
+        if d.stamp_ns == stamp and d.gt is None:
+            d.gt = gt
+
+
+def _write_outputs(writer: BagWriter, run: ModelRun, primary: bool, t: int, hdr: Any, out: FlowOutput) -> None:
+    """The node's three output messages, with the input header."""
+    arrays = (("flow", out.flow, "32FC2"), ("magnitude", out.magnitude, "32FC1"),
+              ("flow_color", out.color(), "bgr8"))
+    for name, arr, enc in arrays:
+        writer.write(run.topic(name, primary), t, image_message(hdr, array_to_image_fields(arr, enc)))
+
+
+def run_eval(bag: str | Path, output: str | Path, configs: Sequence[FlowConfig], opts: EvalOptions) -> EvalResult:
+    """Evaluate and write ``output``/{bag/, report.json, report.md, *.png}; all or nothing."""
+    from .report import write_report
+
+    out = Path(output)
+    tmp = out.with_name(f".{out.name}.partial-{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    try:
+        start = time.monotonic()
+        result = evaluate(bag, tmp / "bag", configs, opts)
+        result.wall_seconds = time.monotonic() - start
+        _rename_storage(tmp / "bag")
+        write_report(result, tmp)
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if opts.progress:
+        from .report import summary_lines
+
+        print("\n".join(summary_lines(result)))
+    return result
+
+
+def _rename_storage(folder: Path) -> None:
+    """rosbags names the storage file after the folder it first had; name it bag_0.mcap as ros2 does."""
+    meta = folder / "metadata.yaml"
+    text = meta.read_text()
+    for f in folder.glob("*.mcap"):
+        if f.name != "bag_0.mcap":
+            f.rename(folder / "bag_0.mcap")
+            text = text.replace(f.name, "bag_0.mcap")
+    meta.write_text(text)

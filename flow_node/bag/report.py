@@ -1,0 +1,255 @@
+"""The verdict of `flow_bag eval`: report.json, report.md, per-frame panels and a plot (PNG, drawn with OpenCV).
+
+Summary per model: AEE/AE (Middlebury definitions) where ground truth exists, solve time, magnitude
+statistics. With several models, a ranking as in the paper's Table 1: the mean over frames of
+AEE / (smallest AEE of that frame), and the same for AE.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ..core.errors import FileFormatError
+from ..core.flowio import flow_to_color
+from ..core.metrics import endpoint_error_map
+from .evaluate import Drawn, EvalResult, ModelRun
+
+PALETTE = [(200, 80, 30), (40, 140, 230), (60, 170, 60), (30, 30, 200), (160, 60, 160)]  # BGR
+
+
+def _stat(values: list[float], fn: Any) -> float | None:
+    return float(fn(values)) if values else None
+
+
+def summarise_run(run: ModelRun) -> dict[str, Any]:
+    """Summary numbers of one model run (None where nothing was measured)."""
+    pairs = [r for r in run.records if r.seconds is not None]
+    scored = [r for r in pairs if r.aee is not None]
+    secs = [r.seconds for r in pairs if r.seconds is not None]
+    return {
+        "model": run.label, "backend": run.stream.backend, "images": len(run.records), "pairs": len(pairs),
+        "pairs_with_gt": len(scored),
+        "aee_mean": _stat([r.aee for r in scored], np.mean), "aee_median": _stat([r.aee for r in scored], np.median),
+        "aee_max": _stat([r.aee for r in scored], np.max), "ae_mean": _stat([r.ae for r in scored], np.mean),
+        "seconds_mean": _stat(secs, np.mean), "seconds_median": _stat(secs, np.median),
+        "iterations_mean": _stat([r.iterations for r in pairs], np.mean),
+        "magnitude_mean": _stat([r.magnitude["mean"] for r in pairs if r.magnitude], np.mean),
+        "magnitude_max": _stat([r.magnitude["max"] for r in pairs if r.magnitude], np.max),
+    }
+
+
+def ranking(runs: list[ModelRun]) -> list[dict[str, Any]]:
+    """Paper Table 1 style: per model, mean over frames scored by every model of AEE/min AEE and AE/min AE;
+    sorted best first. Empty with fewer than two models or no common scored frame."""
+    if len(runs) < 2:
+        return []
+    per_frame: dict[int, dict[str, tuple[float, float]]] = {}
+    for run in runs:
+        for r in run.records:
+            if r.aee is not None and r.ae is not None:
+                per_frame.setdefault(r.index, {})[run.label] = (r.aee, r.ae)
+    common = [v for v in per_frame.values() if len(v) == len(runs)]
+    if not common:
+        return []
+    rows = []
+    for run in runs:
+        q_aee = [v[run.label][0] / max(min(x[0] for x in v.values()), 1e-12) for v in common]
+        q_ae = [v[run.label][1] / max(min(x[1] for x in v.values()), 1e-12) for v in common]
+        rows.append({"model": run.label, "mean_aee_over_min": float(np.mean(q_aee)),
+                     "mean_ae_over_min": float(np.mean(q_ae)), "frames": len(common)})
+    rows.sort(key=lambda r: (r["mean_aee_over_min"], r["mean_ae_over_min"]))
+    for k, row in enumerate(rows, 1):
+        row["rank"] = k
+    return rows
+
+
+def to_json(result: EvalResult) -> dict[str, Any]:
+    """The full report as plain data."""
+    return {
+        "bag": result.bag, "image_topic": result.image_topic, "gt_topic": result.gt_topic,
+        "images": result.images, "color_max_flow": result.color_max_flow,
+        "wall_seconds": result.wall_seconds,
+        "models": [{"label": run.label, "config": run.config.to_dict(), "summary": summarise_run(run),
+                    "frames": [vars(r) for r in run.records]} for run in result.runs],
+        "ranking": ranking(result.runs),
+    }
+
+
+def _fmt(x: float | None, digits: int = 3) -> str:
+    return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
+
+
+def to_markdown(result: EvalResult, pngs: list[str]) -> str:
+    """report.md: summary, ranking, per-frame tables, pictures."""
+    has_gt = any(r.aee is not None for run in result.runs for r in run.records)
+    lines = [f"# flow_bag eval: {Path(result.bag).name}", "",
+             f"Bag `{result.bag}`, image topic `{result.image_topic}`, ground truth "
+             f"{'`' + result.gt_topic + '`' if result.gt_topic else 'none'}; {result.images} images. "
+             "AEE in px, AE in degrees (Middlebury definitions), times in ms per frame pair.", "",
+             "## Summary", "",
+             "| model | backend | pairs | with GT | AEE mean | AEE median | AE mean | time mean | time median "
+             "| mean \\|flow\\| |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for run in result.runs:
+        s = summarise_run(run)
+        ms = {k: None if s[k] is None else 1000 * s[k] for k in ("seconds_mean", "seconds_median")}
+        lines.append(f"| {s['model']} | {s['backend']} | {s['pairs']} | {s['pairs_with_gt']} | "
+                     f"{_fmt(s['aee_mean'])} | {_fmt(s['aee_median'])} | {_fmt(s['ae_mean'], 2)} | "
+                     f"{_fmt(ms['seconds_mean'], 1)} | {_fmt(ms['seconds_median'], 1)} | "
+                     f"{_fmt(s['magnitude_mean'])} |")
+    rank = ranking(result.runs)
+    if rank:
+        lines += ["", "## Ranking (as the paper's Table 1)", "",
+                  f"Mean over the {rank[0]['frames']} frames of AEE / min AEE and AE / min AE (1 = best on "
+                  "every frame).", "", "| rank | model | ∅ AEE/min AEE | ∅ AE/min AE |", "|---|---|---|---|"]
+        lines += [f"| {r['rank']} | {r['model']} | {r['mean_aee_over_min']:.3f} | {r['mean_ae_over_min']:.3f} |"
+                  for r in rank]
+    for run in result.runs:
+        lines += ["", f"## Frames: {run.label}", ""]
+        if has_gt:
+            lines += ["| frame | stamp (s) | AEE | AE | time (ms) | iterations | mean \\|flow\\| | note |",
+                      "|---|---|---|---|---|---|---|---|"]
+        else:
+            lines += ["| frame | stamp (s) | time (ms) | iterations | mean \\|flow\\| | p95 | max | note |",
+                      "|---|---|---|---|---|---|---|---|"]
+        for r in run.records:
+            mag = r.magnitude or {}
+            ms = None if r.seconds is None else 1000 * r.seconds
+            note = r.skipped or ""
+            it = "–" if r.iterations is None else str(r.iterations)
+            head = f"| {r.index} | {r.stamp_ns / 1e9:.3f} |"
+            if has_gt:
+                lines.append(f"{head} {_fmt(r.aee)} | {_fmt(r.ae, 2)} | {_fmt(ms, 1)} | {it} | "
+                             f"{_fmt(mag.get('mean'))} | {note} |")
+            else:
+                lines.append(f"{head} {_fmt(ms, 1)} | {it} | {_fmt(mag.get('mean'))} | {_fmt(mag.get('p95'))} | "
+                             f"{_fmt(mag.get('max'))} | {note} |")
+    if pngs:
+        lines += ["", "## Pictures", ""] + [f"![{p}]({p})" for p in pngs]
+    return "\n".join(lines) + "\n"
+
+
+def summary_lines(result: EvalResult) -> list[str]:
+    """A few lines for the terminal."""
+    out = []
+    for run in result.runs:
+        s = summarise_run(run)
+        ms = "–" if s["seconds_mean"] is None else f"{1000 * s['seconds_mean']:.1f} ms"
+        err = f"AEE {_fmt(s['aee_mean'])} px, AE {_fmt(s['ae_mean'], 2)} deg, " if s["pairs_with_gt"] else ""
+        out.append(f"{run.label}: {s['pairs']} pairs, {err}mean |flow| {_fmt(s['magnitude_mean'])} px, "
+                   f"{ms} per pair ({s['backend']})")
+    return out
+
+
+# ------------------------------------------------------------------------------------------------ pictures
+def _tile(img: np.ndarray, label: str, zoom: int) -> np.ndarray:
+    """BGR uint8 tile, enlarged by ``zoom`` (nearest), with a label strip on top."""
+    big = cv2.resize(img, (img.shape[1] * zoom, img.shape[0] * zoom), interpolation=cv2.INTER_NEAREST)
+    strip = np.full((18, big.shape[1], 3), 255, np.uint8)
+    cv2.putText(strip, label, (3, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    return np.vstack([strip, big])
+
+
+def frame_bgr(frame: np.ndarray) -> np.ndarray:
+    """Any decoded frame (grey/RGB, uint8/uint16/float) -> BGR uint8 for display."""
+    f = frame.astype(np.float32)
+    f = f / 255.0 if frame.dtype == np.uint8 else f / 65535.0 if frame.dtype == np.uint16 else f
+    f = np.clip(f * 255.0 + 0.5, 0, 255).astype(np.uint8)
+    return cv2.cvtColor(f, cv2.COLOR_GRAY2BGR) if f.ndim == 2 else np.ascontiguousarray(f[..., ::-1])
+
+
+def error_bgr(flow: np.ndarray, gt: np.ndarray, emax: float) -> np.ndarray:
+    """Endpoint error map, 0..emax px on the inferno colour map; unknown ground truth black."""
+    err = endpoint_error_map(flow, gt)
+    u8 = np.clip(np.nan_to_num(err, nan=0.0) / emax * 255.0, 0, 255).astype(np.uint8)
+    out = cv2.applyColorMap(u8, cv2.COLORMAP_INFERNO)
+    out[np.isnan(err)] = 0
+    return out
+
+
+def panel(d: Drawn, max_flow: float, emax: float) -> np.ndarray:
+    """One row per model: frame, ground-truth colour, flow colour, error map (or magnitude without GT)."""
+    zoom = max(1, 320 // d.frame.shape[1])
+    rows = []
+    for label, flow in d.flows.items():
+        tiles = [_tile(frame_bgr(d.frame), f"frame {d.index}", zoom)]
+        if d.gt is not None:
+            tiles.append(_tile(flow_to_color(d.gt, max_flow, bgr=True), "ground truth", zoom))
+        tiles.append(_tile(flow_to_color(flow, max_flow, bgr=True), f"{label} flow", zoom))
+        if d.gt is not None:
+            tiles.append(_tile(error_bgr(flow, d.gt, emax), f"error 0-{emax:g} px", zoom))
+        rows.append(np.hstack(tiles))
+    return np.vstack(rows)
+
+
+def plot(series: dict[str, list[tuple[int, float]]], title: str, size: tuple[int, int] = (720, 240)) -> np.ndarray:
+    """A line plot (BGR uint8) of y over frame index for each named series, with axes, ticks and legend."""
+    w, h = size
+    img = np.full((h, w, 3), 255, np.uint8)
+    left, right, top, bottom = 60, 10, 24, 28
+    pts = [p for s in series.values() for p in s]
+    cv2.putText(img, title, (left, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    if not pts:
+        return img
+    x0, x1 = min(p[0] for p in pts), max(p[0] for p in pts)
+    y1 = max(p[1] for p in pts) * 1.1 or 1.0
+    x1 = x1 if x1 > x0 else x0 + 1
+
+    def px(x: float, y: float) -> tuple[int, int]:
+        return (int(left + (x - x0) / (x1 - x0) * (w - left - right)),
+                int(h - bottom - y / y1 * (h - top - bottom)))
+
+    for k in range(5):
+        y = y1 * k / 4
+        cv2.line(img, px(x0, y), px(x1, y), (225, 225, 225), 1)
+        cv2.putText(img, f"{y:.3g}", (4, px(x0, y)[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
+    cv2.rectangle(img, px(x0, y1), px(x1, 0), (0, 0, 0), 1)
+    step = max(1, (x1 - x0) // 10)
+    for x in range(x0, x1 + 1, step):
+        cv2.putText(img, str(x), (px(x, 0)[0] - 4, h - bottom + 14), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
+    for k, (name, s) in enumerate(series.items()):
+        colour = PALETTE[k % len(PALETTE)]
+        pp = np.array([px(x, y) for x, y in s], np.int32)
+        if len(pp) > 1:
+            cv2.polylines(img, [pp], False, colour, 2, cv2.LINE_AA)
+        for p in pp:
+            cv2.circle(img, tuple(int(v) for v in p), 3, colour, -1, cv2.LINE_AA)
+        cv2.putText(img, name, (w - right - 110, top + 14 + 14 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1)
+    cv2.putText(img, "frame", (w // 2, h - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
+    return img
+
+
+def per_frame_plot(result: EvalResult) -> np.ndarray:
+    """AEE (if any) above solve time (ms), per frame and model."""
+    aee = {r.label: [(x.index, x.aee) for x in r.records if x.aee is not None] for r in result.runs}
+    ms = {r.label: [(x.index, 1000 * x.seconds) for x in r.records if x.seconds is not None] for r in result.runs}
+    parts = [plot(aee, "AEE per frame (px)")] if any(aee.values()) else []
+    return np.vstack(parts + [plot(ms, "solve time per frame (ms)")])
+
+
+def _imwrite(path: Path, img: np.ndarray) -> None:
+    if not cv2.imwrite(str(path), img):
+        raise FileFormatError(f"cannot write {path}")
+
+
+def write_report(result: EvalResult, folder: Path) -> list[str]:
+    """Write report.json, report.md and the PNGs into ``folder``; returns the PNG names."""
+    errors = [endpoint_error_map(f, d.gt) for d in result.drawn if d.gt is not None for f in d.flows.values()]
+    finite = np.concatenate([e[np.isfinite(e)] for e in errors]) if errors else np.zeros(0)
+    emax = max(0.5, math.ceil(2 * float(np.percentile(finite, 99))) / 2) if finite.size else 1.0
+    pngs = []
+    for d in result.drawn:
+        if d.flows:
+            name = f"frame_{d.index:04d}.png"
+            _imwrite(folder / name, panel(d, result.color_max_flow, emax))
+            pngs.append(name)
+    _imwrite(folder / "per_frame.png", per_frame_plot(result))
+    pngs.append("per_frame.png")
+    (folder / "report.json").write_text(json.dumps(to_json(result), indent=1) + "\n")
+    (folder / "report.md").write_text(to_markdown(result, pngs))
+    return pngs
