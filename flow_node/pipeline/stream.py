@@ -31,6 +31,10 @@ from ..core.flowio import flow_to_color
 from ..core.pyramid import SolveStats
 
 
+INPUT_SCALE_RANGE = (0.05, 1.0)
+COLOR_MAX_FLOW_RANGE = (0.0, 10000.0)
+
+
 @dataclass(frozen=True)
 class StreamSettings:
     """Everything a stream needs besides the frames. ``color_max_flow``: flow (px) at full colour
@@ -41,10 +45,13 @@ class StreamSettings:
     color_max_flow: float = 10.0
 
     def __post_init__(self) -> None:
-        if not (0.05 <= self.input_scale <= 1.0) or not math.isfinite(self.input_scale):
-            raise ConfigError(f"input_scale: must be in [0.05, 1.0], got {self.input_scale}")
-        if not (0.0 <= self.color_max_flow <= 1e4) or not math.isfinite(self.color_max_flow):
-            raise ConfigError(f"color_max_flow: must be in [0, 10000], got {self.color_max_flow}")
+        for name, (lo, hi) in (("input_scale", INPUT_SCALE_RANGE), ("color_max_flow", COLOR_MAX_FLOW_RANGE)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ConfigError(f"{name}: expected a finite number, got {value!r}")
+            if not lo <= value <= hi:
+                raise ConfigError(f"{name}: must be in [{lo}, {hi}], got {value}")
+            object.__setattr__(self, name, float(value))
 
 
 @dataclass(frozen=True)

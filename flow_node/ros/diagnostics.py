@@ -1,0 +1,176 @@
+"""What the node reports on /diagnostics: counters and per-window statistics, the level rules, the message.
+
+:class:`NodeStats` is plain Python (thread-safe): the subscription and the worker record events, the
+diagnostics timer takes a :meth:`NodeStats.window` snapshot once per period, which also starts the next
+window. Rates and solve times are over that window; counters are totals since start.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from ..pipeline.stream import FlowSummary
+
+OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
+
+
+@dataclass
+class Totals:
+    """Counters since start."""
+
+    received: int = 0
+    processed: int = 0
+    published: int = 0
+    dropped: int = 0
+    rejected: int = 0
+    resets: int = 0
+    errors: int = 0
+
+
+@dataclass
+class Window:
+    """One diagnostics period: deltas of the totals, solve/overhead times (s), last values."""
+
+    seconds: float
+    totals: Totals
+    received: int
+    published: int
+    dropped: int
+    rejected: int
+    errors: int
+    solve_times: list[float]
+    overheads: list[float]
+    summary: FlowSummary | None
+    last_reset: str
+    last_rejection: str
+    last_error: str
+    since_input: float | None
+
+
+@dataclass
+class NodeStats:
+    """Thread-safe event recorder for the node."""
+
+    totals: Totals = field(default_factory=Totals)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+    _start: float = field(default_factory=time.monotonic)
+    _mark: Totals = field(default_factory=Totals)
+    _solve: list[float] = field(default_factory=list)
+    _overhead: list[float] = field(default_factory=list)
+    _summary: FlowSummary | None = None
+    _last_input: float | None = None
+    last_reset: str = ""
+    last_rejection: str = ""
+    last_error: str = ""
+
+    def received(self, dropped_previous: bool) -> None:
+        with self._lock:
+            self.totals.received += 1
+            self.totals.dropped += int(dropped_previous)
+            self._last_input = time.monotonic()
+
+    def rejected(self, reason: str) -> None:
+        with self._lock:
+            self.totals.rejected += 1
+            self.last_rejection = reason
+
+    def error(self, reason: str) -> None:
+        with self._lock:
+            self.totals.errors += 1
+            self.last_error = reason
+
+    def reset(self, reason: str) -> None:
+        with self._lock:
+            self.totals.processed += 1
+            self.totals.resets += 1
+            self.last_reset = reason
+
+    def solved(self, solve_s: float, overhead_s: float, summary: FlowSummary) -> None:
+        """A pair was solved and published: engine seconds, node seconds beyond the engine, flow summary."""
+        with self._lock:
+            self.totals.processed += 1
+            self.totals.published += 1
+            self._solve.append(solve_s)
+            self._overhead.append(overhead_s)
+            self._summary = summary
+
+    def window(self) -> Window:
+        """Snapshot of the period since the last call; starts the next period."""
+        with self._lock:
+            now = time.monotonic()
+            t, m = self.totals, self._mark
+            w = Window(now - self._start, Totals(**vars(t)), t.received - m.received, t.published - m.published,
+                       t.dropped - m.dropped, t.rejected - m.rejected, t.errors - m.errors, self._solve,
+                       self._overhead, self._summary, self.last_reset, self.last_rejection, self.last_error,
+                       None if self._last_input is None else now - self._last_input)
+            self._start, self._mark, self._solve, self._overhead = now, Totals(**vars(t)), [], []
+            return w
+
+
+def level_of(w: Window, ready: bool) -> tuple[int, str]:
+    """Level and reason: ERROR if the engine failed or every frame of the period was rejected; WARN while
+    warming up, without input for 3 periods, with rejections, or dropping more than half the frames."""
+    if w.errors:
+        return ERROR, f"engine failed on {w.errors} frame(s): {w.last_error}"
+    if w.rejected and w.rejected >= w.received:
+        return ERROR, f"all {w.rejected} frame(s) rejected: {w.last_rejection}"
+    if not ready:
+        return WARN, "warming up the engine"
+    if w.since_input is None:
+        return WARN, "no image received yet"
+    if w.since_input > 3 * max(w.seconds, 1e-3):
+        return WARN, f"no image for {w.since_input:.1f} s"
+    if w.rejected:
+        return WARN, f"{w.rejected} frame(s) rejected: {w.last_rejection}"
+    if w.received and w.dropped > w.received / 2:
+        return WARN, f"solver too slow: dropped {w.dropped} of {w.received} frames"
+    return OK, "computing flow"
+
+
+def _ms(values: list[float], fn: str) -> str:
+    if not values:
+        return "n/a"
+    v = sum(values) / len(values) if fn == "mean" else max(values)
+    return f"{1000.0 * v:.2f}"
+
+
+def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str, model: str,
+           input_scale: float, resolution: str) -> DiagnosticStatus:
+    """The DiagnosticStatus for one period (name is "<node name>: <task>", as diagnostic_updater does)."""
+    level, message = level_of(w, ready)
+    period = max(w.seconds, 1e-9)
+    s = w.summary
+    pairs = [
+        ("input rate (Hz)", f"{w.received / period:.2f}"),
+        ("output rate (Hz)", f"{w.published / period:.2f}"),
+        ("solve time mean (ms)", _ms(w.solve_times, "mean")),
+        ("solve time max (ms)", _ms(w.solve_times, "max")),
+        ("node overhead mean (ms)", _ms(w.overheads, "mean")),
+        ("flow magnitude mean (px)", "n/a" if s is None else f"{s.mean:.3f}"),
+        ("flow magnitude p95 (px)", "n/a" if s is None else f"{s.p95:.3f}"),
+        ("flow magnitude max (px)", "n/a" if s is None else f"{s.max:.3f}"),
+        ("frames received", str(w.totals.received)),
+        ("frames published", str(w.totals.published)),
+        ("frames dropped", str(w.totals.dropped)),
+        ("frames rejected", str(w.totals.rejected)),
+        ("engine errors", str(w.totals.errors)),
+        ("resets", str(w.totals.resets)),
+        ("last reset", w.last_reset or "none"),
+        ("last rejection", w.last_rejection or "none"),
+        ("backend", backend),
+        ("model", model),
+        ("input scale", f"{input_scale:g}"),
+        ("resolution", resolution),
+    ]
+    return DiagnosticStatus(level=level, name=name, message=message, hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=v) for k, v in pairs])
+
+
+def array(stamp: object, statuses: list[DiagnosticStatus]) -> DiagnosticArray:
+    msg = DiagnosticArray(status=statuses)
+    msg.header.stamp = stamp
+    return msg

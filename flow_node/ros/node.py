@@ -1,0 +1,280 @@
+"""The flow_node ROS 2 node: wires topics, parameters, a service and diagnostics to the pipeline.
+
+Threading: the subscription callback (executor) only drops the message into a one-slot mailbox (latest
+wins; a replaced message is counted as dropped) and returns. A dedicated worker thread takes the newest
+message, decodes it, runs :class:`~flow_node.pipeline.stream.FlowStream` and publishes. The executor thus
+never runs a solve, so parameter services, ``~/reset`` and diagnostics answer while a frame is being
+solved, and memory is bounded by two images (the one solving and the one waiting).
+"""
+
+from __future__ import annotations
+
+import array
+import threading
+import time
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from rclpy.qos_overriding_options import QoSOverridingOptions
+from sensor_msgs.msg import CompressedImage, Image
+from std_msgs.msg import Header
+from std_srvs.srv import Trigger
+
+from ..core.errors import ConfigError, FlowError, InputError
+from ..pipeline.codec import array_to_image_fields, decode
+from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
+from . import diagnostics
+from .params import ParamSpec, coerce, param_specs, preset_values, settings_from_values
+
+_TYPES = {bool: Parameter.Type.BOOL, int: Parameter.Type.INTEGER, float: Parameter.Type.DOUBLE,
+          str: Parameter.Type.STRING}
+
+
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """ROS descriptor of a parameter: type, description, choices, Integer/FloatingPointRange, read_only."""
+    d = ParameterDescriptor(name=spec.name, type=_TYPES[spec.type].value, description=spec.description,
+                            read_only=spec.read_only)
+    if spec.choices is not None:
+        d.additional_constraints = "one of: " + ", ".join(repr(c) for c in spec.choices)
+    if spec.lo is not None and spec.hi is not None:
+        if spec.type is float:
+            d.floating_point_range = [FloatingPointRange(from_value=float(spec.lo), to_value=float(spec.hi),
+                                                         step=0.0)]
+        elif spec.type is int and spec.choices is None:
+            d.integer_range = [IntegerRange(from_value=int(spec.lo), to_value=int(spec.hi), step=1)]
+    return d
+
+
+def image_msg(header: Header, fields: dict[str, Any]) -> Image:
+    """An rclpy Image from a header and :func:`array_to_image_fields` output."""
+    msg = Image(header=header, height=fields["height"], width=fields["width"], encoding=fields["encoding"],
+                is_bigendian=fields["is_bigendian"], step=fields["step"])
+    data = array.array("B")
+    data.frombytes(fields["data"])
+    msg.data = data
+    return msg
+
+
+def stamp_ns(header: Header) -> int:
+    return header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+
+
+class Mailbox:
+    """A one-slot queue: ``put`` replaces what is waiting (returns True if it did), ``take`` blocks."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._item: Any = None
+        self._closed = False
+
+    def put(self, item: Any) -> bool:
+        with self._cond:
+            replaced = self._item is not None
+            self._item = item
+            self._cond.notify()
+            return replaced
+
+    def take(self) -> Any:
+        """The waiting item, or None once closed."""
+        with self._cond:
+            while self._item is None and not self._closed:
+                self._cond.wait()
+            item, self._item = self._item, None
+            return None if self._closed else item
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+
+class FlowNode(Node):
+    """Optical flow between consecutive frames of ``image``; see docs/node.md for the interface."""
+
+    def __init__(self, node_name: str = "flow_node", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self._specs = {s.name: s for s in param_specs()}
+        self._declare_parameters()
+        settings = settings_from_values(self._values())  # raises ConfigError for a bad params file
+        self._stream = FlowStream(settings)
+        self._stats = diagnostics.NodeStats()
+        self._mailbox = Mailbox()
+        self._ready = threading.Event()
+        self._resolution = "none yet"
+        self._frame_id = ""
+
+        self._pub_flow = self.create_publisher(Image, "~/flow", 1)
+        self._pub_mag = self.create_publisher(Image, "~/magnitude", 1)
+        self._pub_color = self.create_publisher(Image, "~/flow_color", 1)
+        self._pub_diag = self.create_publisher(diagnostics.DiagnosticArray, "/diagnostics", 10)
+        qos = QoSProfile(**{k: getattr(qos_profile_sensor_data, k) for k in ("reliability", "durability",
+                                                                           "history")}, depth=1)
+        overrides = QoSOverridingOptions.with_default_policies()
+        if self.get_parameter("use_compressed").value:
+            topic = self.resolve_topic_name("image") + "/compressed"
+            self._sub = self.create_subscription(CompressedImage, topic, self._on_image, qos,
+                                                 qos_overriding_options=overrides)
+        else:
+            self._sub = self.create_subscription(Image, "image", self._on_image, qos,
+                                                 qos_overriding_options=overrides)
+        self._srv_reset = self.create_service(Trigger, "~/reset", self._on_reset)
+        self.add_pre_set_parameters_callback(self._expand_preset)
+        self.add_on_set_parameters_callback(self._validate)
+        self.add_post_set_parameters_callback(self._apply)
+        self._diag_timer = self.create_timer(self.get_parameter("diagnostics_period").value, self._publish_diagnostics)
+        self._worker = threading.Thread(target=self._run, name=f"{node_name}_worker", daemon=True)
+        self._worker.start()
+        self.get_logger().info(f"subscribed to {self._sub.topic_name}; model {settings.config.model}, "
+                               f"backend {self._stream.backend}")
+
+    # ------------------------------------------------------------------------------------------ parameters
+    def _declare_parameters(self) -> None:
+        """Declare ``preset`` first; its values (if any) become the defaults of the other parameters, so a
+        params file with ``preset: realtime`` and ``iterations: 20`` means realtime with 20 iterations."""
+        preset = self.declare_parameter("preset", "", descriptor(self._specs["preset"])).value
+        try:
+            base = preset_values(preset) if preset else {}
+        except ConfigError as exc:
+            raise ConfigError(f"parameter {exc}") from None
+        for name, spec in self._specs.items():
+            if name != "preset":
+                self.declare_parameter(name, base.get(name, spec.default), descriptor(spec))
+
+    def _values(self, changes: list[Parameter] | None = None) -> dict[str, Any]:
+        """Current values of our parameters with ``changes`` laid over them."""
+        values = {name: self.get_parameter(name).value for name in self._specs}
+        for p in changes or []:
+            if p.name in self._specs:
+                values[p.name] = p.value
+        return values
+
+    def _expand_preset(self, params: list[Parameter]) -> list[Parameter]:
+        """Pre-set callback: setting ``preset`` also sets its group (values given in the same call win)."""
+        names = {p.name for p in params}
+        out = list(params)
+        for p in params:
+            if p.name == "preset" and p.value and isinstance(p.value, str):
+                try:
+                    group = preset_values(p.value)
+                except ConfigError:
+                    continue  # _validate rejects it with the reason
+                out += [Parameter(k, value=coerce(self._specs[k], v)) for k, v in group.items() if k not in names]
+        return out
+
+    def _validate(self, params: list[Parameter]) -> SetParametersResult:
+        """On-set callback: the whole would-be configuration must be valid, else nothing changes."""
+        try:
+            settings_from_values(self._values(params))
+        except ConfigError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply(self, params: list[Parameter]) -> None:
+        """Post-set callback: the stream picks the new settings up on the next frame."""
+        if any(p.name in self._specs for p in params):
+            s = settings_from_values(self._values())
+            self._stream.update(s.config, s.input_scale, s.color_max_flow)
+            self.get_logger().info("parameters changed: " + ", ".join(f"{p.name}={p.value!r}" for p in params))
+
+    @property
+    def settings(self) -> StreamSettings:
+        return self._stream.settings
+
+    # ------------------------------------------------------------------------------------------ callbacks
+    def _on_image(self, msg: Image | CompressedImage) -> None:
+        """Subscription callback: never blocks; the newest frame replaces a waiting one."""
+        self._stats.received(self._mailbox.put(msg))
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        self._stream.reset()
+        response.success, response.message = True, "previous frame dropped; the next frame starts a new pair"
+        return response
+
+    def _publish_diagnostics(self) -> None:
+        w = self._stats.window()
+        hw = self.get_parameter("hardware_id").value or self._frame_id or "unknown"
+        s = self._stream.settings
+        st = diagnostics.status(w, name=f"{self.get_name()}: optical flow", hardware_id=hw,
+                                ready=self._ready.is_set(), backend=self._stream.backend, model=s.config.model,
+                                input_scale=s.input_scale, resolution=self._resolution)
+        self._pub_diag.publish(diagnostics.array(self.get_clock().now().to_msg(), [st]))
+
+    # ------------------------------------------------------------------------------------------ worker
+    def _run(self) -> None:
+        if self.get_parameter("warmup").value:
+            seconds = self._stream.warmup()
+            self.get_logger().info(f"engine warm-up ({self._stream.backend}) took {seconds:.2f} s")
+        self._ready.set()
+        while (msg := self._mailbox.take()) is not None:
+            try:
+                self._handle(msg)
+            except Exception as exc:  # the node never dies on a frame; report and go on
+                self._stats.error(f"{type(exc).__name__}: {exc}")
+                self.get_logger().error(f"frame failed: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+
+    @property
+    def ready(self) -> bool:
+        """True once the warm-up is done and frames are being processed."""
+        return self._ready.is_set()
+
+    def _handle(self, msg: Image | CompressedImage) -> None:
+        start = time.perf_counter()
+        try:
+            frame, label = decode(msg)
+            self._frame_id = msg.header.frame_id
+            out = self._stream.process(frame, stamp_ns(msg.header), label)
+        except InputError as exc:
+            self._stats.rejected(str(exc))
+            self.get_logger().warning(f"image rejected: {exc}", throttle_duration_sec=5.0)
+            return
+        if out is None:
+            self._stats.reset(self._stream.last_reset_reason)
+            self.get_logger().info(f"new pair started: {self._stream.last_reset_reason}")
+            return
+        self._resolution = f"{out.flow.shape[1]}x{out.flow.shape[0]}"
+        self._publish(msg.header, out)
+        self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, out.summary)
+
+    def _publish(self, header: Header, out: FlowOutput) -> None:
+        """Flow, magnitude and (only if someone listens) colour, all with the new frame's header."""
+        self._pub_flow.publish(image_msg(header, array_to_image_fields(out.flow, "32FC2")))
+        self._pub_mag.publish(image_msg(header, array_to_image_fields(out.magnitude, "32FC1")))
+        if self._pub_color.get_subscription_count() > 0:
+            self._pub_color.publish(image_msg(header, array_to_image_fields(out.color(), "bgr8")))
+
+    def destroy_node(self) -> None:
+        """Stop the worker (after the frame it is solving) and destroy the node."""
+        self._mailbox.close()
+        if self._worker.is_alive() and threading.current_thread() is not self._worker:
+            self._worker.join(timeout=30.0)
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run flow_node flow_node`` / ``python -m flow_node.ros.node``."""
+    rclpy.init(args=args)
+    node: FlowNode | None = None
+    code = 0
+    try:
+        node = FlowNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (FlowError, ParameterException) as exc:
+        rclpy.logging.get_logger("flow_node").fatal(f"cannot start: {exc}")
+        code = 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,137 @@
+"""The node's ROS parameters: one table built from FlowConfig's field metadata plus a few node-only entries.
+
+Descriptors (description, ranges, read_only), the validation of a would-be parameter set, the expansion of
+``preset`` into its group of values and the YAML files in config/ are all derived from :func:`param_specs`,
+so defaults and ranges are never written twice. ``python -m flow_node.ros.params [PRESET]`` prints the
+parameter file (``config/flow_node.yaml`` without a preset, ``config/<preset>.yaml`` with one).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from ..core.config import PRESETS, FlowConfig, field_names, fields_info
+from ..core.errors import ConfigError
+from ..pipeline.stream import COLOR_MAX_FLOW_RANGE, INPUT_SCALE_RANGE, StreamSettings
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One ROS parameter: name, Python type (bool/int/float/str), default, description, range or choices."""
+
+    name: str
+    type: type
+    default: Any
+    description: str
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple[Any, ...] | None = None
+    read_only: bool = False
+
+
+# Engine fields that cannot change while running: a backend/thread switch re-selects (and may JIT-compile)
+# the solver mid-stream, and numba's thread pool size is fixed once started.
+READ_ONLY_FIELDS = frozenset({"backend", "threads"})
+
+
+def param_specs() -> list[ParamSpec]:
+    """Every parameter of the node, engine fields first (in FlowConfig order), then node-only ones."""
+    defaults = StreamSettings()
+    specs = [ParamSpec("preset", str, "", "named group of engine settings applied when set: "
+                       + ", ".join(PRESETS) + " ('' = none); explicit values set together with it win",
+                       choices=("",) + tuple(PRESETS))]
+    for f in fields_info():
+        specs.append(ParamSpec(f.name, f.type, f.default, f.help, f.lo, f.hi, f.choices,
+                               f.name in READ_ONLY_FIELDS))
+    specs += [
+        ParamSpec("input_scale", float, defaults.input_scale,
+                  "process frames shrunk by this factor; flow is published at that resolution, in pixels of the "
+                  "shrunk image (multiply by 1/input_scale for full-resolution pixels)", *INPUT_SCALE_RANGE),
+        ParamSpec("color_max_flow", float, defaults.color_max_flow,
+                  "flow length (px/frame) drawn at full saturation in ~/flow_color; 0 = each frame's maximum",
+                  *COLOR_MAX_FLOW_RANGE),
+        ParamSpec("use_compressed", bool, False, "subscribe to <image>/compressed (sensor_msgs/CompressedImage, "
+                  "decoded with OpenCV) instead of image", read_only=True),
+        ParamSpec("diagnostics_period", float, 1.0, "seconds between /diagnostics messages", 0.05, 60.0,
+                  read_only=True),
+        ParamSpec("hardware_id", str, "", "hardware_id in diagnostics ('' = frame_id of the input images)",
+                  read_only=True),
+        ParamSpec("warmup", bool, True, "run one small solve at start-up so the first frame is not a JIT "
+                  "compile", read_only=True),
+    ]
+    return specs
+
+
+def specs_by_name() -> dict[str, ParamSpec]:
+    return {s.name: s for s in param_specs()}
+
+
+def coerce(spec: ParamSpec, value: Any) -> Any:
+    """``value`` as the parameter's type where that is lossless (int -> float for doubles)."""
+    if spec.type is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    return value
+
+
+def settings_from_values(values: Mapping[str, Any]) -> StreamSettings:
+    """Validate a complete would-be parameter set; returns the stream settings or raises ConfigError.
+
+    ``values`` maps parameter names to values (unknown names are ignored: QoS overrides, use_sim_time).
+    ``preset`` is NOT applied here (it was expanded into its values when it was set).
+    """
+    preset = values.get("preset", "")
+    if preset not in specs_by_name()["preset"].choices:
+        raise ConfigError(f"preset: {preset!r} is not one of {', '.join(PRESETS)} (or '')")
+    cfg = FlowConfig.from_mapping({k: values[k] for k in field_names() if k in values})
+    return StreamSettings(cfg, input_scale=values.get("input_scale", StreamSettings().input_scale),
+                          color_max_flow=values.get("color_max_flow", StreamSettings().color_max_flow))
+
+
+def preset_values(name: str) -> dict[str, Any]:
+    """The parameter values a preset sets (its group only), typed per parameter; ConfigError if unknown."""
+    if name not in PRESETS:
+        raise ConfigError(f"preset: {name!r} is not one of {', '.join(PRESETS)} (or '')")
+    specs = specs_by_name()
+    return {k: coerce(specs[k], v) for k, v in PRESETS[name].items()}
+
+
+def _yaml_value(value: Any) -> str:
+    """A YAML scalar that keeps the ROS type: doubles always with a decimal point or exponent."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        text = repr(value)
+        return text if any(c in text for c in ".en") else text + ".0"
+    if isinstance(value, str):
+        return f'"{value}"'
+    return str(value)
+
+
+def render_yaml(preset: str | None = None) -> str:
+    """The ROS parameter file: every parameter with its default, or ``preset`` and the values it sets."""
+    lines = ["# Generated by `python -m flow_node.ros.params"
+             + (f" {preset}`" if preset else "`") + "; test_node_params checks it stays in sync.",
+             "# Parameters of the flow_node node (any node name: /**). See docs/node.md.",
+             "/**:", "  ros__parameters:"]
+    if preset:
+        lines.append(f"    preset: {_yaml_value(preset)}")
+        for k, v in preset_values(preset).items():
+            lines.append(f"    {k}: {_yaml_value(v)}")
+    else:
+        for s in param_specs():
+            lines.append(f"    # {s.description}" + (" (read-only)" if s.read_only else ""))
+            lines.append(f"    {s.name}: {_yaml_value(s.default)}")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    sys.stdout.write(render_yaml(args[0] if args else None))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
