@@ -55,8 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--params", metavar="FILE.yaml", help="YAML parameters (plain or ROS params file)")
     e.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override one parameter; repeatable")
-    e.add_argument("--max-flow", type=float, default=0.0,
-                   help="colour scale in px for flow_color and PNGs (0 = each frame's maximum)")
+    e.add_argument("--max-flow", type=float, default=None,
+                   help="colour scale in px for flow_color and PNGs (0 = each frame's maximum; "
+                   "default: the node's color_max_flow default)")
     e.add_argument("--png-frames", default="auto",
                    help="frames to draw as PNG: comma-separated indices, 'all', 'none', or 'auto'")
     e.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
