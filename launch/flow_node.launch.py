@@ -1,0 +1,38 @@
+"""Launch flow_node with an input remapping and a parameter file.
+
+    ros2 launch flow_node flow_node.launch.py image:=/camera/image_raw params_file:=/path/to/realtime.yaml
+
+Arguments: ``image`` (input topic, default /image), ``params_file`` (default the package's
+config/flow_node.yaml), ``namespace`` (default empty), ``node_name`` (default flow_node), ``log_level``.
+"""
+
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch_ros.actions import Node
+from launch_ros.substitutions import FindPackageShare
+
+from launch import LaunchDescription
+
+
+def generate_launch_description() -> LaunchDescription:
+    default_params = PathJoinSubstitution([FindPackageShare("flow_node"), "config", "flow_node.yaml"])
+    return LaunchDescription([
+        DeclareLaunchArgument("image", default_value="/image", description="input sensor_msgs/Image topic"),
+        DeclareLaunchArgument("params_file", default_value=default_params,
+                              description="ROS parameter file (see config/*.yaml)"),
+        DeclareLaunchArgument("namespace", default_value="", description="namespace of the node"),
+        DeclareLaunchArgument("node_name", default_value="flow_node", description="name of the node"),
+        DeclareLaunchArgument("log_level", default_value="info", description="logging level"),
+        Node(
+            package="flow_node",
+            executable="flow_node",
+            name=LaunchConfiguration("node_name"),
+            namespace=LaunchConfiguration("namespace"),
+            parameters=[LaunchConfiguration("params_file")],
+            remappings=[("image", LaunchConfiguration("image")),
+                        ("image/compressed", [LaunchConfiguration("image"), "/compressed"])],
+            arguments=["--ros-args", "--log-level", LaunchConfiguration("log_level")],
+            output="screen",
+            emulate_tty=True,
+        ),
+    ])

@@ -1,0 +1,180 @@
+"""The node over real DDS: outputs, encodings, bad images, resets, diagnostics, compressed input.
+
+Frames of a known constant motion (1.5, -0.75) px at 80x60; the engine runs the realtime preset on the
+numpy backend, so every number here is deterministic. AEE bounds are stated per test (measured ~0.06-0.1).
+"""
+
+from __future__ import annotations
+
+import array
+
+import cv2
+import numpy as np
+import pytest
+from ros_helpers import FRAME_ID, GT, I0, I1, H, Harness, W, call, image, mono8, set_stamp, wait_for
+from sensor_msgs.msg import CompressedImage, Image
+from std_srvs.srv import Trigger
+
+from flow_node.core.metrics import aee
+from flow_node.pipeline.codec import image_to_array
+
+AEE_BOUND = 0.25  # px; the same pair through the pipeline directly gives 0.06
+
+
+@pytest.fixture
+def harness(request: pytest.FixtureRequest) -> Harness:
+    h = Harness(f"/t_{request.node.name.replace('[', '_').replace(']', '').replace('-', '_')}",
+                name=f"flow_{abs(hash(request.node.name)) % 10000}")
+    yield h
+    h.close()
+
+
+def test_known_motion_outputs_with_new_frame_header(harness: Harness) -> None:
+    stamp0, stamp1 = 1_700_000_000_000_000_000, 1_700_000_000_033_000_000
+    flow_msg = harness.send_pair(image(mono8(I0), "mono8", stamp0), image(mono8(I1), "mono8", stamp1))
+    assert (flow_msg.encoding, flow_msg.height, flow_msg.width, flow_msg.step) == ("32FC2", H, W, W * 8)
+    assert (flow_msg.header.stamp.sec, flow_msg.header.stamp.nanosec) == divmod(stamp1, 1_000_000_000)
+    assert flow_msg.header.frame_id == FRAME_ID
+    flow = image_to_array(flow_msg)
+    assert aee(flow, GT) < AEE_BOUND
+    wait_for(lambda: harness.count("magnitude") and harness.count("flow_color"), 5.0, "magnitude and colour")
+    mag_msg, col_msg = harness.last("magnitude"), harness.last("flow_color")
+    assert (mag_msg.encoding, col_msg.encoding) == ("32FC1", "bgr8")
+    assert mag_msg.header.stamp == flow_msg.header.stamp == col_msg.header.stamp
+    np.testing.assert_allclose(image_to_array(mag_msg), np.hypot(flow[..., 0], flow[..., 1]), rtol=1e-5)
+    col = image_to_array(col_msg)  # decoded to RGB
+    assert col.shape == (H, W, 3) and col.dtype == np.uint8
+    assert col[10:50, 10:70, 0].mean() > col[10:50, 10:70, 2].mean()  # rightward motion is red-ish
+
+
+def bayer_rggb(grey: np.ndarray) -> np.ndarray:
+    """A grey image seen through an RGGB mosaic is the grey image itself."""
+    return mono8(grey)
+
+
+def yuv422(grey: np.ndarray) -> np.ndarray:
+    """UYVY pairs with neutral chroma (128) and luma = the grey image."""
+    out = np.full((grey.shape[0], grey.shape[1], 2), 128, np.uint8)
+    out[..., 1] = mono8(grey)
+    return out
+
+
+ENCODED = {
+    "mono16": lambda g: (np.clip(g, 0, 1) * 65535).round().astype(np.uint16),
+    "32FC1": lambda g: g.astype(np.float32),
+    "rgb8": lambda g: np.repeat(mono8(g)[..., None], 3, axis=2),
+    "bgra8": lambda g: np.concatenate([np.repeat(mono8(g)[..., None], 3, axis=2),
+                                       np.full(g.shape + (1,), 255, np.uint8)], axis=2),
+}
+
+
+def raw_image(payload: np.ndarray, encoding: str, step: int, stamp_ns: int, big: bool = False) -> Image:
+    msg = Image(height=H, width=W, encoding=encoding, is_bigendian=int(big), step=step)
+    msg.data = array.array("B", np.ascontiguousarray(payload).tobytes())
+    set_stamp(msg, stamp_ns)
+    return msg
+
+
+def test_encodings_through_dds_each_reset_on_change(harness: Harness) -> None:
+    stamp = 10_000
+    cases: list[tuple[str, Image, Image]] = []
+    for enc, fn in ENCODED.items():
+        cases.append((enc, image(fn(I0), enc, stamp), image(fn(I1), enc, stamp + 1)))
+        stamp += 2
+    # big-endian mono16 with 6 bytes of row padding
+    msgs = []
+    for k, g in enumerate((I0, I1)):
+        be = (np.clip(g, 0, 1) * 65535).round().astype(">u2").view(np.uint8).reshape(H, -1)
+        msgs.append(raw_image(np.pad(be, ((0, 0), (0, 6)), constant_values=0xEE), "mono16", W * 2 + 6,
+                              stamp + k, big=True))
+    cases.append(("mono16 big-endian padded", *msgs))
+    stamp += 2
+    cases.append(("bayer_rggb8", raw_image(bayer_rggb(I0), "bayer_rggb8", W, stamp),
+                  raw_image(bayer_rggb(I1), "bayer_rggb8", W, stamp + 1)))
+    cases.append(("yuv422", raw_image(yuv422(I0), "yuv422", 2 * W, stamp + 2),
+                  raw_image(yuv422(I1), "yuv422", 2 * W, stamp + 3)))
+    resets = harness.totals.resets
+    for name, f0, f1 in cases:
+        flow = image_to_array(harness.send_pair(f0, f1))
+        assert aee(flow, GT) < AEE_BOUND, name
+    # each case's first frame has another encoding than the frame before it: one reset per case
+    assert harness.totals.resets - resets == len(cases)
+
+
+def test_bad_image_rejected_next_good_processed_and_reported(harness: Harness) -> None:
+    good0 = image(mono8(I0), "mono8", 100)
+    harness.send_frame(good0)
+    bad = raw_image(np.zeros(H * (W - 1), np.uint8), "mono8", W - 1, 101)  # step < width
+    harness.send_frame(bad)
+    unsupported = raw_image(np.zeros(H * W, np.uint8), "nv21", W, 102)
+    harness.send_frame(unsupported)
+    assert harness.totals.rejected == 2
+    # the previous good frame is kept: the next good one pairs with it
+    n = harness.count("flow")
+    harness.send_frame(image(mono8(I1), "mono8", 103))
+    wait_for(lambda: harness.count("flow") > n, 5.0, "flow after the bad images")
+    assert aee(image_to_array(harness.last("flow")), GT) < AEE_BOUND
+    st = wait_for(lambda: harness.count("diagnostics") and harness.last("diagnostics"), 5.0, "diagnostics")
+    values = {kv.key: kv.value for kv in st.values}
+    assert values["frames rejected"] == "2"
+    assert "nv21" in values["last rejection"]
+
+
+def test_resets_on_stamp_back_size_change_and_service(harness: Harness) -> None:
+    harness.send_pair(image(mono8(I0), "mono8", 5_000), image(mono8(I1), "mono8", 6_000))
+    published, resets = harness.totals.published, harness.totals.resets
+    harness.send_frame(image(mono8(I0), "mono8", 1_000))  # stamp went back: a looping bag
+    assert harness.totals.resets == resets + 1 and harness.totals.published == published
+    assert harness.node._stream.last_reset_reason.startswith("stamp went back")
+    harness.send_frame(image(mono8(I1[:40, :60]), "mono8", 2_000))  # size changed
+    assert harness.totals.resets == resets + 2
+    assert harness.node._stream.last_reset_reason.startswith("size changed")
+    cli = harness.client.create_client(Trigger, f"{harness.full_name}/reset")
+    assert cli.wait_for_service(timeout_sec=5.0)
+    res = call(cli, Trigger.Request())
+    assert res.success
+    harness.send_frame(image(mono8(I0[:40, :60]), "mono8", 3_000))
+    assert harness.totals.resets == resets + 3 and harness.totals.published == published
+    assert harness.node._stream.last_reset_reason == "reset requested"
+    # after the reset the next frame pairs again
+    flow = image_to_array(harness.send_pair(image(mono8(I0), "mono8", 4_000), image(mono8(I1), "mono8", 4_100)))
+    assert aee(flow, GT) < AEE_BOUND
+
+
+def test_diagnostics_report_state(harness: Harness) -> None:
+    harness.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2))
+    n = harness.count("diagnostics")
+    st = wait_for(lambda: harness.count("diagnostics") > n and harness.last("diagnostics"), 5.0, "diagnostics")
+    values = {kv.key: kv.value for kv in st.values}
+    assert st.hardware_id == FRAME_ID
+    assert values["backend"] == "numpy" and values["model"] == "l1_tv"
+    assert values["frames published"] == "1" and values["frames rejected"] == "0"
+    assert values["resolution"] == f"{W}x{H}"
+    for key in ("input rate (Hz)", "output rate (Hz)", "solve time mean (ms)", "solve time max (ms)",
+                "flow magnitude mean (px)", "flow magnitude p95 (px)", "flow magnitude max (px)",
+                "frames dropped"):
+        assert key in values
+    assert abs(float(values["flow magnitude mean (px)"]) - np.hypot(1.5, 0.75)) < 0.3
+    assert float(values["flow magnitude max (px)"]) >= float(values["flow magnitude p95 (px)"])
+    # no input for a while -> WARN with the reason
+    st = wait_for(lambda: [s for _, s in harness.received["diagnostics"][n:] if s.message.startswith("no image")],
+                  8.0, "stale-input warning")[-1]
+    assert st.level == st.WARN
+
+
+def test_compressed_input() -> None:
+    h = Harness("/t_compressed", {"use_compressed": True}, name="flow_cmp", color=False)
+    try:
+        msgs = []
+        for k, g in enumerate((I0, I1)):
+            ok, buf = cv2.imencode(".png", mono8(g))
+            msg = CompressedImage(format="png")
+            msg.data = array.array("B", buf.tobytes())
+            set_stamp(msg, 77 + k)
+            msgs.append(msg)
+        flow = image_to_array(h.send_pair(*msgs))
+        assert aee(flow, GT) < AEE_BOUND
+        assert h.node._sub.topic_name == "/t_compressed/image/compressed"
+        assert h.count("flow_color") == 0  # nobody subscribed: never computed nor published
+    finally:
+        h.close()

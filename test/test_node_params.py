@@ -1,0 +1,217 @@
+"""Node parameters: descriptors, SetParameters accept/reject with reasons, presets, params files, YAML sync,
+the launch file, and the executable's start-up/shutdown as a subprocess."""
+
+from __future__ import annotations
+
+import ast
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParametersAtomically
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter, parameter_value_to_python
+from ros_helpers import GT, I0, I1, Harness, call, image, mono8
+from sensor_msgs.msg import Image
+
+from flow_node.core.config import PRESETS, FlowConfig, fields_info
+from flow_node.core.errors import ConfigError
+from flow_node.core.metrics import aee
+from flow_node.pipeline.codec import image_to_array
+from flow_node.ros.params import param_specs, render_yaml, settings_from_values
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def harness() -> Harness:
+    h = Harness("/t_params", name="flow_params")
+    yield h
+    h.close()
+
+
+def get_values(h: Harness, names: list[str]) -> dict[str, object]:
+    cli = h.client.create_client(GetParameters, f"{h.full_name}/get_parameters")
+    assert cli.wait_for_service(timeout_sec=5.0)
+    res = call(cli, GetParameters.Request(names=names))
+    h.client.destroy_client(cli)
+    return {n: parameter_value_to_python(v) for n, v in zip(names, res.values, strict=True)}
+
+
+def test_valid_change_applies_on_next_frame(harness: Harness) -> None:
+    flow = image_to_array(harness.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2)))
+    assert flow.shape == (60, 80, 2)
+    results = harness.set_params(input_scale=0.5, alpha=0.03)
+    assert all(r.successful for r in results), [r.reason for r in results]
+    flow = image_to_array(harness.send_pair(image(mono8(I0), "mono8", 3), image(mono8(I1), "mono8", 4)))
+    assert flow.shape == (30, 40, 2)  # published at the processing resolution, vectors in its pixels
+    assert aee(flow, GT[::2, ::2] * 0.5) < 0.3
+    assert harness.node.settings.config.alpha == 0.03
+
+
+def test_preset_sets_its_group(harness: Harness) -> None:
+    results = harness.set_params(preset="quality", alpha=0.04)  # explicit value in the same request wins
+    assert all(r.successful for r in results), [r.reason for r in results]
+    values = get_values(harness, ["preset", "iterations", "warps", "levels", "gradient_scheme", "alpha"])
+    q = PRESETS["quality"]
+    assert values == {"preset": "quality", "iterations": q["iterations"], "warps": q["warps"],
+                      "levels": q["levels"], "gradient_scheme": q["gradient_scheme"], "alpha": 0.04}
+    harness.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2))
+    assert harness.node.settings.config == FlowConfig.preset("quality").replace(backend="numpy", alpha=0.04)
+
+
+@pytest.mark.parametrize("name,value,reason", [
+    ("alpha", 0.0, "alpha: must be > 0"),             # inside the descriptor range, caught by FlowConfig
+    ("alpha", -1.0, "range"),                         # outside the descriptor range (rclpy)
+    ("model", "horn", "model: 'horn' is not one of"),
+    ("median_filter", 4, "median_filter: 4 is not one of"),
+    ("preset", "fastest-ever", "preset"),
+    ("input_scale", 1.5, "range"),
+    ("backend", "numba", "read-only"),
+    ("iterations", 2.5, "type"),
+])
+def test_invalid_values_rejected_with_reason(harness: Harness, name: str, value: object, reason: str) -> None:
+    before = harness.node.settings
+    (result,) = harness.set_params(**{name: value})
+    assert not result.successful and reason in result.reason
+    assert harness.node.get_parameter(name).value != value
+    assert harness.node._stream.update() == before  # nothing was scheduled
+
+
+def test_invalid_combination_rejected_atomically(harness: Harness) -> None:
+    cli = harness.client.create_client(SetParametersAtomically, f"{harness.full_name}/set_parameters_atomically")
+    assert cli.wait_for_service(timeout_sec=5.0)
+    req = SetParametersAtomically.Request(parameters=[Parameter("model", value="l1_tv_l2").to_parameter_msg(),
+                                                      Parameter("alpha1", value=0.0).to_parameter_msg()])
+    res = call(cli, req).result
+    assert not res.successful and "alpha1 must be > 0 for model 'l1_tv_l2'" in res.reason
+    assert harness.node.get_parameter("model").value == "l1_tv"
+    # each alone is fine
+    req.parameters = req.parameters[:1]
+    assert call(cli, req).result.successful
+
+
+def test_descriptors_come_from_the_config_table(harness: Harness) -> None:
+    names = [s.name for s in param_specs()]
+    cli = harness.client.create_client(DescribeParameters, f"{harness.full_name}/describe_parameters")
+    assert cli.wait_for_service(timeout_sec=5.0)
+    desc = {d.name: d for d in call(cli, DescribeParameters.Request(names=names)).descriptors}
+    for f in fields_info():
+        d = desc[f.name]
+        assert d.description == f.help
+        if f.type is float and f.lo is not None:
+            assert (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value) == (f.lo, f.hi)
+        if f.type is int and f.choices is None and f.lo is not None:
+            assert (d.integer_range[0].from_value, d.integer_range[0].to_value) == (f.lo, f.hi)
+    assert desc["backend"].read_only and desc["use_compressed"].read_only and not desc["alpha"].read_only
+    assert "interpolated" in desc["gradient_scheme"].additional_constraints
+
+
+def test_yaml_files_are_in_sync_and_load_as_configs() -> None:
+    assert (ROOT / "config/flow_node.yaml").read_text() == render_yaml()
+    assert FlowConfig.from_yaml(ROOT / "config/flow_node.yaml") == FlowConfig()
+    for name in PRESETS:
+        path = ROOT / f"config/{name}.yaml"
+        assert path.read_text() == render_yaml(name)
+        assert FlowConfig.from_yaml(path) == FlowConfig.preset(name)
+    text = (ROOT / "config/flow_node.yaml").read_text()
+    assert "    alpha: 0.025\n" in text and "    tolerance: 0.0\n" in text and "    level_alpha_factor: 1.0\n" in text
+
+
+def test_settings_from_values_rejects_bad_combinations() -> None:
+    with pytest.raises(ConfigError, match="alpha1"):
+        settings_from_values({"model": "l1_tv_tv", "alpha1": 0.0})
+    with pytest.raises(ConfigError, match="input_scale"):
+        settings_from_values({"input_scale": 0.0})
+    s = settings_from_values({"iterations": 7, "input_scale": 0.25, "use_sim_time": True})
+    assert (s.config.iterations, s.input_scale) == (7, 0.25)
+
+
+def test_launch_file_is_valid_python_with_the_documented_arguments() -> None:
+    src = (ROOT / "launch/flow_node.launch.py").read_text()
+    tree = ast.parse(src)
+    funcs = {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
+    assert "generate_launch_description" in funcs
+    strings = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+    assert {"image", "params_file", "flow_node", "namespace"} <= strings
+    compile(src, "flow_node.launch.py", "exec")
+
+
+def spawn(args: list[str], tmp_path: Path) -> subprocess.Popen:
+    env = dict(os.environ)
+    return subprocess.Popen([sys.executable, "-m", "flow_node.ros.node", "--ros-args", *args], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path)
+
+
+def test_params_file_honoured_end_to_end_and_sigterm_exits_cleanly(tmp_path: Path) -> None:
+    extra = tmp_path / "mine.yaml"
+    extra.write_text("/**:\n  ros__parameters:\n    iterations: 20\n    backend: numpy\n    input_scale: 0.5\n")
+    proc = spawn(["--params-file", str(ROOT / "config/realtime.yaml"), "--params-file", str(extra),
+                  "-r", "__ns:=/t_pfile"], tmp_path)
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node("pfile_client", context=ctx)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    try:
+        cli = node.create_client(GetParameters, "/t_pfile/flow_node/get_parameters")
+        assert cli.wait_for_service(timeout_sec=20.0), "node did not come up"
+        future = cli.call_async(GetParameters.Request(names=["preset", "warps", "iterations", "backend",
+                                                             "input_scale"]))
+        executor.spin_until_future_complete(future, timeout_sec=10.0)
+        got = [parameter_value_to_python(v) for v in future.result().values]
+        assert got == ["realtime", PRESETS["realtime"]["warps"], 20, "numpy", 0.5]
+        received: list[Image] = []
+        node.create_subscription(Image, "/t_pfile/flow_node/flow", received.append, 10)
+        pub = node.create_publisher(Image, "/t_pfile/image", 10)
+        end = time.monotonic() + 20.0
+        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.1)
+        pairs = [f for f in received if f.header.stamp.nanosec % 2]
+        k = 0
+        while not pairs and time.monotonic() < end:  # I0 at even stamps, I1 at odd ones, paced
+            pub.publish(image(mono8(I0 if k % 2 == 0 else I1), "mono8", 1000 + k))
+            k += 1
+            stop = time.monotonic() + 0.4
+            while time.monotonic() < stop:
+                executor.spin_once(timeout_sec=0.05)
+            pairs = [f for f in received if f.header.stamp.nanosec % 2]
+        assert pairs, "no flow from the subprocess node"
+        assert (pairs[0].height, pairs[0].width) == (30, 40)
+        assert aee(image_to_array(pairs[0]), GT[::2, ::2] * 0.5) < 0.3
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+        proc.send_signal(signal.SIGTERM)
+        out, _ = proc.communicate(timeout=20)
+    assert proc.returncode == 0, out
+    assert "Traceback" not in out
+
+
+def test_sigint_and_invalid_params_file(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("/**:\n  ros__parameters:\n    model: l1_tv_l2\n    alpha1: 0.0\n    backend: numpy\n")
+    proc = spawn(["--params-file", str(bad), "-r", "__ns:=/t_bad"], tmp_path)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 1 and "alpha1 must be > 0" in out and "Traceback" not in out
+    proc = spawn(["-p", "backend:=numpy", "-r", "__ns:=/t_sigint"], tmp_path)
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node("sigint_client", context=ctx)
+    try:
+        cli = node.create_client(GetParameters, "/t_sigint/flow_node/get_parameters")
+        assert cli.wait_for_service(timeout_sec=20.0), "node did not come up"
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=20)
+    assert proc.returncode == 0 and "Traceback" not in out, out
