@@ -66,6 +66,7 @@ class NodeStats:
     last_reset: str = ""
     last_rejection: str = ""
     last_error: str = ""
+    solve_max: float = 0.0  # longest solve since start (s)
 
     def received(self, dropped_previous: bool) -> None:
         with self._lock:
@@ -95,6 +96,7 @@ class NodeStats:
             self.totals.processed += 1
             self.totals.published += 1
             self._solve.append(solve_s)
+            self.solve_max = max(self.solve_max, solve_s)
             self._overhead.append(overhead_s)
             self._summary = summary
 
