@@ -11,6 +11,7 @@ import array
 import cv2
 import numpy as np
 import pytest
+from rclpy.qos import ReliabilityPolicy
 from ros_helpers import FRAME_ID, GT, I0, I1, H, Harness, W, call, image, mono8, set_stamp, wait_for
 from sensor_msgs.msg import CompressedImage, Image
 from std_srvs.srv import Trigger
@@ -30,6 +31,8 @@ def harness(request: pytest.FixtureRequest) -> Harness:
 
 
 def test_known_motion_outputs_with_new_frame_header(harness: Harness) -> None:
+    qos = harness.node._sub.qos_profile  # sensor-data QoS, depth 1
+    assert (qos.reliability, qos.depth) == (ReliabilityPolicy.BEST_EFFORT, 1)
     stamp0, stamp1 = 1_700_000_000_000_000_000, 1_700_000_000_033_000_000
     flow_msg = harness.send_pair(image(mono8(I0), "mono8", stamp0), image(mono8(I1), "mono8", stamp1))
     assert (flow_msg.encoding, flow_msg.height, flow_msg.width, flow_msg.step) == ("32FC2", H, W, W * 8)

@@ -18,6 +18,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.qos import ReliabilityPolicy
 from ros_helpers import GT, I0, I1, Harness, call, image, mono8
 from sensor_msgs.msg import Image
 
@@ -215,3 +216,15 @@ def test_sigint_and_invalid_params_file(tmp_path: Path) -> None:
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=20)
     assert proc.returncode == 0 and "Traceback" not in out, out
+
+
+def test_qos_override_parameters() -> None:
+    ns = "/t_qos"
+    h = Harness(ns, {f"qos_overrides.{ns}/image.subscription.reliability": "reliable",
+                     f"qos_overrides.{ns}/image.subscription.depth": 3}, name="flow_qos", color=False)
+    try:
+        qos = h.node._sub.qos_profile
+        assert (qos.reliability, qos.depth) == (ReliabilityPolicy.RELIABLE, 3)
+        assert h.node.get_parameter(f"qos_overrides.{ns}/image.subscription.history").value == "keep_last"
+    finally:
+        h.close()

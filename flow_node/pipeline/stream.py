@@ -30,7 +30,6 @@ from ..core.errors import ConfigError
 from ..core.flowio import flow_to_color
 from ..core.pyramid import SolveStats
 
-
 INPUT_SCALE_RANGE = (0.05, 1.0)
 COLOR_MAX_FLOW_RANGE = (0.0, 10000.0)
 

@@ -109,13 +109,13 @@ class FlowNode(Node):
         self._resolution = "none yet"
         self._frame_id = ""
 
-        self._pub_flow = self.create_publisher(Image, "~/flow", 1)
-        self._pub_mag = self.create_publisher(Image, "~/magnitude", 1)
-        self._pub_color = self.create_publisher(Image, "~/flow_color", 1)
+        overrides = QoSOverridingOptions.with_default_policies()
+        self._pub_flow = self.create_publisher(Image, "~/flow", 1, qos_overriding_options=overrides)
+        self._pub_mag = self.create_publisher(Image, "~/magnitude", 1, qos_overriding_options=overrides)
+        self._pub_color = self.create_publisher(Image, "~/flow_color", 1, qos_overriding_options=overrides)
         self._pub_diag = self.create_publisher(diagnostics.DiagnosticArray, "/diagnostics", 10)
         qos = QoSProfile(**{k: getattr(qos_profile_sensor_data, k) for k in ("reliability", "durability",
                                                                            "history")}, depth=1)
-        overrides = QoSOverridingOptions.with_default_policies()
         if self.get_parameter("use_compressed").value:
             topic = self.resolve_topic_name("image") + "/compressed"
             self._sub = self.create_subscription(CompressedImage, topic, self._on_image, qos,

@@ -1,0 +1,225 @@
+"""Node latency, throughput and overhead beyond the engine's solve time, over real DDS (in-process node).
+
+    .venv/bin/python -m bench.node_latency [--frames N] [--out bench/results/node_latency.json]
+
+For each size (320x240, 640x480) and preset (realtime, quality), in one run:
+
+* engine: ``FlowEstimator.estimate`` called directly on the same pair right before each node frame (the
+  peer the latency ratio refers to);
+* latency: closed loop, publish a frame -> its ~/flow message received, next frame only after that, so
+  nothing is dropped; in-node overhead = node handling time (decode, grey, magnitude, stats, serialise,
+  publish) minus the engine's solve time, measured by the node itself per frame;
+* throughput: open loop, frames published at 30 Hz for a few solve times; output rate x mean solve time
+  (the node's own solve times) is the fraction of the time the worker spends solving (1.0 = no overhead).
+
+Backend ``auto`` (numba if importable), like a default node. Frames: smooth random texture, shifted by
+(2, 1) px between frames. The machine is shared: report medians and ratios, not absolute speed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import array
+import json
+import os
+import platform
+import statistics
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Image
+
+from flow_node.core.api import FlowEstimator
+from flow_node.core.config import FlowConfig
+from flow_node.pipeline.codec import array_to_image_fields, image_to_array
+from flow_node.ros.node import FlowNode
+
+SIZES = ((240, 320), (480, 640))
+PRESETS = ("realtime", "quality")
+SHIFT = (2.0, 1.0)  # (u, v) px
+
+
+def frames(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two mono8 frames: a smooth texture and the same texture moved by SHIFT (frame1(x + SHIFT) = frame0(x))."""
+    rng = np.random.default_rng(1)
+    tex = cv2.GaussianBlur(rng.random((h, w)).astype(np.float32), (0, 0), 2.0)
+    tex = (tex - tex.min()) / (tex.max() - tex.min())
+    f0 = (tex * 255).round().astype(np.uint8)
+    f1 = np.roll(f0, (int(SHIFT[1]), int(SHIFT[0])), axis=(0, 1))
+    return f0, f1
+
+
+def image_msg(arr: np.ndarray, stamp_ns: int) -> Image:
+    f = array_to_image_fields(arr, "mono8")
+    msg = Image(height=f["height"], width=f["width"], encoding="mono8", step=f["step"])
+    msg.data = array.array("B", f["data"].tobytes())
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+    msg.header.frame_id = "bench"
+    return msg
+
+
+def interior_aee(flow: np.ndarray) -> float:
+    """AEE against SHIFT away from the wrapped borders (8 px)."""
+    inner = flow[8:-8, 8:-8]
+    return float(np.hypot(inner[..., 0] - SHIFT[0], inner[..., 1] - SHIFT[1]).mean())
+
+
+class Rig:
+    """FlowNode + a client node in a private context, spun by a 3-thread executor."""
+
+    def __init__(self, preset: str) -> None:
+        self.ctx = Context()
+        rclpy.init(context=self.ctx)
+        params = [Parameter("preset", value=preset), Parameter("diagnostics_period", value=60.0)]
+        self.node = FlowNode("flow_bench", namespace="/bench", parameter_overrides=params, context=self.ctx)
+        self.client = Node("bench_client", namespace="/bench", context=self.ctx)
+        self.pub = self.client.create_publisher(Image, "/bench/image", 10)
+        self.lock = threading.Lock()
+        self.got: list[tuple[float, Image]] = []
+        self.client.create_subscription(Image, "/bench/flow_bench/flow", self._on_flow, 10)
+        self.executor = MultiThreadedExecutor(num_threads=3, context=self.ctx)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.client)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+        self._wait(lambda: self.node.ready and self.pub.get_subscription_count() > 0
+                   and self.node._pub_flow.get_subscription_count() > 0, 120.0)
+
+    def _on_flow(self, msg: Image) -> None:
+        with self.lock:
+            self.got.append((time.perf_counter(), msg))
+
+    @staticmethod
+    def _wait(pred: Any, timeout: float) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if pred():
+                return True
+            time.sleep(0.001)
+        return False
+
+    def count(self) -> int:
+        with self.lock:
+            return len(self.got)
+
+    def closed_loop(self, f0: np.ndarray, f1: np.ndarray, n: int, timeout: float,
+                    engine: FlowEstimator) -> list[dict[str, float]]:
+        """n flows, one frame in flight at a time; per flow: latency, solve and in-node overhead (s), and the
+        engine called directly on the same pair just before (same load conditions)."""
+        out = []
+        stamp = 1
+        self.pub.publish(image_msg(f0, stamp))
+        self._wait(lambda: self.node._stats.totals.processed >= 1, timeout)
+        for k in range(n):
+            stamp += 1
+            direct = engine.estimate(f0 if k % 2 == 0 else f1, f1 if k % 2 == 0 else f0).seconds
+            before, published = self.count(), self.node._stats.totals.published
+            t0 = time.perf_counter()
+            self.pub.publish(image_msg(f1 if k % 2 == 0 else f0, stamp))
+            if not self._wait(lambda b=before, p=published: self.count() > b
+                              and self.node._stats.totals.published > p, timeout):
+                raise RuntimeError("no flow received (frame lost?)")
+            t1, msg = self.got[-1]
+            w = self.node._stats.window()
+            flow = image_to_array(msg)
+            sign = 1.0 if k % 2 == 0 else -1.0
+            out.append({"engine": direct, "latency": t1 - t0, "solve": w.solve_times[-1],
+                        "node_overhead": w.overheads[-1],
+                        "aee": interior_aee(sign * flow)})
+        return out
+
+    def open_loop(self, f0: np.ndarray, f1: np.ndarray, seconds: float, rate: float = 30.0) -> dict[str, float]:
+        """Publish at ``rate`` Hz for ``seconds``; output rate and drops."""
+        self.node._stats.window()
+        before, t = self.count(), self.node._stats.totals
+        rec0, drop0 = t.received, t.dropped
+        start = time.perf_counter()
+        k = 0
+        while time.perf_counter() - start < seconds:
+            self.pub.publish(image_msg(f1 if k % 2 else f0, 10_000 + k))
+            k += 1
+            time.sleep(max(0.0, start + k / rate - time.perf_counter()))
+        elapsed = time.perf_counter() - start
+        outputs = self.count() - before
+        w = self.node._stats.window()
+        return {"published": k, "received": t.received - rec0, "dropped": t.dropped - drop0,
+                "outputs": outputs, "seconds": elapsed, "output_rate_hz": outputs / elapsed,
+                "solve_mean": statistics.fmean(w.solve_times) if w.solve_times else float("nan")}
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=5.0)
+        self.node.destroy_node()
+        self.client.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+        self.thread.join(timeout=5.0)
+
+
+def run(preset: str, size: tuple[int, int], n: int) -> dict[str, Any]:
+    f0, f1 = frames(*size)
+    engine = FlowEstimator(FlowConfig.preset(preset))
+    engine.warmup()
+    first = engine.estimate(f0, f1).seconds
+    rig = Rig(preset)
+    try:
+        loop = rig.closed_loop(f0, f1, n, 30.0 * first + 10.0, engine)
+        tput = rig.open_loop(f0, f1, max(3.0, 4 * statistics.median(d["solve"] for d in loop)))
+        backend = rig.node._stream.backend
+    finally:
+        rig.close()
+    med = {k: statistics.median(d[k] for d in loop) for k in loop[0]}
+    eng = med["engine"]
+    return {
+        "preset": preset, "width": size[1], "height": size[0], "frames": n, "backend": backend,
+        "engine_solve_median_s": eng,
+        "node_solve_median_s": med["solve"],
+        "latency_median_s": med["latency"],
+        "latency_max_s": max(d["latency"] for d in loop),
+        "node_overhead_median_s": med["node_overhead"],
+        "node_overhead_ratio": med["node_overhead"] / med["solve"],
+        "end_to_end_overhead_ratio": (med["latency"] - med["solve"]) / med["solve"],
+        "latency_vs_engine_ratio": med["latency"] / eng,
+        "aee_interior_px": med["aee"],
+        "throughput": tput,
+        "worker_busy_fraction": tput["output_rate_hz"] * tput["solve_mean"],
+        "per_frame": loop,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--frames", type=int, default=5, help="flows per case in the closed loop (default 5)")
+    ap.add_argument("--out", default="bench/results/node_latency.json")
+    ap.add_argument("--presets", nargs="+", default=list(PRESETS))
+    args = ap.parse_args(argv)
+    results = []
+    for preset in args.presets:
+        for size in SIZES:
+            r = run(preset, size, args.frames)
+            results.append(r)
+            print(f"{preset:9s} {r['width']}x{r['height']} {r['backend']}: "
+                  f"engine {r['engine_solve_median_s']*1e3:8.1f} ms"
+                  f" | latency {r['latency_median_s']*1e3:8.1f} ms (x{r['latency_vs_engine_ratio']:.3f})"
+                  f" | in-node overhead {100*r['node_overhead_ratio']:5.2f} %"
+                  f" | end-to-end overhead {100*r['end_to_end_overhead_ratio']:5.2f} %"
+                  f" | throughput {r['throughput']['output_rate_hz']:.2f} Hz (solving {r['worker_busy_fraction']:.2f})"
+                  f" | AEE {r['aee_interior_px']:.3f}", flush=True)
+    meta = {"command": "python -m bench.node_latency " + " ".join(sys.argv[1:] if argv is None else argv),
+            "python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count(),
+            "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps({"meta": meta, "results": results}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
