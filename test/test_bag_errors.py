@@ -137,3 +137,52 @@ def test_bad_arguments_are_one_line(tmp_path, capsys):
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 3 and "l3_xx" in lines[0] and "alpha" in lines[1] and "png-frames" in lines[2]
     assert not (tmp_path / "o").exists()
+
+
+def test_unusable_image_is_skipped_like_the_node_does(tmp_path):
+    """A malformed image (data shorter than step * height) is noted, not fatal; the next pair spans it and is
+    not scored against the one-frame ground truth."""
+    frames, gts = render_frames(SynthSpec(scene="translation", frames=4, size=(48, 40), seed=3))
+    bag = tmp_path / "bag"
+    with BagWriter(bag, "mcap") as w:
+        w.add_topic("/cam/image", IMAGE)
+        w.add_topic("/camera/flow_gt", IMAGE)
+        for k, f in enumerate(frames):
+            t = (k + 1) * 10**8
+            fields = array_to_image_fields(f, "mono8")
+            if k == 2:
+                fields["data"] = fields["data"][:100]
+            w.write("/cam/image", t, image_message(header(t, "cam"), fields))
+            if k:
+                w.write("/camera/flow_gt", t, image_message(header(t, "cam"),
+                                                            array_to_image_fields(gts[k - 1], "32FC2")))
+    out = tmp_path / "out"
+    assert flow_bag(["eval", str(bag), "-o", str(out), *FAST]) == 0
+    recs = json.loads((out / "report.json").read_text())["models"][0]["frames"]
+    assert [r["aee"] is not None for r in recs] == [False, True, False, False]
+    assert recs[2]["skipped"].startswith("image unusable: ") and "data has 100 bytes" in recs[2]["skipped"]
+    assert recs[3]["previous_stamp_ns"] == 2 * 10**8 and "spans an unusable image" in recs[3]["note"]
+    assert recs[1]["aee"] < 0.15
+
+
+def test_eval_is_deterministic_and_shows_progress(tmp_path, capsys):
+    """Same bag, same config: byte-identical flow messages; progress bar on stderr, summary on stdout;
+    a ROS params file selects the model."""
+    params = tmp_path / "p.yaml"
+    params.write_text("flow_node:\n  ros__parameters:\n    model: l1_tv_l2\n    use_compressed: false\n")
+    args = ["--preset", "realtime", "--set", "backend=numpy", "--params", str(params)]
+    assert flow_bag(["eval", str(BAGS / "deformation"), "-o", str(tmp_path / "a"), *args]) == 0
+    io = capsys.readouterr()
+    assert "6/6 frames" in io.err and io.err.count("\r") == 6  # one update per image
+    assert io.out.startswith("l1_tv_l2: 5 pairs, AEE ")
+    assert flow_bag(["eval", str(BAGS / "deformation"), "-o", str(tmp_path / "b"), *args, "-q"]) == 0
+    assert capsys.readouterr().err == ""
+
+    def flows(folder: Path) -> list[bytes]:
+        from rosbags.rosbag2 import Reader
+
+        with Reader(folder / "bag") as reader:
+            conns = [c for c in reader.connections if c.topic == "/flow_node/flow"]
+            return [bytes(raw) for _, _, raw in reader.messages(connections=conns)]
+
+    assert len(flows(tmp_path / "a")) == 5 and flows(tmp_path / "a") == flows(tmp_path / "b")

@@ -69,6 +69,7 @@ class FrameRecord:
     aee: float | None = None
     ae: float | None = None
     skipped: str | None = None
+    note: str | None = None
 
 
 @dataclass
@@ -205,6 +206,7 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
     gts: dict[int, Any] = {}  # stamp -> GT message not yet matched
     pending: dict[int, list[tuple[FrameRecord, np.ndarray | None]]] = {}  # stamp -> outputs awaiting GT
     shape: tuple[int, int] | None = None
+    last_stamp: int | None = None  # stamp of the previous image message, usable or not
     gt_ids = {c.id for c in gt_conns}
     for conn, t, raw in read_messages(reader, list(image_conns) + list(gt_conns)):
         msg = deserialize(raw, conn.msgtype)
@@ -220,21 +222,26 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
             continue
         index = result.images
         result.images += 1
+        previous, last_stamp = last_stamp, stamp
+        if writer is not None:
+            writer.write_raw(result.image_topic, t, raw)
         try:
             frame, label = decode(msg)
         except InputError as exc:
             for run in result.runs:
-                run.records.append(FrameRecord(index, stamp, skipped=str(exc)))
+                run.records.append(FrameRecord(index, stamp, skipped=f"image unusable: {exc}"))
             progress.update(result.images)
             continue
         shape = frame.shape[:2]
-        if writer is not None:
-            writer.write_raw(result.image_topic, t, raw)
         draw = Drawn(index, stamp, frame) if index in chosen else None
         gt = read_ground_truth(gts.pop(stamp), shape, stamp) if stamp in gts else None
         waiting = []
         for k, run in enumerate(result.runs):
-            out = run.stream.process(frame, stamp, label)
+            try:
+                out = run.stream.process(frame, stamp, label)
+            except InputError as exc:
+                run.records.append(FrameRecord(index, stamp, skipped=f"image unusable: {exc}"))
+                continue
             if out is None:
                 run.records.append(FrameRecord(index, stamp, skipped=run.stream.last_reset_reason))
                 continue
@@ -244,7 +251,9 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
                 _write_outputs(writer, run, k == 0, t, msg.header, out)
             if draw is not None:
                 draw.flows[run.label] = out.flow
-            if gt is not None:
+            if out.previous_stamp_ns != previous:
+                rec.note = "pair spans an unusable image: not scored against the ground truth"
+            elif gt is not None:
                 _score(rec, out.flow, gt)
             else:
                 waiting.append((rec, out.flow))

@@ -120,7 +120,7 @@ def to_markdown(result: EvalResult, pngs: list[str]) -> str:
         for r in run.records:
             mag = r.magnitude or {}
             ms = None if r.seconds is None else 1000 * r.seconds
-            note = r.skipped or ""
+            note = r.skipped or r.note or ""
             it = "–" if r.iterations is None else str(r.iterations)
             head = f"| {r.index} | {r.stamp_ns / 1e9:.3f} |"
             if has_gt:
