@@ -24,8 +24,8 @@ AEE_BOUND = 0.25  # px; the same pair through the pipeline directly gives 0.06
 
 @pytest.fixture
 def harness(request: pytest.FixtureRequest) -> Harness:
-    h = Harness(f"/t_{request.node.name.replace('[', '_').replace(']', '').replace('-', '_')}",
-                name=f"flow_{abs(hash(request.node.name)) % 10000}")
+    tag = "".join(c if c.isalnum() else "_" for c in request.node.name)[5:40]
+    h = Harness(f"/t_{tag}", name=f"flow_{tag}")
     yield h
     h.close()
 
