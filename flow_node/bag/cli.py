@@ -97,7 +97,8 @@ def _run(args: argparse.Namespace) -> int:
 
         opts = PlayOptions(args.rate, args.loop, 1, parse_remap(args.topic_remap), tuple(args.topics),
                            args.wait_for_subscribers)
-        run_play(args.bag, opts)
+        count = run_play(args.bag, opts)
+        print(f"flow_bag play: published {count} messages")
         return 0
     from ..cli.estimate import config_from_args
     from .evaluate import EvalOptions, run_eval
