@@ -103,6 +103,13 @@ def test_ground_truth_of_another_encoding(tmp_path, capsys):
     assert "encoding 32FC1, expected 32FC2" in run_cli(tmp_path, capsys, bag)
 
 
+def test_output_that_is_a_file(tmp_path, capsys):
+    (tmp_path / "out").write_text("x")
+    assert flow_bag(["eval", str(BAGS / "zoom"), "--output", str(tmp_path / "out"), *FAST]) == 1
+    assert "exists and is not a folder" in capsys.readouterr().err
+    assert (tmp_path / "out").read_text() == "x"
+
+
 def test_failed_eval_keeps_previous_output(tmp_path):
     out = tmp_path / "out"
     out.mkdir()

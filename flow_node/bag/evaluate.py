@@ -286,6 +286,8 @@ def run_eval(bag: str | Path, output: str | Path, configs: Sequence[FlowConfig],
     from .report import write_report
 
     out = Path(output)
+    if out.exists() and not out.is_dir():
+        raise BagError(f"output {out} exists and is not a folder")
     tmp = out.with_name(f".{out.name}.partial-{os.getpid()}")
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
