@@ -4,11 +4,13 @@ the launch file, and the executable's start-up/shutdown as a subprocess."""
 from __future__ import annotations
 
 import ast
+import contextlib
 import os
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -145,17 +147,43 @@ def test_launch_file_is_valid_python_with_the_documented_arguments() -> None:
     compile(src, "flow_node.launch.py", "exec")
 
 
-def spawn(args: list[str], tmp_path: Path) -> subprocess.Popen:
-    env = dict(os.environ)
-    return subprocess.Popen([sys.executable, "-m", "flow_node.ros.node", "--ros-args", *args], env=env,
+@contextlib.contextmanager
+def node_process(args: list[str], tmp_path: Path) -> Iterator[subprocess.Popen]:
+    """``python -m flow_node.ros.node --ros-args ARGS``; killed on the way out if still running."""
+    proc = subprocess.Popen([sys.executable, "-m", "flow_node.ros.node", "--ros-args", *args], env=dict(os.environ),
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=10)
+
+
+def wait_for_node(service: str) -> None:
+    """Block until ``service`` (a node's get_parameters) is available, from a short-lived client."""
+    ctx = Context()
+    rclpy.init(context=ctx)
+    node = Node("probe_client", context=ctx)
+    try:
+        assert node.create_client(GetParameters, service).wait_for_service(timeout_sec=20.0), "node not up"
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
 
 
 def test_params_file_honoured_end_to_end_and_sigterm_exits_cleanly(tmp_path: Path) -> None:
     extra = tmp_path / "mine.yaml"
     extra.write_text("/**:\n  ros__parameters:\n    iterations: 20\n    backend: numpy\n    input_scale: 0.5\n")
-    proc = spawn(["--params-file", str(ROOT / "config/realtime.yaml"), "--params-file", str(extra),
-                  "-r", "__ns:=/t_pfile"], tmp_path)
+    with node_process(["--params-file", str(ROOT / "config/realtime.yaml"), "--params-file", str(extra),
+                       "-r", "__ns:=/t_pfile"], tmp_path) as proc:
+        out = check_pfile_node(proc)
+    assert proc.returncode == 0, out
+    assert "Traceback" not in out
+
+
+def check_pfile_node(proc: subprocess.Popen) -> str:
+    """Parameters of the subprocess node, one flow through it, then SIGTERM; returns its output."""
     ctx = Context()
     rclpy.init(context=ctx)
     node = Node("pfile_client", context=ctx)
@@ -193,28 +221,19 @@ def test_params_file_honoured_end_to_end_and_sigterm_exits_cleanly(tmp_path: Pat
         rclpy.try_shutdown(context=ctx)
         proc.send_signal(signal.SIGTERM)
         out, _ = proc.communicate(timeout=20)
-    assert proc.returncode == 0, out
-    assert "Traceback" not in out
+    return out
 
 
 def test_sigint_and_invalid_params_file(tmp_path: Path) -> None:
     bad = tmp_path / "bad.yaml"
     bad.write_text("/**:\n  ros__parameters:\n    model: l1_tv_l2\n    alpha1: 0.0\n    backend: numpy\n")
-    proc = spawn(["--params-file", str(bad), "-r", "__ns:=/t_bad"], tmp_path)
-    out, _ = proc.communicate(timeout=30)
+    with node_process(["--params-file", str(bad), "-r", "__ns:=/t_bad"], tmp_path) as proc:
+        out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 1 and "alpha1 must be > 0" in out and "Traceback" not in out
-    proc = spawn(["-p", "backend:=numpy", "-r", "__ns:=/t_sigint"], tmp_path)
-    ctx = Context()
-    rclpy.init(context=ctx)
-    node = Node("sigint_client", context=ctx)
-    try:
-        cli = node.create_client(GetParameters, "/t_sigint/flow_node/get_parameters")
-        assert cli.wait_for_service(timeout_sec=20.0), "node did not come up"
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown(context=ctx)
-    proc.send_signal(signal.SIGINT)
-    out, _ = proc.communicate(timeout=20)
+    with node_process(["-p", "backend:=numpy", "-r", "__ns:=/t_sigint"], tmp_path) as proc:
+        wait_for_node("/t_sigint/flow_node/get_parameters")
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=20)
     assert proc.returncode == 0 and "Traceback" not in out, out
 
 
