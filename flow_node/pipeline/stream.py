@@ -85,12 +85,12 @@ class FlowOutput:
     """One result: flow from the previous frame to the frame stamped ``stamp_ns``.
 
     ``flow`` (H, W, 2) float32 and ``magnitude`` (H, W) float32 are in px/frame at the processing
-    resolution (``scale`` times the input size). The colour image is computed on first use only.
+    resolution (``scale`` times the input size). The colour image and the summary are computed on first
+    use only (the node publishes colour only when subscribed and summarises only for diagnostics).
     """
 
     flow: np.ndarray
     magnitude: np.ndarray
-    summary: FlowSummary
     stamp_ns: int
     previous_stamp_ns: int
     seconds: float
@@ -100,6 +100,14 @@ class FlowOutput:
     scale: float
     color_max_flow: float
     _color: np.ndarray | None = field(default=None, repr=False)
+    _summary: FlowSummary | None = field(default=None, repr=False)
+
+    @property
+    def summary(self) -> FlowSummary:
+        """Magnitude mean / p95 / max, computed on first use (a few ms at VGA) and cached."""
+        if self._summary is None:
+            self._summary = summarise(self.magnitude)
+        return self._summary
 
     def color(self) -> np.ndarray:
         """Middlebury colour coding, (H, W, 3) uint8 in B, G, R order (bgr8), cached."""
@@ -205,5 +213,5 @@ class FlowStream:
         self._prev, self._prev_stamp = grey, stamp_ns
         mag = magnitude(result.flow)
         s = self._settings
-        return FlowOutput(result.flow, mag, summarise(mag), stamp_ns, prev_stamp, result.seconds, result.stats,
+        return FlowOutput(result.flow, mag, stamp_ns, prev_stamp, result.seconds, result.stats,
                           result.backend, s.config.model, s.input_scale, s.color_max_flow)

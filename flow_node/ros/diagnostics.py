@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from ..pipeline.stream import FlowSummary
+from ..pipeline.stream import FlowOutput, FlowSummary
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 
@@ -61,12 +61,13 @@ class NodeStats:
     _mark: Totals = field(default_factory=Totals)
     _solve: list[float] = field(default_factory=list)
     _overhead: list[float] = field(default_factory=list)
-    _summary: FlowSummary | None = None
+    _last: FlowOutput | None = None
     _last_input: float | None = None
     last_reset: str = ""
     last_rejection: str = ""
     last_error: str = ""
     solve_max: float = 0.0  # longest solve since start (s)
+    solve_total: float = 0.0  # seconds spent solving since start
 
     def received(self, dropped_previous: bool) -> None:
         with self._lock:
@@ -90,27 +91,31 @@ class NodeStats:
             self.totals.resets += 1
             self.last_reset = reason
 
-    def solved(self, solve_s: float, overhead_s: float, summary: FlowSummary) -> None:
-        """A pair was solved and published: engine seconds, node seconds beyond the engine, flow summary."""
+    def solved(self, solve_s: float, overhead_s: float, output: FlowOutput) -> None:
+        """A pair was solved and published: engine seconds, node seconds beyond the engine, the output (kept
+        until the next one; its magnitude summary is computed only when a diagnostics window needs it)."""
         with self._lock:
             self.totals.processed += 1
             self.totals.published += 1
             self._solve.append(solve_s)
             self.solve_max = max(self.solve_max, solve_s)
+            self.solve_total += solve_s
             self._overhead.append(overhead_s)
-            self._summary = summary
+            self._last = output
 
     def window(self) -> Window:
-        """Snapshot of the period since the last call; starts the next period."""
+        """Snapshot of the period since the last call; starts the next period. The flow summary of the last
+        output is computed here, outside the lock, so the worker never waits for it."""
         with self._lock:
             now = time.monotonic()
-            t, m = self.totals, self._mark
+            t, m, last = self.totals, self._mark, self._last
             w = Window(now - self._start, Totals(**vars(t)), t.received - m.received, t.published - m.published,
                        t.dropped - m.dropped, t.rejected - m.rejected, t.errors - m.errors, self._solve,
-                       self._overhead, self._summary, self.last_reset, self.last_rejection, self.last_error,
+                       self._overhead, None, self.last_reset, self.last_rejection, self.last_error,
                        None if self._last_input is None else now - self._last_input)
             self._start, self._mark, self._solve, self._overhead = now, Totals(**vars(t)), [], []
-            return w
+        w.summary = None if last is None else last.summary
+        return w
 
 
 def level_of(w: Window, ready: bool) -> tuple[int, str]:
@@ -152,6 +157,7 @@ def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str,
         ("solve time mean (ms)", _ms(w.solve_times, "mean")),
         ("solve time max (ms)", _ms(w.solve_times, "max")),
         ("node overhead mean (ms)", _ms(w.overheads, "mean")),
+        ("solver busy (%)", f"{100.0 * sum(w.solve_times) / period:.1f}"),
         ("flow magnitude mean (px)", "n/a" if s is None else f"{s.mean:.3f}"),
         ("flow magnitude p95 (px)", "n/a" if s is None else f"{s.p95:.3f}"),
         ("flow magnitude max (px)", "n/a" if s is None else f"{s.max:.3f}"),

@@ -239,7 +239,7 @@ class FlowNode(Node):
             return
         self._resolution = f"{out.flow.shape[1]}x{out.flow.shape[0]}"
         self._publish(msg.header, out)
-        self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, out.summary)
+        self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, out)
 
     def _publish(self, header: Header, out: FlowOutput) -> None:
         """Flow, magnitude and (only if someone listens) colour, all with the new frame's header."""
