@@ -1,0 +1,100 @@
+"""The numba backend: :func:`solve_numba`, a drop-in :data:`~flow_node.core.solver.LevelSolver`.
+
+Same semantics as solver.solve_numpy (scaling E / alpha, update order, stopping rule every CHECK_EVERY
+iterations, Bregman linear term ``problem.b``); the kernels are in numba_kernels.py. Differences that do
+not change results beyond float32 rounding: the state arrays are updated in place (made float32
+C-contiguous first if they are not) and the extrapolated variables v_bar / w_bar live in buffers that are
+reused across calls of the same image size.
+
+Compiled kernels are cached on disk (``cache=True``): in NUMBA_CACHE_DIR when set (the Makefile sets
+``.venv/numba_cache``), otherwise numba writes ``__pycache__`` next to this file, or, when the package
+directory is not writable (an installed package), a per-user directory under ~/.cache. One compiled
+specialisation serves every model and TV norm, so any warm-up solve compiles all of it.
+
+Importing this module raises ImportError when numba is not installed; backends.py then falls back to numpy.
+"""
+
+from __future__ import annotations
+
+import os
+
+# libgomp's default active spin-wait makes every parallel region cost milliseconds when cores are shared
+# (measured: ~8 ms per region on a 2-vCPU VM). Must be set before numba loads its OpenMP threading layer;
+# a value set by the user wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
+
+from . import numba_kernels as nk  # noqa: E402
+from .solver import CHECK_EVERY, PDState, Problem, SolveParams  # noqa: E402
+
+_F32 = np.float32
+PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
+_threads = 0  # 0 = all cores; applied on every solve because numba's thread count is per calling thread
+_buffers: dict[tuple[tuple[int, ...], bool], tuple[np.ndarray, ...]] = {}
+_DUMMY4 = np.zeros((2, 2, 1, 1), _F32)
+_DUMMY5 = np.zeros((2, 2, 2, 1, 1), _F32)
+
+
+def set_threads(n: int) -> int:
+    """Cap the threads of the parallel kernels (0 = all cores, values above the core count are clipped).
+
+    Returns the thread count that will be used."""
+    global _threads
+    _threads = 0 if n <= 0 else min(int(n), numba.config.NUMBA_NUM_THREADS)
+    return threads()
+
+
+def threads() -> int:
+    """Threads the kernels will use."""
+    return _threads or numba.config.NUMBA_NUM_THREADS
+
+
+def _f32c(x: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=_F32)
+
+
+def _work_buffers(v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, ...]:
+    """(v_bar, w_bar, xbuf, zero_b) for this shape: the extrapolated variables, the per-thread row scratch
+    of the primal kernel and the zero Bregman row. Reused across calls and frames; one set per pyramid
+    level shape (bounded, so a stream of ever-changing sizes cannot grow memory)."""
+    key = (v.shape, w is not None)
+    bufs = _buffers.get(key)
+    if bufs is None:
+        if len(_buffers) > 32:
+            _buffers.clear()
+        width = v.shape[2]
+        bufs = (np.empty_like(v), np.empty_like(w) if w is not None else _DUMMY4,
+                np.zeros((numba.config.NUMBA_NUM_THREADS, 2, width + 1), _F32), np.zeros((2, 1, width), _F32))
+        _buffers[key] = bufs
+    return bufs
+
+
+def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
+    """Run up to p.iterations primal-dual steps on ``problem`` from ``state`` (updated in place).
+
+    Stops early, checked every CHECK_EVERY iterations, when the RMS change of v per iteration falls below
+    p.tolerance (px); returns the number of iterations run. Semantics of solver.solve_numpy.
+    """
+    spec = p.spec
+    state.v, state.y = _f32c(state.v), _f32c(state.y)
+    if state.w is not None:
+        state.w = _f32c(state.w)
+    if state.z is not None:
+        state.z = _f32c(state.z)
+    v_bar, w_bar, xbuf, zero_b = _work_buffers(state.v, state.w)
+    np.copyto(v_bar, state.v)
+    if state.w is not None:
+        np.copyto(w_bar, state.w)
+    numba.set_num_threads(threads())
+    return int(nk.iterate(
+        state.v, state.y,
+        state.w if state.w is not None else _DUMMY4,
+        state.z if state.z is not None else _DUMMY5,
+        v_bar, w_bar, _f32c(problem.a), _f32c(problem.c),
+        _f32c(problem.b) if problem.b is not None else zero_b, xbuf,
+        _F32(spec.tau), _F32(spec.sigma), _F32(spec.tau / p.alpha), _F32(p.alpha1 / p.alpha),
+        spec.data == "l1", nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
+        int(p.iterations), float(p.tolerance), CHECK_EVERY,
+        threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS))

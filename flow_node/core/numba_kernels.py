@@ -1,0 +1,232 @@
+"""numba kernels of the primal-dual iteration: one fused dual pass and one fused primal pass per iteration.
+
+The same arithmetic as solver.solve_numpy (the oracle), in the same order, for every model: the model is
+a few integer flags (see :data:`REG_CODES`), so one compiled specialisation serves all five models and
+both TV norms. Each pass streams every array once (grad/div and the prox operators are fused into the
+pixel loop); the iteration loop runs inside compiled code, so there is no per-iteration Python call and
+no allocation. Per-pixel helpers take and return scalars only (no arrays: LLVM inlines them and no
+reference counting happens in the pixel loop); the extra variables of the extended models (w, z) are
+updated in their own row loops, so the model flags branch outside the loops that matter.
+
+Array layout (models.py): v (2, H, W), y (2, 2, H, W) [dir, comp], w (2, 2, H, W), z (2, 2, 2, H, W)
+[dir2, dir, comp], a (2, H, W), c (H, W), b (2, H, W); all float32 C-contiguous. Models without w/z
+pass 1x1 dummies of the same rank (never read); without a Bregman term b is a (2, 1, W) zero row.
+
+Boundaries: grad is the forward difference with a zero last column/row, div the backward difference that
+is its exact negative adjoint (operators.py): rows use clamped neighbour indices times a 0/1 mask, columns
+segments -- first column, interior, last column -- whose neighbour offsets and 0/1 weights are written
+inline per segment: LLVM unrolls the segment loop and constant-folds them, so the interior loop has unit
+stride and no branches and vectorises (a helper function returning them, or a clamped index, does not).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+REG_CODES = {"l2": 0, "tv": 1, "tv_l2": 2, "tv_tv": 3}  # regulariser -> integer flag of the kernels
+
+_JIT = dict(fastmath=True, cache=True, error_model="numpy")  # numpy: no zero-check branch per division
+_ONE = np.float32(1.0)
+_ZERO = np.float32(0.0)
+
+
+# ------------------------------------------------------------------------------- scalar pixel helpers
+@njit(**_JIT)
+def prox_dual4(t0, t1, t2, t3, reg, iso):  # noqa: ANN001, ANN201
+    """prox of sigma F* for the four components of y at one pixel (t = y + sigma K x).
+
+    reg 0 (quadratic regulariser): t / (1 + sigma) is done by the caller's ``l2_scale``; here: TV ball of
+    radius 1, Euclidean over the four components (iso) or componentwise clip."""
+    if reg == 0:
+        return t0, t1, t2, t3
+    if iso:
+        m = max(_ONE, math.sqrt(t0 * t0 + t1 * t1 + t2 * t2 + t3 * t3))
+        return t0 / m, t1 / m, t2 / m, t3 / m
+    return (min(max(t0, -_ONE), _ONE), min(max(t1, -_ONE), _ONE),
+            min(max(t2, -_ONE), _ONE), min(max(t3, -_ONE), _ONE))
+
+
+@njit(**_JIT)
+def prox_data(vt0, vt1, a0, a1, c, tau_d, data_l1):  # noqa: ANN001, ANN201
+    """prox of tau_d * D at one pixel, D = |rho| (l1) or rho^2 / 2 (l2); rho = a . v + c. -> v_new.
+
+    l1: the paper's three cases (step +tau_d a, -tau_d a, or onto rho = 0) are exactly the clip of the
+    projection step -rho / |a|^2 to [-tau_d, tau_d]; written as a clip (and both data terms computed and
+    selected) the pixel loop has no branches and vectorises."""
+    r = a0 * vt0 + a1 * vt1 + c
+    a2 = a0 * a0 + a1 * a1
+    step_l1 = min(max(-r / max(a2, np.float32(1e-12)), -tau_d), tau_d)
+    step_l2 = -(tau_d * r / (_ONE + tau_d * a2))
+    step = step_l1 if data_l1 else step_l2
+    return vt0 + step * a0, vt1 + step * a1
+
+
+# ------------------------------------------------------------------------------------ row updates
+@njit(**_JIT)
+def z_row(i, ir, rm, w_bar, z, sigma, rel1, iso):  # noqa: ANN001, ANN201
+    """z <- projection of z + sigma grad w_bar onto the ball of radius rel1 (8 components per pixel,
+    Euclidean if iso else clip), row i."""
+    wd = z.shape[4]
+    for seg in range(2):
+        j0, j1, rr = (0, wd - 1, 1) if seg == 0 else (wd - 1, wd, 0)
+        for j in range(j0, j1):
+            _z_px(i, j, j + rr, ir, rm, w_bar, z, sigma, rel1, iso)
+
+
+@njit(**_JIT)
+def _z_px(i, j, jr, ir, rm, w_bar, z, sigma, rel1, iso):  # noqa: ANN001, ANN201
+    """z update at one pixel (see :func:`z_row`)."""
+    n2 = _ZERO
+    for d in range(2):
+        for cc in range(2):
+            wc = w_bar[d, cc, i, j]
+            qx = z[0, d, cc, i, j] + sigma * (w_bar[d, cc, i, jr] - wc)
+            qy = z[1, d, cc, i, j] + sigma * ((w_bar[d, cc, ir, j] - wc) * rm)
+            if iso:
+                n2 += qx * qx + qy * qy
+            else:
+                qx = min(max(qx, -rel1), rel1)
+                qy = min(max(qy, -rel1), rel1)
+            z[0, d, cc, i, j] = qx
+            z[1, d, cc, i, j] = qy
+    if iso:
+        m = max(_ONE, np.float32(math.sqrt(n2)) / rel1)
+        for d in range(2):
+            for cc in range(2):
+                z[0, d, cc, i, j] /= m
+                z[1, d, cc, i, j] /= m
+
+
+@njit(**_JIT)
+def w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg):  # noqa: ANN001, ANN201
+    """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w. Row i."""
+    wd = w.shape[3]
+    shrink = _ONE + tau * rel1
+    for d in range(2):
+        for cc in range(2):
+            for seg in range(3):  # first column, interior, last column (see module docstring)
+                j0 = 0 if seg == 0 else (1 if seg == 1 else max(wd - 1, 1))
+                j1 = min(wd, 1) if seg == 0 else (max(wd - 1, 1) if seg == 1 else wd)
+                lo = 1 if seg == 0 else 0  # left neighbour j - 1 + lo
+                cl = _ZERO if seg == 0 else _ONE
+                cr = _ZERO if (seg == 2 or wd == 1) else _ONE
+                for j in range(j0, j1):
+                    wt = w[d, cc, i, j] + tau * y[d, cc, i, j]
+                    if reg == 3:
+                        dz = (z[0, d, cc, i, j] * cr - z[0, d, cc, i, j - 1 + lo] * cl
+                              + z[1, d, cc, i, j] * rd - z[1, d, cc, iu, j] * ru)
+                        wt += tau * dz
+                    else:
+                        wt = wt / shrink
+                    w_bar[d, cc, i, j] = wt + (wt - w[d, cc, i, j])
+                    w[d, cc, i, j] = wt
+
+
+def _make_passes(parallel: bool):  # noqa: ANN202
+    """Compile the two passes with prange parallel over rows, or serial (prange runs as range).
+
+    Distinct function names keep the on-disk cache entries of the two variants apart."""
+
+    def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso):  # noqa: ANN001, ANN202
+        """One dual step over the whole image, in place on y (and z)."""
+        h, wd = v_bar.shape[1], v_bar.shape[2]
+        ext = reg >= 2
+        l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
+        for i in prange(h):
+            ir = min(i + 1, h - 1)
+            rm = _ONE if i < h - 1 else _ZERO
+            for seg in range(2):  # interior columns (right neighbour j + 1), then the last column (none)
+                j0, j1, rr = (0, wd - 1, 1) if seg == 0 else (wd - 1, wd, 0)
+                for j in range(j0, j1):
+                    jr = j + rr
+                    g00 = v_bar[0, i, jr] - v_bar[0, i, j]
+                    g01 = v_bar[1, i, jr] - v_bar[1, i, j]
+                    g10 = (v_bar[0, ir, j] - v_bar[0, i, j]) * rm
+                    g11 = (v_bar[1, ir, j] - v_bar[1, i, j]) * rm
+                    if ext:
+                        g00 -= w_bar[0, 0, i, j]
+                        g01 -= w_bar[0, 1, i, j]
+                        g10 -= w_bar[1, 0, i, j]
+                        g11 -= w_bar[1, 1, i, j]
+                    t0, t1, t2, t3 = prox_dual4(
+                        (y[0, 0, i, j] + sigma * g00) * l2_scale, (y[0, 1, i, j] + sigma * g01) * l2_scale,
+                        (y[1, 0, i, j] + sigma * g10) * l2_scale, (y[1, 1, i, j] + sigma * g11) * l2_scale,
+                        reg, iso)
+                    y[0, 0, i, j] = t0
+                    y[0, 1, i, j] = t1
+                    y[1, 0, i, j] = t2
+                    y[1, 1, i, j] = t3
+            if reg == 3:
+                z_row(i, ir, rm, w_bar, z, sigma, rel1, iso)
+
+    def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b):  # noqa: ANN001, ANN202
+        """One primal step over the whole image, in place on v, v_bar (and w, w_bar); returns
+        sum |v_new - v|^2. xbuf: (threads, 2, W + 1) scratch for the x-part of div y (see below)."""
+        h, wd = v.shape[1], v.shape[2]
+        total = 0.0
+        for i in prange(h):
+            iu = max(i - 1, 0)
+            ru = _ONE if i > 0 else _ZERO
+            rd = _ONE if i < h - 1 else _ZERO
+            ib = min(np.int64(i), b.shape[1] - 1)  # b is a (2, 1, W) zero row when there is no Bregman term
+            # x-part of div y: px[j] (j < W-1) - px[j-1] (j > 0) = q[j + 1] - q[j] with q = (0, px[:-1], 0)
+            q = xbuf[numba.get_thread_id()]
+            q[0, 0] = _ZERO
+            q[1, 0] = _ZERO
+            for j in range(wd - 1):
+                q[0, j + 1] = y[0, 0, i, j]
+                q[1, j + 1] = y[0, 1, i, j]
+            q[0, wd] = _ZERO
+            q[1, wd] = _ZERO
+            acc = 0.0
+            for j in range(wd):
+                div0 = q[0, j + 1] - q[0, j] + y[1, 0, i, j] * rd - y[1, 0, iu, j] * ru
+                div1 = q[1, j + 1] - q[1, j] + y[1, 1, i, j] * rd - y[1, 1, iu, j] * ru
+                v0, v1 = v[0, i, j], v[1, i, j]
+                n0, n1 = prox_data(v0 + tau * (div0 + b[0, ib, j]), v1 + tau * (div1 + b[1, ib, j]),
+                                   a[0, i, j], a[1, i, j], c[i, j], tau_d, data_l1)
+                d0, d1 = n0 - v0, n1 - v1
+                v_bar[0, i, j] = n0 + d0
+                v_bar[1, i, j] = n1 + d1
+                v[0, i, j] = n0
+                v[1, i, j] = n1
+                acc += d0 * d0 + d1 * d1
+            if reg >= 2:
+                w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg)
+            total += acc
+        return total
+
+    suffix = "par" if parallel else "ser"
+    out = []
+    for fn in (dual_pass, primal_pass):
+        fn.__name__ = fn.__qualname__ = f"{fn.__name__}_{suffix}"
+        out.append(njit(parallel=parallel, **_JIT)(fn))
+    return tuple(out)
+
+
+dual_pass_par, primal_pass_par = _make_passes(True)
+dual_pass_ser, primal_pass_ser = _make_passes(False)
+
+
+@njit(**_JIT)
+def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN201
+            data_l1, reg, iso, has_b, iterations, tolerance, check_every, parallel):
+    """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
+    per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
+    cheaper on small levels). Returns the number of iterations run."""
+    n = 2.0 * v.shape[1] * v.shape[2]
+    k = 0
+    for k in range(1, iterations + 1):
+        if parallel:
+            dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso)
+            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b)
+        else:
+            dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso)
+            ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b)
+        if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
+            break
+    return k
