@@ -150,10 +150,12 @@ class FlowConfig:
 
 
 PRESETS: dict[str, dict[str, Any]] = {
-    "quality": dict(model="l1_tv", alpha=0.025, iterations=50, warps=5, levels=6, median_filter=5,
-                    gradient_scheme="interpolated", tolerance=0.0),
-    "balanced": dict(model="l1_tv", alpha=0.025, iterations=30, warps=3, levels=5, median_filter=5,
-                     gradient_scheme="interpolated", tolerance=1e-3),
+    # quality/balanced: from the documented search on Middlebury (BENCHMARKS.md, issue 2): a fine pyramid
+    # (x0.8, down to min_size) with few warps per level beats a coarse one with many, at the same cost.
+    "quality": dict(model="l1_tv", alpha=0.02, iterations=30, warps=3, levels=15, scale_factor=0.8,
+                    level_alpha_factor=0.8, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
+    "balanced": dict(model="l1_tv", alpha=0.02, iterations=25, warps=2, levels=15, scale_factor=0.8,
+                     level_alpha_factor=0.8, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3),
     "realtime": dict(model="l1_tv", alpha=0.025, iterations=15, warps=2, levels=4, median_filter=3,
                      gradient_scheme="interpolated", tolerance=2e-3),
 }
