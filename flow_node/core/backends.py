@@ -20,17 +20,22 @@ def numba_available() -> bool:
 
 
 def select_backend(name: str, threads: int = 0) -> tuple[str, LevelSolver]:
-    """Resolve ``auto``/``numpy``/``numba`` to (backend name, level solver).
+    """Resolve ``auto``/``numpy``/``numba`` to (backend name, level solver) and log one line saying which.
 
-    ``numba`` raises ConfigError when numba cannot be imported; ``auto`` falls back to numpy.
+    ``numba`` raises ConfigError when numba cannot be imported; ``auto`` falls back to numpy (with a
+    warning naming the import error). ``threads`` caps the numba kernels' threads (0 = all cores).
     """
     if name == "numpy":
+        log.info("flow_node backend: numpy (reference, requested)")
         return "numpy", solve_numpy
     try:
         from . import numba_backend
     except ImportError as exc:
         if name == "numba":
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
+        log.warning("flow_node backend: numpy (numba not importable: %s)", exc)
         return "numpy", solve_numpy
-    numba_backend.set_threads(threads)
+    used = numba_backend.set_threads(threads)
+    log.info("flow_node backend: numba (%d thread%s, kernel cache %s)", used, "" if used == 1 else "s",
+             numba_backend.cache_dir())
     return "numba", numba_backend.solve_numba

@@ -51,6 +51,12 @@ def threads() -> int:
     return _threads or numba.config.NUMBA_NUM_THREADS
 
 
+def cache_dir() -> str:
+    """Where compiled kernels are cached: NUMBA_CACHE_DIR if set, else numba's default (``__pycache__``
+    beside numba_kernels.py, or a per-user fallback when the package directory is read-only)."""
+    return numba.config.CACHE_DIR or "numba default (__pycache__ beside the package, else per-user)"
+
+
 def _f32c(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=_F32)
 

@@ -1,0 +1,190 @@
+"""The numba backend against the numpy reference (the oracle), and backend selection.
+
+Every model x TV norm x Bregman term runs the same fixed number of primal-dual iterations from the same
+random state in both backends; all primal and dual variables must agree to ~1e-5. One compiled kernel
+specialisation serves all cases, so the JIT cost (cold cache) is paid once for the whole file.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+import numba
+import numpy as np
+import pytest
+from synth import constant_flow, pair_from_flow, rotation_flow, texture
+
+from flow_node.core import numba_backend
+from flow_node.core.api import FlowEstimator
+from flow_node.core.backends import select_backend
+from flow_node.core.config import MODELS, FlowConfig
+from flow_node.core.errors import ConfigError
+from flow_node.core.models import MODEL_SPECS
+from flow_node.core.numba_backend import solve_numba
+from flow_node.core.solver import CHECK_EVERY, PDState, Problem, SolveParams, solve_numpy
+
+H, W = 40, 56
+ITERATIONS = 40
+AGREE = 1e-5  # max abs difference of any variable after ITERATIONS (float32 round-off is ~1e-7)
+
+
+def random_case(model: str, bregman: bool, seed: int) -> tuple[Problem, PDState]:
+    """A random linearised problem and a random (non-zero) starting state, as after a previous warp."""
+    rng = np.random.default_rng(seed)
+    f32 = np.float32
+    a = (0.2 * rng.standard_normal((2, H, W))).astype(f32)
+    a[:, 5:9, 10:20] = 0.0  # textureless patch: |a| = 0 branch of the L1 prox
+    c = (0.05 * rng.standard_normal((H, W))).astype(f32)
+    b = (0.3 * rng.standard_normal((2, H, W))).astype(f32) if bregman else None
+    st = PDState.zeros(MODEL_SPECS[model], (H, W))
+    st.v = (0.5 * rng.standard_normal((2, H, W))).astype(f32)
+    st.y = np.clip(0.4 * rng.standard_normal(st.y.shape), -0.7, 0.7).astype(f32)
+    if st.w is not None:
+        st.w = (0.1 * rng.standard_normal(st.w.shape)).astype(f32)
+    if st.z is not None:
+        st.z = (0.1 * rng.standard_normal(st.z.shape)).astype(f32)
+    return Problem(a, c, b), st
+
+
+def copy_state(st: PDState) -> PDState:
+    return PDState(*(None if x is None else x.copy() for x in (st.v, st.y, st.w, st.z)))
+
+
+def variables(st: PDState) -> list[np.ndarray]:
+    return [x for x in (st.v, st.y, st.w, st.z) if x is not None]
+
+
+@pytest.mark.parametrize("bregman", [False, True], ids=["plain", "bregman"])
+@pytest.mark.parametrize("tv_norm", ["isotropic", "anisotropic"])
+@pytest.mark.parametrize("model", MODELS)
+def test_numba_matches_numpy(model: str, tv_norm: str, bregman: bool) -> None:
+    prob, st0 = random_case(model, bregman, seed=MODELS.index(model))
+    alpha = 0.002 if model.startswith("l2") else 0.05  # data terms of comparable pull on v
+    params = SolveParams(MODEL_SPECS[model], alpha, 0.3, tv_norm, ITERATIONS, 0.0)
+    ref, fast = copy_state(st0), copy_state(st0)
+    assert solve_numpy(prob, ref, params) == ITERATIONS
+    assert solve_numba(prob, fast, params) == ITERATIONS
+    for r, f, s in zip(variables(ref), variables(fast), variables(st0), strict=True):
+        assert f.shape == r.shape and f.dtype == np.float32
+        assert np.abs(r - s).max() > 1e-2  # the iteration really moved every variable
+        np.testing.assert_allclose(f, r, rtol=0, atol=AGREE)
+
+
+def test_disagreement_is_detected() -> None:
+    """Sanity of the comparison above: a different regulariser weight is far outside AGREE."""
+    prob, st0 = random_case("l1_tv", False, seed=7)
+    spec = MODEL_SPECS["l1_tv"]
+    ref, fast = copy_state(st0), copy_state(st0)
+    solve_numpy(prob, ref, SolveParams(spec, 0.05, 0.3, "isotropic", ITERATIONS, 0.0))
+    solve_numba(prob, fast, SolveParams(spec, 0.06, 0.3, "isotropic", ITERATIONS, 0.0))
+    assert np.abs(ref.v - fast.v).max() > 100 * AGREE
+
+
+@pytest.mark.parametrize("model", ["l1_tv", "l2_l2"])
+def test_same_early_stop(model: str) -> None:
+    """The stopping rule (RMS update below tolerance, checked every CHECK_EVERY) stops both at the same k."""
+    prob, st0 = random_case(model, False, seed=11)
+    params = SolveParams(MODEL_SPECS[model], 0.05, 0.3, "isotropic", 500, 2e-3)
+    ref, fast = copy_state(st0), copy_state(st0)
+    k_ref = solve_numpy(prob, ref, params)
+    k_fast = solve_numba(prob, fast, params)
+    assert k_ref == k_fast
+    assert k_ref % CHECK_EVERY == 0 and CHECK_EVERY <= k_ref < 500
+    np.testing.assert_allclose(fast.v, ref.v, rtol=0, atol=AGREE)
+
+
+def test_parallel_and_serial_kernels_agree() -> None:
+    """Large levels run the prange kernels, small ones the serial variant: same numbers either way."""
+    prob, st0 = random_case("l1_tv_tv", True, seed=3)
+    params = SolveParams(MODEL_SPECS["l1_tv_tv"], 0.05, 0.3, "isotropic", 20, 0.0)
+    saved = numba_backend.PARALLEL_MIN_PIXELS
+    try:
+        numba_backend.PARALLEL_MIN_PIXELS = 0
+        par = copy_state(st0)
+        solve_numba(prob, par, params)
+        numba_backend.PARALLEL_MIN_PIXELS = 10**9
+        ser = copy_state(st0)
+        solve_numba(prob, ser, params)
+    finally:
+        numba_backend.PARALLEL_MIN_PIXELS = saved
+    for p, s in zip(variables(par), variables(ser), strict=True):
+        np.testing.assert_allclose(p, s, rtol=0, atol=1e-6)
+
+
+def test_non_contiguous_and_float64_state_is_accepted() -> None:
+    prob, st0 = random_case("l1_tv", False, seed=5)
+    params = SolveParams(MODEL_SPECS["l1_tv"], 0.05, 0.3, "isotropic", 10, 0.0)
+    ref = copy_state(st0)
+    solve_numpy(prob, ref, params)
+    odd = copy_state(st0)
+    odd.v = np.asfortranarray(odd.v.astype(np.float64))
+    solve_numba(Problem(prob.a[:, :, :], prob.c.astype(np.float64)), odd, params)
+    assert odd.v.dtype == np.float32 and odd.v.flags.c_contiguous
+    np.testing.assert_allclose(odd.v, ref.v, rtol=0, atol=AGREE)
+
+
+def test_buffers_are_reused_for_the_same_shape() -> None:
+    v = np.zeros((2, 17, 23), np.float32)
+    first = numba_backend._work_buffers(v, None)
+    again = numba_backend._work_buffers(v.copy(), None)
+    assert all(x is y for x, y in zip(first, again, strict=True))
+    other = numba_backend._work_buffers(np.zeros((2, 18, 23), np.float32), None)
+    assert other[0] is not first[0] and other[0].shape == (2, 18, 23)
+
+
+@pytest.mark.parametrize("model", ["l1_tv", "l2_tv", "l1_tv_tv"])
+def test_end_to_end_flow_agrees(model: str) -> None:
+    """Whole coarse-to-fine pipeline (pyramid, warps, median, Bregman) on a small pair, both backends.
+
+    Median filters and re-linearisation can amplify float32 round-off at a few pixels, so the bound is on
+    the mean (~round-off) and, loosely, on the maximum."""
+    t = texture(48, 64, seed=2)
+    i0, i1 = pair_from_flow(t, constant_flow(48, 64, 1.3, -0.6) + rotation_flow(48, 64, 2.0))
+    alpha = 0.002 if model == "l2_tv" else 0.025
+    base = dict(model=model, alpha=alpha, levels=3, warps=3, iterations=30, median_filter=3,
+                bregman_iterations=1)
+    ref = FlowEstimator(FlowConfig(backend="numpy", **base)).estimate(i0, i1)
+    fast = FlowEstimator(FlowConfig(backend="numba", **base)).estimate(i0, i1)
+    assert (ref.backend, fast.backend) == ("numpy", "numba")
+    assert np.abs(ref.flow).max() > 1.0
+    diff = np.abs(fast.flow - ref.flow)
+    assert diff.mean() < 1e-5 and diff.max() < 1e-3
+    assert fast.stats.iterations == ref.stats.iterations
+
+
+def test_threads_cap() -> None:
+    t = texture(40, 48, seed=1)
+    est = FlowEstimator(FlowConfig(backend="numba", threads=1, levels=1, warps=1, iterations=5))
+    est.estimate(t, t)
+    assert numba_backend.threads() == 1 and numba.get_num_threads() == 1
+    est.config = est.config.replace(threads=0)
+    est.estimate(t, t)
+    assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
+    assert numba_backend.set_threads(10_000) == numba.config.NUMBA_NUM_THREADS
+    numba_backend.set_threads(0)
+
+
+def test_backend_selection_and_log(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.INFO, logger="flow_node"):
+        assert select_backend("numpy") == ("numpy", solve_numpy)
+        assert select_backend("auto") == ("numba", solve_numba)
+        assert select_backend("numba") == ("numba", solve_numba)
+    lines = [r.getMessage() for r in caplog.records]
+    assert lines[0].startswith("flow_node backend: numpy")
+    assert lines[1].startswith("flow_node backend: numba") and lines[2].startswith("flow_node backend: numba")
+
+
+def test_fallback_when_numba_is_missing(monkeypatch: pytest.MonkeyPatch,
+                                        caplog: pytest.LogCaptureFixture) -> None:
+    """With the numba backend unimportable, auto degrades to numpy (with a warning), numba is an error."""
+    import flow_node.core as core
+
+    monkeypatch.setitem(sys.modules, "flow_node.core.numba_backend", None)  # import now raises ImportError
+    monkeypatch.delattr(core, "numba_backend")
+    with caplog.at_level(logging.WARNING, logger="flow_node"):
+        assert select_backend("auto") == ("numpy", solve_numpy)
+    assert "numba not importable" in caplog.text
+    with pytest.raises(ConfigError, match="numba"):
+        select_backend("numba")
+    assert FlowEstimator(FlowConfig(backend="auto")).backend == "numpy"
