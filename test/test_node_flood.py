@@ -10,6 +10,7 @@ from rcl_interfaces.srv import GetParameters
 from ros_helpers import Harness, call, image, mono8, wait_for
 from synth import constant_flow, pair_from_flow, texture
 
+from flow_node.core.config import PRESETS
 from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import image_to_array
 
@@ -52,7 +53,8 @@ def test_flood_keeps_memory_flat_latency_bounded_and_counts_drops() -> None:
         # parameter services answer while the worker solves
         cli = h.client.create_client(GetParameters, f"{h.full_name}/get_parameters")
         t0 = time.monotonic()
-        assert call(cli, GetParameters.Request(names=["alpha"]), timeout=2.0).values[0].double_value == 0.025
+        alpha = call(cli, GetParameters.Request(names=["alpha"]), timeout=2.0).values[0].double_value
+        assert alpha == PRESETS["quality"]["alpha"]
         service_seconds = time.monotonic() - t0
         wait_for(lambda: h.totals.processed + h.totals.dropped >= h.totals.received
                  and h.node._mailbox._item is None, 60.0, "the node to drain")
