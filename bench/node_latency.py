@@ -177,7 +177,8 @@ def run(preset: str, size: tuple[int, int], n: int) -> dict[str, Any]:
     med = {k: statistics.median(d[k] for d in loop) for k in loop[0]}
     eng = med["engine"]
     return {
-        "preset": preset, "width": size[1], "height": size[0], "frames": n, "backend": backend,
+        "preset": preset, "config": FlowConfig.preset(preset).to_dict(), "width": size[1], "height": size[0],
+        "frames": n, "backend": backend,
         "engine_solve_median_s": eng,
         "node_solve_median_s": med["solve"],
         "latency_median_s": med["latency"],
