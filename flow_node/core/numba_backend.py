@@ -16,18 +16,11 @@ Importing this module raises ImportError when numba is not installed; backends.p
 
 from __future__ import annotations
 
-import os
+import numba
+import numpy as np
 
-# libgomp's default active spin-wait makes every parallel region cost milliseconds when cores are shared
-# (measured: ~8 ms per region on a 2-vCPU VM). Must be set before numba loads its OpenMP threading layer;
-# a value set by the user wins.
-os.environ.setdefault("OMP_WAIT_POLICY", "passive")
-
-import numba  # noqa: E402
-import numpy as np  # noqa: E402
-
-from . import numba_kernels as nk  # noqa: E402
-from .solver import CHECK_EVERY, PDState, Problem, SolveParams  # noqa: E402
+from . import numba_kernels as nk
+from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 
 _F32 = np.float32
 PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
