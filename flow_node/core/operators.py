@@ -72,7 +72,11 @@ def warp_maps(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def warp(img: np.ndarray, map_x: np.ndarray, map_y: np.ndarray) -> np.ndarray:
     """Bicubic sample of img (H, W) or (C, H, W) at (map_x, map_y); border replicated."""
     if img.ndim == 3:
-        return np.stack([warp(c, map_x, map_y) for c in img])
+        out = np.empty((img.shape[0],) + map_x.shape, dtype=img.dtype)
+        for ch, dst in zip(img, out, strict=True):
+            cv2.remap(np.ascontiguousarray(ch), map_x, map_y, dst=dst, interpolation=cv2.INTER_CUBIC,
+                      borderMode=cv2.BORDER_REPLICATE)
+        return out
     return cv2.remap(img, map_x, map_y, interpolation=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
 
 
@@ -93,4 +97,4 @@ def linearise(i0: np.ndarray, i1: np.ndarray, grad_i0: np.ndarray, grad_i1: np.n
     c = i1w - i0 - a[0] * flow0[0] - a[1] * flow0[1]
     a *= inside
     c *= inside
-    return a.astype(np.float32), c.astype(np.float32)
+    return a.astype(np.float32, copy=False), c.astype(np.float32, copy=False)

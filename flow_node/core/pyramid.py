@@ -56,7 +56,9 @@ def resize_field(f: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Bilinear resize of every leading channel of f (..., h, w) to (..., H, W); values unchanged."""
     h, w = shape
     flat = f.reshape((-1,) + f.shape[-2:])
-    out = np.stack([cv2.resize(ch, (w, h), interpolation=cv2.INTER_LINEAR) for ch in flat])
+    out = np.empty((flat.shape[0], h, w), dtype=f.dtype)
+    for ch, dst in zip(flat, out, strict=True):
+        cv2.resize(np.ascontiguousarray(ch), (w, h), dst=dst, interpolation=cv2.INTER_LINEAR)
     return out.reshape(f.shape[:-2] + (h, w))
 
 
@@ -80,7 +82,10 @@ def resize_state(state: PDState, shape: tuple[int, int]) -> PDState:
 
 def median_filter(v: np.ndarray, size: int) -> np.ndarray:
     """Median of each flow component over size x size windows (OpenCV; size 3 or 5)."""
-    return np.stack([cv2.medianBlur(np.ascontiguousarray(ch), size) for ch in v])
+    out = np.empty_like(v)
+    for ch, dst in zip(v, out, strict=True):
+        cv2.medianBlur(np.ascontiguousarray(ch), size, dst=dst)
+    return out
 
 
 def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,
