@@ -1,14 +1,17 @@
-"""Node latency, throughput and overhead beyond the engine's solve time, over real DDS (in-process node).
+"""Node latency, throughput and overhead beyond the engine's solve time, over real DDS.
 
-    .venv/bin/python -m bench.node_latency [--frames N] [--out bench/results/node_latency.json]
+    .venv/bin/python -m bench.node_latency [--frames N] [--in-process] [--out bench/results/node_latency.json]
 
-For each size (320x240, 640x480) and preset (realtime, quality), in one run:
+The node runs as its own process (``python -m flow_node.ros.node``, as ``ros2 run`` does) and reports its
+per-frame solve time and in-node overhead on /diagnostics (every 50 ms, so each window holds one solve);
+``--in-process`` runs it in the bench process instead (sharing the GIL with the bench's subscriber). For
+each size (320x240, 640x480) and preset (realtime, quality), in one run:
 
-* engine: ``FlowEstimator.estimate`` called directly on the same pair right before each node frame (the
-  peer the latency ratio refers to);
+* engine: ``FlowEstimator.estimate`` called here on the same pair right before each node frame (the peer
+  the latency ratio refers to);
 * latency: closed loop, publish a frame -> its ~/flow message received, next frame only after that, so
-  nothing is dropped; in-node overhead = node handling time (decode, grey, magnitude, stats, serialise,
-  publish) minus the engine's solve time, measured by the node itself per frame;
+  nothing is dropped; in-node overhead = node handling time (decode, grey, magnitude, serialise, publish)
+  minus the engine's solve time, measured by the node itself per frame;
 * throughput: open loop, frames published at 30 Hz for four solve times (at least 3 s): output rate, and
   the fraction of the wall time the worker spent inside the engine (1.0 = no overhead at all).
 
@@ -23,7 +26,9 @@ import array
 import json
 import os
 import platform
+import signal
 import statistics
+import subprocess
 import sys
 import threading
 import time
@@ -33,6 +38,7 @@ from typing import Any
 import cv2
 import numpy as np
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -74,43 +80,61 @@ def interior_aee(flow: np.ndarray) -> float:
     return float(np.hypot(inner[..., 0] - SHIFT[0], inner[..., 1] - SHIFT[1]).mean())
 
 
-class Rig:
-    """FlowNode + a client node in a private context, spun by one single-threaded executor thread."""
+def _wait(pred: Any, timeout: float) -> bool:
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.001)
+    return False
 
-    def __init__(self, preset: str) -> None:
+
+class Rig:
+    """The bench side: a client node (publisher, flow and diagnostics subscriptions) in a private context,
+    spun by one single-threaded executor thread. Subclasses place the FlowNode and report its per-frame
+    solve and in-node overhead times."""
+
+    NAME = "flow_bench"
+
+    def __init__(self) -> None:
         self.ctx = Context()
         rclpy.init(context=self.ctx)
-        params = [Parameter("preset", value=preset), Parameter("diagnostics_period", value=60.0)]
-        self.node = FlowNode("flow_bench", namespace="/bench", parameter_overrides=params, context=self.ctx)
         self.client = Node("bench_client", namespace="/bench", context=self.ctx)
         self.pub = self.client.create_publisher(Image, "/bench/image", 10)
         self.lock = threading.Lock()
         self.got: list[tuple[float, Image]] = []
-        self.client.create_subscription(Image, "/bench/flow_bench/flow", self._on_flow, 10)
+        self.diag: list[dict[str, str]] = []
+        self.client.create_subscription(Image, f"/bench/{self.NAME}/flow", self._on_flow, 10)
+        self.client.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
         self.executor = SingleThreadedExecutor(context=self.ctx)  # as rclpy.spin in main()
-        self.executor.add_node(self.node)
         self.executor.add_node(self.client)
+        self.backend = "?"
+
+    def _start(self) -> None:
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
         self.thread.start()
-        self._wait(lambda: self.node.ready and self.pub.get_subscription_count() > 0
-                   and self.node._pub_flow.get_subscription_count() > 0, 120.0)
 
     def _on_flow(self, msg: Image) -> None:
         with self.lock:
             self.got.append((time.perf_counter(), msg))
 
-    @staticmethod
-    def _wait(pred: Any, timeout: float) -> bool:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if pred():
-                return True
-            time.sleep(0.001)
-        return False
+    def _on_diag(self, msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            if st.name == f"{self.NAME}: optical flow":
+                with self.lock:
+                    self.diag.append({kv.key: kv.value for kv in st.values} | {"_message": st.message})
 
     def count(self) -> int:
         with self.lock:
             return len(self.got)
+
+    def frame_times(self, published: int, timeout: float) -> tuple[float, float]:
+        """(solve, in-node overhead) seconds of the ``published``-th output."""
+        raise NotImplementedError
+
+    def handled(self) -> int:
+        """Frames the node has handled (published or started a pair with)."""
+        raise NotImplementedError
 
     def closed_loop(self, f0: np.ndarray, f1: np.ndarray, n: int, timeout: float,
                     engine: FlowEstimator) -> list[dict[str, float]]:
@@ -118,30 +142,26 @@ class Rig:
         engine called directly on the same pair just before (same load conditions)."""
         out = []
         stamp = 1
-        self.pub.publish(image_msg(f0, stamp))
-        self._wait(lambda: self.node._stats.totals.processed >= 1, timeout)
+        while not _wait(lambda: self.handled() >= 1, 2.0):  # best-effort input: resend the first frame
+            self.pub.publish(image_msg(f0, stamp))
         for k in range(n):
             stamp += 1
             direct = engine.estimate(f0 if k % 2 == 0 else f1, f1 if k % 2 == 0 else f0).seconds
-            before, published = self.count(), self.node._stats.totals.published
+            before = self.count()
             t0 = time.perf_counter()
             self.pub.publish(image_msg(f1 if k % 2 == 0 else f0, stamp))
-            if not self._wait(lambda b=before, p=published: self.count() > b
-                              and self.node._stats.totals.published > p, timeout):
+            if not _wait(lambda b=before: self.count() > b, timeout):
                 raise RuntimeError("no flow received (frame lost?)")
             t1, msg = self.got[-1]
-            w = self.node._stats.window()
-            flow = image_to_array(msg)
+            solve, overhead = self.frame_times(k + 1, timeout)
             sign = 1.0 if k % 2 == 0 else -1.0
-            out.append({"engine": direct, "latency": t1 - t0, "solve": w.solve_times[-1],
-                        "node_overhead": w.overheads[-1],
-                        "aee": interior_aee(sign * flow)})
+            out.append({"engine": direct, "latency": t1 - t0, "solve": solve, "node_overhead": overhead,
+                        "aee": interior_aee(sign * image_to_array(msg))})
         return out
 
     def open_loop(self, f0: np.ndarray, f1: np.ndarray, seconds: float, rate: float = 30.0) -> dict[str, float]:
-        """Publish at ``rate`` Hz for ``seconds``; output rate and drops."""
-        before, t = self.count(), self.node._stats.totals
-        rec0, drop0, busy0 = t.received, t.dropped, self.node._stats.solve_total
+        """Publish at ``rate`` Hz for ``seconds``; output rate, drops, fraction of the time spent solving."""
+        before, d0 = self.count(), self.counters()
         start = time.perf_counter()
         k = 0
         while time.perf_counter() - start < seconds:
@@ -149,36 +169,130 @@ class Rig:
             k += 1
             time.sleep(max(0.0, start + k / rate - time.perf_counter()))
         elapsed = time.perf_counter() - start
+        time.sleep(0.5)  # let the last counters arrive
         outputs = self.count() - before
-        return {"published": k, "received": t.received - rec0, "dropped": t.dropped - drop0,
-                "outputs": outputs, "seconds": elapsed, "output_rate_hz": outputs / elapsed,
-                "solver_busy_fraction": (self.node._stats.solve_total - busy0) / elapsed}
+        d1 = self.counters()
+        return {"published": k, "received": d1["received"] - d0["received"],
+                "dropped": d1["dropped"] - d0["dropped"], "outputs": outputs, "seconds": elapsed,
+                "output_rate_hz": outputs / elapsed, "solver_busy_fraction": (d1["busy"] - d0["busy"]) / elapsed}
+
+    def counters(self) -> dict[str, float]:
+        """received, dropped (totals) and busy (seconds solved since start)."""
+        raise NotImplementedError
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=5.0)
-        self.node.destroy_node()
         self.client.destroy_node()
         rclpy.try_shutdown(context=self.ctx)
         self.thread.join(timeout=5.0)
 
 
-def run(preset: str, size: tuple[int, int], n: int) -> dict[str, Any]:
+class InProcessRig(Rig):
+    """FlowNode in this process, on the same executor as the client; times read from the node's stats."""
+
+    def __init__(self, preset: str) -> None:
+        super().__init__()
+        params = [Parameter("preset", value=preset), Parameter("diagnostics_period", value=60.0)]
+        self.node = FlowNode(self.NAME, namespace="/bench", parameter_overrides=params, context=self.ctx)
+        self.executor.add_node(self.node)
+        self._start()
+        _wait(lambda: self.node.ready and self.pub.get_subscription_count() > 0
+              and self.node._pub_flow.get_subscription_count() > 0, 120.0)
+        self.backend = self.node._stream.backend
+
+    def handled(self) -> int:
+        return self.node._stats.totals.processed
+
+    def frame_times(self, published: int, timeout: float) -> tuple[float, float]:
+        _wait(lambda: self.node._stats.totals.published >= published, timeout)
+        w = self.node._stats.window()
+        return w.solve_times[-1], w.overheads[-1]
+
+    def counters(self) -> dict[str, float]:
+        t = self.node._stats.totals
+        return {"received": t.received, "dropped": t.dropped, "busy": self.node._stats.solve_total}
+
+    def close(self) -> None:
+        super().close()
+        self.node.destroy_node()
+
+
+class ProcessRig(Rig):
+    """``python -m flow_node.ros.node`` as its own process (as ``ros2 run``); times from its /diagnostics,
+    published every 50 ms, so each window holds at most one solve in the closed loop."""
+
+    PERIOD = 0.05
+
+    def __init__(self, preset: str) -> None:
+        super().__init__()
+        self._start()
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "flow_node.ros.node", "--ros-args", "-p", f"preset:={preset}",
+             "-p", f"diagnostics_period:={self.PERIOD}", "-r", "__ns:=/bench", "-r", f"__node:={self.NAME}"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        ok = _wait(lambda: self.pub.get_subscription_count() > 0 and self._ready(), 120.0)
+        if not ok:
+            self.close()
+            raise RuntimeError("the node process did not come up")
+        self.backend = self._last()["backend"]
+
+    def _last(self) -> dict[str, str] | None:
+        with self.lock:
+            return self.diag[-1] if self.diag else None
+
+    def _ready(self) -> bool:
+        """Warm-up done and our flow subscription matched."""
+        last = self._last()
+        return (last is not None and last["_message"] != "warming up the engine"
+                and self.client.count_publishers(f"/bench/{self.NAME}/flow") > 0)
+
+    def handled(self) -> int:
+        last = self._last()
+        return 0 if last is None else int(last["frames published"]) + int(last["resets"])
+
+    def frame_times(self, published: int, timeout: float) -> tuple[float, float]:
+        def window() -> dict[str, str] | None:
+            with self.lock:
+                return next((d for d in self.diag if int(d["frames published"]) == published), None)
+        if not _wait(lambda: window() is not None, timeout):
+            raise RuntimeError(f"no diagnostics for output {published}")
+        d = window()
+        return float(d["solve time mean (ms)"]) / 1e3, float(d["node overhead mean (ms)"]) / 1e3
+
+    def counters(self) -> dict[str, float]:
+        with self.lock:
+            busy = sum(float(d["solver busy (%)"]) / 100.0 * self.PERIOD for d in self.diag)
+        last = self._last()
+        return {"received": int(last["frames received"]), "dropped": int(last["frames dropped"]), "busy": busy}
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        super().close()
+
+
+def run(preset: str, size: tuple[int, int], n: int, in_process: bool) -> dict[str, Any]:
     f0, f1 = frames(*size)
     engine = FlowEstimator(FlowConfig.preset(preset))
     engine.warmup()
     first = engine.estimate(f0, f1).seconds
-    rig = Rig(preset)
+    rig: Rig = InProcessRig(preset) if in_process else ProcessRig(preset)
     try:
         loop = rig.closed_loop(f0, f1, n, 30.0 * first + 10.0, engine)
         tput = rig.open_loop(f0, f1, max(3.0, 4 * statistics.median(d["solve"] for d in loop)))
-        backend = rig.node._stream.backend
+        backend = rig.backend
     finally:
         rig.close()
     med = {k: statistics.median(d[k] for d in loop) for k in loop[0]}
     eng = med["engine"]
     return {
         "preset": preset, "config": FlowConfig.preset(preset).to_dict(), "width": size[1], "height": size[0],
-        "frames": n, "backend": backend,
+        "frames": n, "backend": backend, "node": "in process" if in_process else "own process",
         "engine_solve_median_s": eng,
         "node_solve_median_s": med["solve"],
         "latency_median_s": med["latency"],
@@ -198,11 +312,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=5, help="flows per case in the closed loop (default 5)")
     ap.add_argument("--out", default="bench/results/node_latency.json")
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
+    ap.add_argument("--in-process", action="store_true",
+                    help="run the node in this process (shares the GIL with the bench client)")
     args = ap.parse_args(argv)
     results = []
     for preset in args.presets:
         for size in SIZES:
-            r = run(preset, size, args.frames)
+            r = run(preset, size, args.frames, args.in_process)
             results.append(r)
             tp = r["throughput"]
             print(f"{preset:9s} {r['width']}x{r['height']} {r['backend']}: "
