@@ -1,0 +1,82 @@
+"""Diagnostics level rules and window accounting (plain Python: NodeStats and level_of)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from flow_node.pipeline.stream import FlowOutput
+from flow_node.ros.diagnostics import ERROR, OK, WARN, NodeStats, level_of, status
+
+
+def output(value: float) -> FlowOutput:
+    flow = np.full((4, 5, 2), value, np.float32)
+    mag = np.hypot(flow[..., 0], flow[..., 1]).astype(np.float32)
+    return FlowOutput(flow, mag, 2, 1, 0.01, None, "numpy", "l1_tv", 1.0, 10.0)  # type: ignore[arg-type]
+
+
+def test_levels_in_order_of_severity() -> None:
+    s = NodeStats()
+    assert level_of(s.window(), ready=False) == (WARN, "warming up the engine")
+    assert level_of(s.window(), ready=True) == (WARN, "no image received yet")
+    s.received(False)
+    s.solved(0.02, 0.001, output(3.0))
+    assert level_of(s.window(), ready=True) == (OK, "computing flow")
+    s.received(False)
+    s.received(True)  # the first one was replaced while waiting
+    s.received(True)
+    level, msg = level_of(s.window(), ready=True)
+    assert level == WARN and "dropped 2 of 3" in msg
+    s.received(False)
+    s.received(False)
+    s.rejected("step 3 < 8 bytes per row")
+    level, msg = level_of(s.window(), ready=True)
+    assert level == WARN and "1 frame(s) rejected: step 3" in msg
+    s.received(False)
+    s.rejected("unsupported encoding 'nv12'")
+    level, msg = level_of(s.window(), ready=True)
+    assert level == ERROR and "all 1 frame(s) rejected" in msg
+    s.received(False)
+    s.error("RuntimeError: boom")
+    level, msg = level_of(s.window(), ready=True)
+    assert level == ERROR and "boom" in msg
+
+
+def test_stale_input_warns_after_three_periods() -> None:
+    s = NodeStats()
+    s.received(False)
+    s.window()
+    time.sleep(0.05)
+    w = s.window()  # a 50 ms period, input 50 ms ago: fine
+    assert level_of(w, ready=True)[0] == OK
+    time.sleep(0.2)
+    w = s.window()  # 200 ms period, input 250 ms ago: fine (< 3 periods)
+    assert level_of(w, ready=True)[0] == OK
+    time.sleep(0.02)
+    w = s.window()  # 20 ms period, input 270 ms ago: stale
+    level, msg = level_of(w, ready=True)
+    assert level == WARN and msg.startswith("no image for")
+
+
+def test_status_values_and_window_reset() -> None:
+    s = NodeStats()
+    for k in range(4):
+        s.received(False)
+        s.solved(0.010 * (k + 1), 0.001, output(0.6))
+    w = s.window()
+    st = status(w, name="cam_flow: optical flow", hardware_id="cam", ready=True, backend="numpy", model="l2_tv",
+                input_scale=0.5, resolution="5x4")
+    values = {kv.key: kv.value for kv in st.values}
+    assert st.name == "cam_flow: optical flow" and st.hardware_id == "cam" and st.level == OK
+    assert values["solve time mean (ms)"] == "25.00" and values["solve time max (ms)"] == "40.00"
+    assert values["frames published"] == "4" and values["model"] == "l2_tv" and values["input scale"] == "0.5"
+    expected = np.hypot(0.6, 0.6)
+    assert abs(float(values["flow magnitude max (px)"]) - expected) < 1e-3
+    assert abs(float(values["flow magnitude p95 (px)"]) - expected) < 1e-3
+    assert s.solve_max == 0.04 and abs(s.solve_total - 0.1) < 1e-12
+    # the next window starts empty: no solve times, totals kept
+    values = {kv.key: kv.value for kv in status(s.window(), name="n", hardware_id="h", ready=True,
+                                                backend="numpy", model="l1_tv", input_scale=1.0,
+                                                resolution="5x4").values}
+    assert values["solve time mean (ms)"] == "n/a" and values["frames published"] == "4"
