@@ -64,6 +64,33 @@ SEARCH_STEPS: list[tuple[str, list[Any]]] = [
 ]
 
 
+# The per-model weight search (on the quality preset): the grid for each model's weight(s).
+MODEL_GRID: dict[str, list[dict[str, Any]]] = {
+    "l2_l2": [dict(alpha=a) for a in (0.00003, 0.0001, 0.0003, 0.001)],
+    "l2_tv": [dict(alpha=a) for a in (0.00002, 0.00005, 0.0002, 0.0005)],
+    "l1_tv": [dict(alpha=a) for a in (0.015, 0.02, 0.03)],
+    "l1_tv_l2": [dict(alpha1=a) for a in (0.02, 0.1, 0.5)],
+    "l1_tv_tv": [dict(alpha1=a) for a in (0.02, 0.1, 0.5)],
+}
+
+
+def model_search(pairs: list, overrides: list[str]) -> dict[str, Any]:
+    """Every model over its MODEL_GRID entries on the quality preset; returns the log and the best per model."""
+    quality = FlowConfig.preset("quality").with_overrides(overrides)
+    out: dict[str, Any] = {"steps": [], "best": {}}
+    for model, grid in MODEL_GRID.items():
+        best = None
+        for change in grid:
+            cfg = quality.replace(model=model, **change)
+            res = _brief(evaluate(flow_node_method(cfg), pairs))
+            out["steps"].append({"model": model, "change": change, **res})
+            print(f"{model} {change} {res}", flush=True)
+            if best is None or res["mean_aee"] < best[1]["mean_aee"]:
+                best = (change, res)
+        out["best"][model] = {"change": best[0], **best[1]}
+    return out
+
+
 def levels_for(cfg: FlowConfig) -> int:
     """Enough pyramid levels for the Middlebury sizes (~380 px short side) to reach min_size at this scale."""
     n = 1
@@ -107,6 +134,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sequences", nargs="*", default=list(SEQUENCES))
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="override every config")
     ap.add_argument("--search", metavar="PRESET", help="run the preset search from PRESET instead")
+    ap.add_argument("--model-search", action="store_true", help="run the per-model weight search instead")
     ap.add_argument("--output", type=Path, help="JSON file (default bench/results/accuracy*.json)")
     args = ap.parse_args(argv)
     pairs = load_middlebury(args.data, tuple(args.sequences))
@@ -117,6 +145,11 @@ def main(argv: list[str] | None = None) -> None:
         out = args.output or RESULTS / f"accuracy_search_{args.search}.json"
         write_json(out, {"command": _command(argv), "machine": machine(), "backend": backend_of(best),
                          "steps": log, "best": best.to_dict()})
+        return
+
+    if args.model_search:
+        out = args.output or RESULTS / "accuracy_models.json"
+        write_json(out, {"command": _command(argv), "machine": machine(), **model_search(pairs, args.set)})
         return
 
     results: dict[str, Any] = {}
