@@ -213,8 +213,9 @@ class InProcessRig(Rig):
         return {"received": t.received, "dropped": t.dropped, "busy": self.node._stats.solve_total}
 
     def close(self) -> None:
+        self.executor.shutdown(timeout_sec=5.0)
+        self.node.destroy_node()  # joins the worker before the context goes away
         super().close()
-        self.node.destroy_node()
 
 
 class ProcessRig(Rig):

@@ -215,6 +215,8 @@ class FlowNode(Node):
             try:
                 self._handle(msg)
             except Exception as exc:  # the node never dies on a frame; report and go on
+                if not self.context.ok():
+                    break  # shutting down (SIGINT/SIGTERM): the publishers are gone, nothing to report
                 self._stats.error(f"{type(exc).__name__}: {exc}")
                 self.get_logger().error(f"frame failed: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
 
