@@ -169,12 +169,13 @@ class Rig:
             k += 1
             time.sleep(max(0.0, start + k / rate - time.perf_counter()))
         elapsed = time.perf_counter() - start
-        time.sleep(0.5)  # let the last counters arrive
+        busy = self.counters()["busy"] - d0["busy"]  # solving time within the window
         outputs = self.count() - before
+        time.sleep(0.5)  # let the last counters arrive
         d1 = self.counters()
         return {"published": k, "received": d1["received"] - d0["received"],
                 "dropped": d1["dropped"] - d0["dropped"], "outputs": outputs, "seconds": elapsed,
-                "output_rate_hz": outputs / elapsed, "solver_busy_fraction": (d1["busy"] - d0["busy"]) / elapsed}
+                "output_rate_hz": outputs / elapsed, "solver_busy_fraction": busy / elapsed}
 
     def counters(self) -> dict[str, float]:
         """received, dropped (totals) and busy (seconds solved since start)."""
