@@ -35,19 +35,25 @@ RESULTS = REPO / "bench" / "results"
 # Per-model weights on top of the quality preset. The engine minimises D + alpha R with images in [0, 1];
 # an L2 data term is quadratic in the (small) residual, so it needs a much smaller alpha than an L1 one to
 # weigh the same against the regulariser. Values from the search in BENCHMARKS.md (issue 2 section).
+# (bench/results/accuracy_models.json, `python -m bench.accuracy --model-search`).
 MODEL_WEIGHTS: dict[str, dict[str, Any]] = {
-    "l2_l2": dict(alpha=0.01),
-    "l2_tv": dict(alpha=0.002),
-    "l1_tv": dict(),
+    "l2_l2": dict(alpha=0.0003),
+    "l2_tv": dict(alpha=0.00005),
+    "l1_tv": dict(),  # the quality preset's alpha = 0.02
     "l1_tv_l2": dict(alpha1=0.5),
-    "l1_tv_tv": dict(alpha1=0.5),
+    "l1_tv_tv": dict(alpha1=0.1),
 }
+
+# The most accurate setting found (not a preset: ~2.5x the quality preset's iterations per level).
+ACCURATE = dict(model="l1_tv", warps=5, iterations=50, level_alpha_factor=0.65)
 
 
 def configs() -> dict[str, FlowConfig]:
-    """What the benchmark runs: each model on the quality preset with its weights, then every preset."""
+    """What the benchmark runs: each model on the quality preset with its weights, the most accurate
+    setting found, then every preset."""
     quality = FlowConfig.preset("quality")
     out = {f"model:{m}": quality.replace(model=m, **MODEL_WEIGHTS[m]) for m in MODELS}
+    out["tuned:l1_tv_accurate"] = quality.replace(**ACCURATE)
     out.update({f"preset:{name}": FlowConfig.preset(name) for name in PRESETS})
     return out
 
@@ -126,6 +132,22 @@ def _brief(res: dict[str, Any]) -> dict[str, Any]:
             "aee": {k: round(v["aee"], 3) for k, v in res["per_sequence"].items()}}
 
 
+def markdown(payload: dict[str, Any]) -> str:
+    """The per-sequence AEE table (and mean AEE, AE, seconds, time ratio to DualTVL1) of an accuracy JSON."""
+    results = payload["results"]
+    seqs = payload["sequences"]
+    ref = results.get("peer:opencv_dualtvl1", {}).get("mean_seconds")
+    head = ["config"] + [s[:9] for s in seqs] + ["mean AEE", "mean AE (deg)", "s / pair", "time / DualTVL1"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name, r in results.items():
+        per = r["per_sequence"]
+        ratio = f"{r['mean_seconds'] / ref:.3f}" if ref else "-"
+        cells = [name] + [f"{per[s]['aee']:.3f}" for s in seqs]
+        cells += [f"**{r['mean_aee']:.3f}**", f"{r['mean_ae']:.2f}", f"{r['mean_seconds']:.2f}", ratio]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="Middlebury folder (<Seq>/frame10.png ...)")
@@ -136,7 +158,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--search", metavar="PRESET", help="run the preset search from PRESET instead")
     ap.add_argument("--model-search", action="store_true", help="run the per-model weight search instead")
     ap.add_argument("--output", type=Path, help="JSON file (default bench/results/accuracy*.json)")
+    ap.add_argument("--markdown", type=Path, metavar="JSON", help="print the table of a results file and exit")
     args = ap.parse_args(argv)
+    if args.markdown:
+        import json
+
+        print(markdown(json.loads(args.markdown.read_text())))
+        return
     pairs = load_middlebury(args.data, tuple(args.sequences))
 
     if args.search:
