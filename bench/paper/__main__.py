@@ -7,6 +7,7 @@ fig2_noisy.png, fig3_flows.png) and regenerates bench/paper/REPORT.md from them.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -30,7 +31,12 @@ def main(argv: list[str] | None = None) -> None:
                     help="dynamic search: multiples of the static weights tried per sequence")
     ap.add_argument("--sequences", nargs="*", default=list(SEQUENCES))
     ap.add_argument("--out", type=Path, default=HERE / "results")
+    ap.add_argument("--report-only", action="store_true", help="re-render REPORT.md from results.json and exit")
     args = ap.parse_args(argv)
+    if args.report_only:
+        results = json.loads((args.out / "results.json").read_text())
+        (HERE / "REPORT.md").write_text(report.render(results))
+        return
     start = time.perf_counter()
     args.out.mkdir(parents=True, exist_ok=True)
 

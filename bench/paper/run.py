@@ -20,7 +20,7 @@ from flow_node.core.metrics import aee, angular_error, valid_mask
 
 from ..common import to_u8
 from .algorithms import ALGORITHMS, TABLE2_ALPHA_PAPER, Algorithm
-from .protocol import PaperPair
+from .protocol import PaperPair, fill_unknown
 
 # Both frames are smoothed with a Gaussian of this sigma (px) before estimation: the synthesised second
 # frame carries cubic-interpolation error of ~1/3 of the mean image gradient on fine texture, and the
@@ -48,11 +48,13 @@ class Runner:
     seconds: float = 0.0
     used: set[str] = field(default_factory=set)
 
-    def score(self, cfg: FlowConfig, p: PaperPair, tag: str | None = None) -> dict[str, float]:
-        """AEE (px) and AE (deg) of ``cfg`` on one pair; the flow is kept under ``tag`` for figures."""
+    def score(self, cfg: FlowConfig, p: PaperPair, tag: str | None = None,
+              init: np.ndarray | None = None) -> dict[str, float]:
+        """AEE (px) and AE (deg) of ``cfg`` on one pair (optionally started from flow ``init`` (H, W, 2));
+        the flow is kept under ``tag`` for figures."""
         est = FlowEstimator(cfg.replace(backend=self.backend))
         start = time.perf_counter()
-        flow = est.estimate(presmooth(p.i0, self.sigma), presmooth(p.i1, self.sigma)).flow
+        flow = est.estimate(presmooth(p.i0, self.sigma), presmooth(p.i1, self.sigma), initial_flow=init).flow
         self.seconds += time.perf_counter() - start
         self.solves += 1
         self.used.add(est.backend)
@@ -121,6 +123,10 @@ def run_table2(runner: Runner, pair: PaperPair, sigmas: Sequence[float]) -> dict
         runner.sigma = sigma
         out[str(sigma)] = {s: runner.score(l1.config(factor, gradient_scheme=s), pair)
                            for s in ("forward", "central", "interpolated")}
+        # the same solve started from the ground truth: what the model and data allow, whatever the solver
+        gt = fill_unknown(pair.gt).astype(np.float32)
+        out[str(sigma)]["interpolated_from_gt"] = runner.score(
+            l1.config(factor, gradient_scheme="interpolated", levels=1), pair, init=gt)
     runner.sigma = saved
     return out
 
