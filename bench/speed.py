@@ -7,8 +7,9 @@ Everything timed here runs in this one process, one method after the other on th
 ratios (against OpenCV DualTVL1 and DIS) compare like with like even on a shared, noisy machine.
 
 - Middlebury training pairs (8) and RubberWhale upscaled to 1280x720: per pair the median of --repeats
-  runs after one warm-up run, AEE of the last run; peers OpenCV DualTVL1 (defaults), scikit-image TV-L1
-  (defaults), OpenCV DIS medium and ultrafast, Farneback (OpenCV's documented example parameters).
+  runs after one warm-up run, the methods' runs interleaved (round-robin), AEE of the last run; peers
+  OpenCV DualTVL1 (defaults), scikit-image TV-L1 (defaults), OpenCV DIS medium and ultrafast, Farneback
+  (OpenCV's documented example parameters).
 - cold start: a fresh interpreter with an empty NUMBA_CACHE_DIR imports the engine and calls warmup()
   (JIT compile), then estimates the first real frame; again with the now-filled cache.
 - kernel: one L1-TV primal-dual iteration at 640x480 (serial and parallel kernels) against the memory
@@ -130,13 +131,27 @@ def time_pairs(method: Method, pairs: list[Pair], repeats: int) -> dict[str, dic
 
 
 def middlebury_table(pairs: list[Pair], repeats: int, slow_repeats: int) -> dict[str, Any]:
-    """Every method on every pair, then ratios against DualTVL1 and DIS medium (same run)."""
-    res: dict[str, Any] = {}
-    for name, make in methods().items():
-        reps = slow_repeats if name in ("opencv_dualtvl1", "skimage_tvl1") else repeats
-        print(f"  {name} ({reps} runs/pair)", flush=True)
-        per = time_pairs(make(), pairs, reps)
-        res[name] = {"per_pair": per, "runs_per_pair": reps}
+    """Every method on every pair, then ratios against DualTVL1 and DIS (same run).
+
+    Round-robin: on each pair every method runs once untimed, then the timed runs alternate between the
+    methods (slow peers stop after ``slow_repeats``), so load changes on a shared machine hit all methods
+    alike instead of whichever happened to run at the time."""
+    made = {name: make() for name, make in methods().items()}
+    reps = {name: slow_repeats if name in ("opencv_dualtvl1", "skimage_tvl1") else repeats for name in made}
+    res: dict[str, Any] = {name: {"per_pair": {}, "runs_per_pair": reps[name]} for name in made}
+    for p in pairs:
+        print(f"  {p.name}", flush=True)
+        flows = {name: m(p.i0, p.i1) for name, m in made.items()}
+        secs: dict[str, list[float]] = {name: [] for name in made}
+        for r in range(max(reps.values())):
+            for name, m in made.items():
+                if r < reps[name]:
+                    start = time.perf_counter()
+                    flows[name] = m(p.i0, p.i1)
+                    secs[name].append(time.perf_counter() - start)
+        for name in made:
+            res[name]["per_pair"][p.name] = {"seconds": float(np.median(secs[name])),
+                                             "aee": aee(flows[name], p.gt)}
     mb = [p.name for p in pairs if p.name != "RubberWhale_1280x720"]
     for r in res.values():
         per = r["per_pair"]
@@ -146,6 +161,7 @@ def middlebury_table(pairs: list[Pair], repeats: int, slow_repeats: int) -> dict
             ratios = [per[n]["seconds"] / res[peer]["per_pair"][n]["seconds"] for n in per]
             r[f"time_ratio_vs_{peer}"] = {n: float(x) for n, x in zip(per, ratios, strict=True)}
             r[f"mean_time_ratio_vs_{peer}"] = float(np.mean([r[f"time_ratio_vs_{peer}"][n] for n in mb]))
+            r[f"pairs_faster_than_{peer}"] = int(sum(x < 1.0 for n, x in zip(per, ratios, strict=True) if n in mb))
     return res
 
 
