@@ -244,11 +244,13 @@ class FlowNode(Node):
         self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, out)
 
     def _publish(self, header: Header, out: FlowOutput) -> None:
-        """Flow, magnitude and (only if someone listens) colour, all with the new frame's header."""
-        self._pub_flow.publish(image_msg(header, array_to_image_fields(out.flow, "32FC2")))
-        self._pub_mag.publish(image_msg(header, array_to_image_fields(out.magnitude, "32FC1")))
-        if self._pub_color.get_subscription_count() > 0:
-            self._pub_color.publish(image_msg(header, array_to_image_fields(out.color(), "bgr8")))
+        """Flow, magnitude and colour with the new frame's header; each is built and published only while
+        its topic has subscribers (the colour image is not even computed otherwise)."""
+        for pub, image, encoding in ((self._pub_flow, lambda: out.flow, "32FC2"),
+                                     (self._pub_mag, lambda: out.magnitude, "32FC1"),
+                                     (self._pub_color, out.color, "bgr8")):
+            if pub.get_subscription_count() > 0:
+                pub.publish(image_msg(header, array_to_image_fields(image(), encoding)))
 
     def destroy_node(self) -> None:
         """Stop the worker (after the frame it is solving) and destroy the node."""
