@@ -156,9 +156,10 @@ PRESETS: dict[str, dict[str, Any]] = {
                     level_alpha_factor=0.8, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
     "balanced": dict(model="l1_tv", alpha=0.02, iterations=25, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=0.8, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3),
-    # realtime/fastest: from the speed frontier (BENCHMARKS.md, issue 3): one warp per level on a 5-level
-    # pyramid; fastest also drops the median filter and the interpolated gradient.
-    "realtime": dict(model="l1_tv", alpha=0.025, iterations=20, warps=1, levels=5, median_filter=3,
+    # realtime/fastest: from the speed frontier (BENCHMARKS.md, issue 3): a 5-level pyramid with few
+    # iterations; realtime keeps 2 warps (one is not enough on small images, whose pyramids are short),
+    # fastest uses one and drops the median filter and the interpolated gradient.
+    "realtime": dict(model="l1_tv", alpha=0.025, iterations=10, warps=2, levels=5, median_filter=3,
                      gradient_scheme="interpolated", tolerance=2e-3),
     "fastest": dict(model="l1_tv", alpha=0.025, iterations=8, warps=1, levels=5, median_filter=0,
                     gradient_scheme="central", tolerance=0.0),
