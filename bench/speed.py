@@ -56,17 +56,19 @@ RESULTS = REPO / "bench" / "results"
 PRESETS_TIMED = ("quality", "realtime", "fastest")
 SIZES = ((320, 240), (640, 480), (1280, 720), (1920, 1080))
 
-# Settings around the fast presets (over the realtime preset) for the time-vs-AEE frontier.
+# Settings around the fast presets (over the realtime preset) for the time-vs-AEE frontier: the finest
+# solved level (0 = full resolution, 1 = half, 2 = quarter) and the work per level.
 FRONTIER: list[dict[str, Any]] = [
-    dict(warps=1, iterations=8, median_filter=0, gradient_scheme="central", tolerance=0.0),  # = fastest
-    dict(warps=1, iterations=10),
-    dict(warps=1, iterations=15),
-    dict(warps=1, iterations=20),
-    dict(warps=1, iterations=30),
-    dict(warps=2, iterations=10),  # = realtime
-    dict(warps=2, iterations=20),
-    dict(warps=3, iterations=30, median_filter=5),
-    dict(levels=6, warps=5, iterations=50, median_filter=5, tolerance=0.0),
+    dict(finest_level=2, iterations=8, median_filter=3),  # = fastest
+    dict(finest_level=2),
+    dict(finest_level=1, iterations=8),
+    dict(finest_level=1),  # = realtime
+    dict(finest_level=1, warps=3),
+    dict(finest_level=1, warps=3, iterations=15),
+    dict(finest_level=0, warps=1),
+    dict(finest_level=0),
+    dict(finest_level=0, iterations=20),
+    dict(finest_level=0, warps=3, iterations=30),
 ]
 
 

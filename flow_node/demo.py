@@ -1,11 +1,12 @@
 """`make demo`: the whole product on one screen.
 
-Starts the flow node (``python -m flow_node.ros.node``, a fast preset, its ``image`` remapped to the bag's
-camera topic) on an isolated DDS domain (localhost discovery, a random domain id), plays the bundled bag into
-it with ``flow_bag play``'s publisher, collects ``/flow_node/flow`` and ``/diagnostics``, and prints a
-per-frame table (AEE against the bag's ground truth, latency from publish to flow received) and a summary,
-side by side with ``flow_bag eval`` of the same bag (same pipeline, offline). Writes colour PNGs to
-``demo_out/``. Stops the node and exits 0 when every frame pair came back; nothing is left running.
+Starts the flow node (``python -m flow_node.ros.node``, the ``balanced`` preset: the bag's frames are 128x96,
+too small for ``realtime``'s half-resolution solve; its ``image`` remapped to the bag's camera topic) on an
+isolated DDS domain (localhost discovery, a random domain id), plays the bundled bag into it with ``flow_bag
+play``'s publisher, collects ``/flow_node/flow`` and ``/diagnostics``, and prints a per-frame table (AEE
+against the bag's ground truth, latency from publish to flow received) and a summary, side by side with
+``flow_bag eval`` of the same bag (same pipeline, offline). Writes colour PNGs to ``demo_out/``. Stops the
+node and exits 0 when every frame pair came back; nothing is left running.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ class DemoOptions:
 
     bag: Path = DEFAULT_BAG
     out_dir: Path = Path("demo_out")
-    preset: str = "realtime"
+    preset: str = "balanced"
     backend: str = "numpy"
     rate: float = 0.5
     ready_timeout: float = 120.0
@@ -301,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m flow_node.demo", description=__doc__.splitlines()[0])
     p.add_argument("--bag", type=Path, default=DEFAULT_BAG, help="bag with ground truth to play")
     p.add_argument("--out", type=Path, default=Path("demo_out"), help="folder for PNGs and the node log")
-    p.add_argument("--preset", choices=tuple(PRESETS), default="realtime", help="node preset")
+    p.add_argument("--preset", choices=tuple(PRESETS), default="balanced", help="node preset")
     p.add_argument("--backend", choices=("numpy", "numba", "auto"), default="numpy",
                    help="solver backend of the node (numpy needs no JIT compile; on 128x96 frames it is as fast)")
     p.add_argument("--rate", type=float, default=0.5, help="playback speed factor")

@@ -29,8 +29,9 @@ FRAME_ID = "cam_test"
 H, W = 60, 80
 GT = constant_flow(H, W, 1.5, -0.75)
 I0, I1 = pair_from_flow(texture(H, W, seed=3), GT)
-# fast and deterministic: numpy backend (no JIT), the realtime preset's solver settings
-FAST = {"preset": "realtime", "backend": "numpy"}
+# fast and deterministic: numpy backend (no JIT), the realtime preset's solver settings, solved at full
+# resolution (the preset's finest_level 1 is meant for camera-sized frames, these are 80x60)
+FAST = {"preset": "realtime", "finest_level": 0, "backend": "numpy"}
 
 
 def wait_for(pred: Callable[[], Any], timeout: float = 10.0, what: str = "condition") -> Any:

@@ -17,7 +17,7 @@ from flow_node.core import FlowConfig
 from flow_node.pipeline.codec import array_to_image_fields
 
 BAGS = Path(__file__).resolve().parent.parent / "bags"
-FAST = ["--preset", "realtime", "--set", "backend=numpy", "-q"]
+FAST = ["--preset", "realtime", "--set", "finest_level=0", "--set", "backend=numpy", "-q"]
 
 
 def copy_bag(name: str, dst: Path) -> Path:

@@ -203,7 +203,7 @@ def test_cli_writes_flo_and_colour(tmp_path: Path) -> None:
     p0, p1, gt = _write_pair(tmp_path)
     out, col = tmp_path / "out.flo", tmp_path / "out.png"
     rc = cli_main([str(p0), str(p1), "--output", str(out), "--preset", "realtime", "--set", "backend=numpy",
-                   "--color", str(col)])
+                   "--set", "finest_level=0", "--color", str(col)])
     assert rc == 0
     assert aee(interior(read_flo(out)), interior(gt)) < 0.05
     assert cv2.imread(str(col)).shape == (48, 64, 3)

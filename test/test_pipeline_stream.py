@@ -12,7 +12,8 @@ from flow_node.core.metrics import aee
 from flow_node.pipeline.stream import FlowStream, StreamSettings, magnitude, scaled_shape, summarise
 
 H, W = 60, 80
-FAST = FlowConfig.preset("realtime").replace(backend="numpy")
+# the realtime preset at full resolution (its finest_level 1 is for camera-sized frames; these are 80x60)
+FAST = FlowConfig.preset("realtime").replace(finest_level=0, backend="numpy")
 GT = constant_flow(H, W, 1.5, -0.75)
 I0, I1 = pair_from_flow(texture(H, W, seed=1), GT)
 

@@ -102,11 +102,17 @@ def play(node: Any, path: str | Path, opts: PlayOptions,
     return count
 
 
+# After a publisher sees its subscriber, how long to let the subscriber see the publisher too: discovery
+# is matched on each side separately, and a volatile reader drops what arrives before its own match.
+DISCOVERY_SETTLE_S = 0.5
+
+
 def _wait_for_subscribers(pubs: list[Any], seconds: float) -> None:
-    """Wait until every publisher has a subscriber, at most ``seconds``."""
+    """Wait until every publisher has a subscriber (at most ``seconds``), then DISCOVERY_SETTLE_S more."""
     deadline = time.monotonic() + seconds
     while seconds > 0 and time.monotonic() < deadline:
         if all(p.get_subscription_count() > 0 for p in pubs):
+            time.sleep(DISCOVERY_SETTLE_S)
             return
         time.sleep(0.05)
 

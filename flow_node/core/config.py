@@ -59,6 +59,8 @@ class FlowConfig:
     scale_factor: float = _f(0.5, "pyramid downscale factor between levels", lo=0.2, hi=0.95)
     min_size: int = _f(16, "smallest image side allowed on the coarsest level (px)", lo=4, hi=100000)
     warps: int = _f(5, "warps (re-linearisations) per pyramid level", lo=1, hi=100)
+    finest_level: int = _f(0, "finest pyramid level solved (0 = full resolution); the flow of that level is "
+                           "upsampled to full resolution (like DIS's finest_scale)", lo=0, hi=29)
     median_filter: int = _f(5, "median filter size applied to the flow after each warp (0 = off)",
                             choices=(0, 3, 5))
     level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
@@ -72,6 +74,9 @@ class FlowConfig:
             object.__setattr__(self, f.name, _check_field(f, getattr(self, f.name)))
         if self.model in ("l1_tv_l2", "l1_tv_tv") and self.alpha1 <= 0.0:
             raise ConfigError(f"alpha1 must be > 0 for model {self.model!r} (got {self.alpha1})")
+        if self.finest_level >= self.levels:
+            raise ConfigError(f"finest_level must be < levels (got finest_level={self.finest_level}, "
+                              f"levels={self.levels})")
 
     # ----------------------------------------------------------------------------------------- builders
     @classmethod
@@ -156,13 +161,15 @@ PRESETS: dict[str, dict[str, Any]] = {
                     level_alpha_factor=0.8, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
     "balanced": dict(model="l1_tv", alpha=0.02, iterations=25, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=0.8, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3),
-    # realtime/fastest: from the speed frontier (BENCHMARKS.md, issue 3): a 5-level pyramid with few
-    # iterations; realtime keeps 2 warps (one is not enough on small images, whose pyramids are short),
-    # fastest uses one and drops the median filter and the interpolated gradient.
-    "realtime": dict(model="l1_tv", alpha=0.025, iterations=10, warps=2, levels=5, median_filter=3,
-                     gradient_scheme="interpolated", tolerance=2e-3),
-    "fastest": dict(model="l1_tv", alpha=0.025, iterations=8, warps=1, levels=5, median_filter=0,
-                    gradient_scheme="central", tolerance=0.0),
+    # realtime/fastest: from the speed frontier (BENCHMARKS.md, issue 3). Like DIS, they stop the pyramid
+    # above full resolution and upsample the flow: realtime solves down to half size (finest_level 1),
+    # fastest to quarter size; below ~20 ms per VGA pair the full-resolution level's per-warp work and
+    # kernels cost more than all coarser levels together, for AEE that the median filter and a smaller
+    # alpha recover more cheaply.
+    "realtime": dict(model="l1_tv", alpha=0.015, iterations=10, warps=2, levels=5, finest_level=1,
+                     median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
+    "fastest": dict(model="l1_tv", alpha=0.015, iterations=8, warps=2, levels=5, finest_level=2,
+                    median_filter=3, gradient_scheme="interpolated", tolerance=0.0),
 }
 
 

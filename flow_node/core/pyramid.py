@@ -94,18 +94,21 @@ def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: Level
 
     On each level, coarsest first: ``cfg.warps`` times linearise around the current flow (bicubic warp of
     frame 1 and its gradient, outside pixels masked), run ``solve`` and median-filter the flow; then carry
-    primal and dual variables to the next level. After the finest level, ``cfg.bregman_iterations``
-    Bregman steps on the last linearisation (see :func:`bregman`).
+    primal and dual variables to the next level. After the finest solved level, ``cfg.bregman_iterations``
+    Bregman steps on the last linearisation (see :func:`bregman`). The finest solved level is
+    ``cfg.finest_level`` (clamped to the coarsest level the image has); when it is not 0 its flow is
+    upsampled bilinearly to (H, W) with the vectors rescaled; finer levels are not solved.
     """
     spec = MODEL_SPECS[cfg.model]
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
+    finest = min(cfg.finest_level, len(shapes) - 1)
     p0 = build_pyramid(i0, shapes, cfg.scale_factor)
     p1 = build_pyramid(i1, shapes, cfg.scale_factor)
     stats = SolveStats(shapes=shapes, iterations=[0] * len(shapes))
     state = PDState.zeros(spec, shapes[-1])
     if initial_flow is not None:
         state.v = resize_flow(initial_flow.astype(np.float32), shapes[-1])
-    for lvl in range(len(shapes) - 1, -1, -1):
+    for lvl in range(len(shapes) - 1, finest - 1, -1):
         if state.v.shape[1:] != shapes[lvl]:
             state = resize_state(state, shapes[lvl])
         params = SolveParams(spec, cfg.alpha * cfg.level_alpha_factor**lvl, cfg.alpha1, cfg.tv_norm,
@@ -117,9 +120,9 @@ def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: Level
             stats.iterations[lvl] += solve(Problem(a, c), state, params)
             if cfg.median_filter:
                 state.v = median_filter(state.v, cfg.median_filter)
-        if lvl == 0 and cfg.bregman_iterations:
+        if lvl == finest and cfg.bregman_iterations:
             stats.bregman_iterations = bregman(Problem(a, c), state, params, solve, cfg.bregman_iterations)
-    return state.v, stats
+    return (state.v if finest == 0 else resize_flow(state.v, shapes[0])), stats
 
 
 def bregman(problem: Problem, state: PDState, p: SolveParams, solve: LevelSolver, n: int) -> int:
