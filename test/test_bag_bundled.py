@@ -22,7 +22,7 @@ from flow_node.core.metrics import aee
 BAGS = Path(__file__).resolve().parent.parent / "bags"
 TS = get_typestore(Stores.ROS2_JAZZY)
 # AEE bounds (px) with the realtime preset solved at full resolution (finest_level 0: the bags are 128x96,
-# too small for the preset's half-resolution solve); measured values are in bags/README.md (0.07-0.19 px),
+# too small for the preset's half-resolution solve); measured values are in bags/README.md (0.07-0.20 px),
 # the zero-flow AEE is 1.1-2.0 px, so a wrong sign or a broken model fails by a wide margin.
 BOUNDS = {"translation": 0.15, "rotation": 0.15, "zoom": 0.15, "deformation": 0.15, "objects": 0.30}
 FAST = ["--preset", "realtime", "--set", "finest_level=0", "--set", "backend=numpy", "-q"]

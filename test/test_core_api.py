@@ -54,6 +54,8 @@ def test_presets_exist_and_are_valid() -> None:
         ({"tv_norm": "euclid"}, "tv_norm: 'euclid' is not one of"),
         ({"gradient_scheme": 3}, "gradient_scheme: expected a string"),
         ({"model": "l1_tv_l2", "alpha1": 0.0}, "alpha1 must be > 0"),
+        ({"levels": 3, "finest_level": 3}, "finest_level must be < levels"),
+        ({"finest_level": -1}, "finest_level: must be >= 0"),
         ({"bogus": 1}, "unknown parameter"),
     ],
 )

@@ -12,8 +12,7 @@ from flow_node.ros.diagnostics import ERROR, OK, WARN, NodeStats, level_of, stat
 
 def output(value: float) -> FlowOutput:
     flow = np.full((4, 5, 2), value, np.float32)
-    mag = np.hypot(flow[..., 0], flow[..., 1]).astype(np.float32)
-    return FlowOutput(flow, mag, 2, 1, 0.01, None, "numpy", "l1_tv", 1.0, 10.0)  # type: ignore[arg-type]
+    return FlowOutput(flow, 2, 1, 0.01, None, "numpy", "l1_tv", 1.0, 10.0)  # type: ignore[arg-type]
 
 
 def test_levels_in_order_of_severity() -> None:

@@ -41,7 +41,7 @@ def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") ->
     elif img.dtype == np.uint16:
         out = img.astype(np.float32) / 65535.0
     elif img.dtype in (np.float32, np.float64, np.float16):
-        out = img.astype(np.float32)
+        out = img.astype(np.float32, copy=False)  # the engine never writes to its input
         if not np.isfinite(out).all():
             raise InputError(f"{name}: contains NaN or infinite values")
     else:

@@ -85,12 +85,11 @@ class FlowOutput:
     """One result: flow from the previous frame to the frame stamped ``stamp_ns``.
 
     ``flow`` (H, W, 2) float32 and ``magnitude`` (H, W) float32 are in px/frame at the processing
-    resolution (``scale`` times the input size). The colour image and the summary are computed on first
-    use only (the node publishes colour only when subscribed and summarises only for diagnostics).
+    resolution (``scale`` times the input size). Magnitude, colour image and summary are computed on first
+    use only (the node publishes magnitude and colour only when subscribed, summarises only for diagnostics).
     """
 
     flow: np.ndarray
-    magnitude: np.ndarray
     stamp_ns: int
     previous_stamp_ns: int
     seconds: float
@@ -99,8 +98,16 @@ class FlowOutput:
     model: str
     scale: float
     color_max_flow: float
+    _magnitude: np.ndarray | None = field(default=None, repr=False)
     _color: np.ndarray | None = field(default=None, repr=False)
     _summary: FlowSummary | None = field(default=None, repr=False)
+
+    @property
+    def magnitude(self) -> np.ndarray:
+        """|flow| (H, W) float32 px/frame, computed on first use and cached."""
+        if self._magnitude is None:
+            self._magnitude = magnitude(self.flow)
+        return self._magnitude
 
     @property
     def summary(self) -> FlowSummary:
@@ -211,7 +218,6 @@ class FlowStream:
         prev, prev_stamp = self._prev, self._prev_stamp
         result = self._estimator.estimate(prev, grey)
         self._prev, self._prev_stamp = grey, stamp_ns
-        mag = magnitude(result.flow)
         s = self._settings
-        return FlowOutput(result.flow, mag, stamp_ns, prev_stamp, result.seconds, result.stats,
+        return FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                           result.backend, s.config.model, s.input_scale, s.color_max_flow)
