@@ -57,7 +57,8 @@ class Listener:
         end = time.monotonic() + timeout
         while len(self.got) < n and time.monotonic() < end:
             time.sleep(0.02)
-        assert len(self.got) >= n, f"received {len(self.got)} of {n} messages"
+        stamps = [m.header.stamp.nanosec // 1_000_000 for _, m in self.got]
+        assert len(self.got) >= n, f"received {len(self.got)} of {n} messages (ms of their stamps: {stamps})"
 
     def close(self) -> None:
         self.executor.shutdown()

@@ -99,12 +99,13 @@ def play(node: Any, path: str | Path, opts: PlayOptions,
             if on_publish is not None:
                 on_publish(topic, t, time.monotonic())
         loop += 1
+    _wait_for_acks(list(pubs.values()))
     return count
 
 
 # After a publisher sees its subscriber, how long to let the subscriber see the publisher too: discovery
 # is matched on each side separately, and a volatile reader drops what arrives before its own match.
-DISCOVERY_SETTLE_S = 0.5
+DISCOVERY_SETTLE_S = 1.0
 
 
 def _wait_for_subscribers(pubs: list[Any], seconds: float) -> None:
@@ -115,6 +116,18 @@ def _wait_for_subscribers(pubs: list[Any], seconds: float) -> None:
             time.sleep(DISCOVERY_SETTLE_S)
             return
         time.sleep(0.05)
+
+
+ACK_TIMEOUT_S = 2.0  # after the last message, how long to wait for reliable subscribers to acknowledge it
+
+
+def _wait_for_acks(pubs: list[Any]) -> None:
+    """Let every reliable subscriber acknowledge what was published (a process that exits right after its
+    last publish could otherwise take an unacknowledged sample with it), ACK_TIMEOUT_S at most."""
+    from rclpy.duration import Duration
+
+    for pub in pubs:
+        pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
 
 
 def run_play(path: str | Path, opts: PlayOptions) -> int:
