@@ -97,8 +97,12 @@ class FlowEstimator:
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
                  channel_order: str = "rgb") -> FlowResult:
         """Flow from frame0 to frame1 (both images of the same size), I1(x + flow) ~ I0(x)."""
-        i0 = to_grey(frame0, "frame0", channel_order)
-        i1 = to_grey(frame1, "frame1", channel_order)
+        return self.estimate_grey(to_grey(frame0, "frame0", channel_order), to_grey(frame1, "frame1", channel_order),
+                                  initial_flow)
+
+    def estimate_grey(self, i0: np.ndarray, i1: np.ndarray, initial_flow: np.ndarray | None = None) -> FlowResult:
+        """:meth:`estimate` for frames that already went through :func:`to_grey` (float32 (H, W) in [0, 1],
+        finite): a stream that converts each frame once on arrival need not validate it again per pair."""
         if i0.shape != i1.shape:
             raise InputError(f"frames differ in size: frame0 is {i0.shape[1]}x{i0.shape[0]}, "
                              f"frame1 is {i1.shape[1]}x{i1.shape[0]}")

@@ -216,7 +216,7 @@ class FlowStream:
             self._start(grey, key, stamp_ns, reason)
             return None
         prev, prev_stamp = self._prev, self._prev_stamp
-        result = self._estimator.estimate(prev, grey)
+        result = self._estimator.estimate_grey(prev, grey)  # both converted by _prepare
         self._prev, self._prev_stamp = grey, stamp_ns
         s = self._settings
         return FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
