@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 import rclpy
+import small_frames
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
@@ -29,9 +30,7 @@ FRAME_ID = "cam_test"
 H, W = 60, 80
 GT = constant_flow(H, W, 1.5, -0.75)
 I0, I1 = pair_from_flow(texture(H, W, seed=3), GT)
-# fast and deterministic: numpy backend (no JIT), the realtime preset's solver settings, solved at full
-# resolution (the preset's finest_level 1 is meant for camera-sized frames, these are 80x60)
-FAST = {"preset": "realtime", "finest_level": 0, "backend": "numpy"}
+FAST = small_frames.PARAMS  # fast and deterministic on these 80x60 frames
 
 
 def wait_for(pred: Callable[[], Any], timeout: float = 10.0, what: str = "condition") -> Any:

@@ -11,21 +11,22 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import small_frames
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 
 from flow_node.bag.cli import main as flow_bag
-from flow_node.core import FlowConfig, FlowEstimator
+from flow_node.core import FlowEstimator
 from flow_node.core.flowio import flow_to_color
 from flow_node.core.metrics import aee
 
 BAGS = Path(__file__).resolve().parent.parent / "bags"
 TS = get_typestore(Stores.ROS2_JAZZY)
-# AEE bounds (px) with the realtime preset solved at full resolution (finest_level 0: the bags are 128x96,
-# too small for the preset's half-resolution solve); measured values are in bags/README.md (0.07-0.20 px),
-# the zero-flow AEE is 1.1-2.0 px, so a wrong sign or a broken model fails by a wide margin.
+# AEE bounds (px) with small_frames' settings (the realtime preset solved at full resolution); measured
+# values are in bags/README.md (0.07-0.20 px), the zero-flow AEE is 1.1-2.0 px, so a wrong sign or a broken
+# model fails by a wide margin.
 BOUNDS = {"translation": 0.15, "rotation": 0.15, "zoom": 0.15, "deformation": 0.15, "objects": 0.30}
-FAST = ["--preset", "realtime", "--set", "finest_level=0", "--set", "backend=numpy", "-q"]
+FAST = small_frames.CLI_ARGS + ["-q"]
 
 
 def readme_commands() -> list[list[str]]:
@@ -109,7 +110,7 @@ def test_eval_equals_a_direct_engine_run(evaluated, name):
     else:
         frames = [pixels(m, "u1", 1) for _, m in src[topic]]
     gts = [pixels(m, "<f4", 2) for _, m in src["/camera/flow_gt"]]
-    engine = FlowEstimator(FlowConfig.preset("realtime").replace(finest_level=0, backend="numpy"))
+    engine = FlowEstimator(small_frames.CONFIG)
     report = json.loads((evaluated[name] / "report.json").read_text())["models"][0]["frames"]
     for k, (_, msg) in enumerate(out["/flow_node/flow"], start=1):
         direct = engine.estimate(frames[k - 1], frames[k]).flow

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import small_frames
 
 from flow_node.bag.bagio import IMAGE, BagError, BagWriter, header, image_message
 from flow_node.bag.cli import main as flow_bag
@@ -17,7 +18,7 @@ from flow_node.core import FlowConfig
 from flow_node.pipeline.codec import array_to_image_fields
 
 BAGS = Path(__file__).resolve().parent.parent / "bags"
-FAST = ["--preset", "realtime", "--set", "finest_level=0", "--set", "backend=numpy", "-q"]
+FAST = small_frames.CLI_ARGS + ["-q"]
 
 
 def copy_bag(name: str, dst: Path) -> Path:

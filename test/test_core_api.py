@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import small_frames
 from synth import constant_flow, interior, pair_from_flow, texture
 
 from flow_node import (
@@ -204,8 +205,7 @@ def _write_pair(tmp_path: Path) -> tuple[Path, Path, np.ndarray]:
 def test_cli_writes_flo_and_colour(tmp_path: Path) -> None:
     p0, p1, gt = _write_pair(tmp_path)
     out, col = tmp_path / "out.flo", tmp_path / "out.png"
-    rc = cli_main([str(p0), str(p1), "--output", str(out), "--preset", "realtime", "--set", "backend=numpy",
-                   "--set", "finest_level=0", "--color", str(col)])
+    rc = cli_main([str(p0), str(p1), "--output", str(out), *small_frames.CLI_ARGS, "--color", str(col)])
     assert rc == 0
     assert aee(interior(read_flo(out)), interior(gt)) < 0.05
     assert cv2.imread(str(col)).shape == (48, 64, 3)

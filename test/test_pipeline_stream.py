@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import small_frames
 from synth import constant_flow, pair_from_flow, texture
 
-from flow_node.core.config import FlowConfig
 from flow_node.core.errors import ConfigError, InputError
 from flow_node.core.metrics import aee
 from flow_node.pipeline.stream import FlowStream, StreamSettings, magnitude, scaled_shape, summarise
 
 H, W = 60, 80
-# the realtime preset at full resolution (its finest_level 1 is for camera-sized frames; these are 80x60)
-FAST = FlowConfig.preset("realtime").replace(finest_level=0, backend="numpy")
+FAST = small_frames.CONFIG
 GT = constant_flow(H, W, 1.5, -0.75)
 I0, I1 = pair_from_flow(texture(H, W, seed=1), GT)
 
