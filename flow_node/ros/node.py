@@ -10,6 +10,7 @@ solved, and memory is bounded by two images (the one solving and the one waiting
 from __future__ import annotations
 
 import array
+import ctypes
 import threading
 import time
 from typing import Any
@@ -260,8 +261,27 @@ class FlowNode(Node):
         super().destroy_node()
 
 
+# glibc mallopt parameters (malloc.h)
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+
+
+def keep_freed_memory(limit_bytes: int = 256 << 20) -> bool:
+    """Serve arrays up to ``limit_bytes`` from the heap and keep freed heap memory in the process (glibc only;
+    returns whether it applied). Every frame the engine allocates and frees arrays of 0.1-5 MB; with glibc's
+    defaults each is a fresh mmap whose pages fault in on first touch, which cost ~3 ms per VGA frame in the
+    grey conversion alone on a 2-core VM (docs/node.md). Memory stays bounded by the per-frame peak. Set for
+    the node's own process only (``main``), never on import: it is process-wide state."""
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        return bool(libc.mallopt(_M_MMAP_THRESHOLD, limit_bytes)) and bool(libc.mallopt(_M_TRIM_THRESHOLD,
+                                                                                         2 * limit_bytes))
+    except (OSError, AttributeError):
+        return False
+
+
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``ros2 run flow_node flow_node`` / ``python -m flow_node.ros.node``."""
+    keep_freed_memory()
     rclpy.init(args=args)
     node: FlowNode | None = None
     code = 0
