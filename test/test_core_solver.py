@@ -196,3 +196,20 @@ def test_finest_level_is_clamped_to_the_levels_the_image_has() -> None:
     i0, i1 = pair_from_flow(texture(24, 32, 1), gt)
     cfg = small_config("l1_tv", levels=3, min_size=16)  # 24x32 -> one level only (12 < 16)
     assert np.array_equal(estimate_flow(i0, i1, cfg), estimate_flow(i0, i1, cfg.replace(finest_level=2)))
+
+
+def test_interleaved_output_equals_resizing_each_component_then_interleaving() -> None:
+    """The engine's output step (scale the vectors at the solved size, interleave, resize once) gives the
+    field that resizing each component, rescaling and interleaving gives, and the same size is a plain
+    interleave."""
+    from flow_node.core.pyramid import interleaved_flow, resize_flow
+
+    rng = np.random.default_rng(4)
+    v = rng.normal(size=(2, 30, 41)).astype(np.float32)
+    same = interleaved_flow(v, (30, 41))
+    assert same.shape == (30, 41, 2) and same.dtype == np.float32 and np.array_equal(same, np.moveaxis(v, 0, -1))
+    for shape in ((60, 82), (61, 80), (15, 20)):
+        got = interleaved_flow(v, shape)
+        want = np.moveaxis(resize_flow(v, shape), 0, -1)
+        assert got.shape == shape + (2,) and got.flags.c_contiguous
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)

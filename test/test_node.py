@@ -7,17 +7,24 @@ numpy backend, so every number here is deterministic. AEE bounds are stated per 
 from __future__ import annotations
 
 import array
+import time
 
 import cv2
 import numpy as np
 import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
 from ros_helpers import FRAME_ID, GT, I0, I1, H, Harness, W, call, image, mono8, set_stamp, wait_for
 from sensor_msgs.msg import CompressedImage, Image
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from flow_node.core.metrics import aee
-from flow_node.pipeline.codec import image_to_array
+from flow_node.pipeline.codec import array_to_image_fields, image_to_array
+from flow_node.ros import node as node_mod
 
 AEE_BOUND = 0.25  # px; the same pair through the pipeline directly gives 0.06
 
@@ -213,3 +220,34 @@ def test_node_process_keeps_freed_memory_instead_of_faulting_in_fresh_pages() ->
     assert applied == "True"
     assert default > 50 * 200  # ~2 x 300 pages per iteration faulted in again with glibc's defaults
     assert kept < default / 20
+
+
+@pytest.mark.parametrize("direct", [True, False])
+def test_published_payload_is_the_array_on_both_message_paths(direct: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    """image_msg hands the numpy payload to publish without a Python copy where the generated class allows it
+    (node._DIRECT_DATA), else through an array.array; over DDS both arrive as exactly the array sent."""
+    assert node_mod._DIRECT_DATA  # the fast path exists on Jazzy; if rosidl changes, this says so
+    monkeypatch.setattr(node_mod, "_DIRECT_DATA", direct)
+    ctx = Context()
+    rclpy.init(context=ctx)
+    try:
+        n = Node("payload_test", context=ctx)
+        got: list[Image] = []
+        n.create_subscription(Image, "payload", got.append, 10)
+        pub = n.create_publisher(Image, "payload", 10)
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(n)
+        end = time.monotonic() + 10.0
+        while pub.get_subscription_count() == 0 and time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.05)
+        flow = np.random.default_rng(5).normal(size=(H, W, 2)).astype(np.float32)
+        msg = node_mod.image_msg(Header(frame_id=FRAME_ID), array_to_image_fields(flow, "32FC2"))
+        assert isinstance(msg.data, np.ndarray) == direct
+        while not got and time.monotonic() < end:
+            pub.publish(msg)
+            executor.spin_once(timeout_sec=0.2)
+        assert got, "payload not received"
+        assert (got[0].encoding, got[0].height, got[0].width, got[0].step) == ("32FC2", H, W, W * 8)
+        assert np.array_equal(image_to_array(got[0]), flow)
+    finally:
+        rclpy.try_shutdown(context=ctx)

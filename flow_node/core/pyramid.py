@@ -1,6 +1,7 @@
 """Coarse-to-fine warping (paper, "Large Displacements"): one generic driver, the per-warp solver passed in.
 
-Images are float32 (H, W) in [0, 1]; flow is channel-first (2, H, W) in pixels of the level it lives on.
+Images are float32 (H, W) in [0, 1]; flow is channel-first (2, H, W) in pixels of the level it lives on,
+until the driver returns it interleaved (H, W, 2) at full resolution.
 """
 
 from __future__ import annotations
@@ -80,6 +81,21 @@ def resize_state(state: PDState, shape: tuple[int, int]) -> PDState:
     )
 
 
+def interleaved_flow(v: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The engine's output: a (2, h, w) flow as float32 (H, W, 2) at ``shape``, vectors in pixels of ``shape``.
+
+    Interleaves at the solved size, then (if it differs) rescales the vectors there and resizes bilinearly:
+    bilinear interpolation is linear, so scaling first gives the same field and the full-size array is
+    written once, not three times (resize, scale, interleave).
+    """
+    small = cv2.merge([v[0].astype(np.float32, copy=False), v[1].astype(np.float32, copy=False)])
+    h, w = shape
+    if small.shape[:2] == (h, w):
+        return small
+    small *= np.array([w / v.shape[2], h / v.shape[1]], dtype=np.float32)
+    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+
+
 def median_filter(v: np.ndarray, size: int) -> np.ndarray:
     """Median of each flow component over size x size windows (OpenCV; size 3 or 5)."""
     out = np.empty_like(v)
@@ -90,14 +106,15 @@ def median_filter(v: np.ndarray, size: int) -> np.ndarray:
 
 def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,
                    initial_flow: np.ndarray | None = None) -> tuple[np.ndarray, SolveStats]:
-    """Estimate flow (2, H, W) from i0 to i1 with warping on a Gaussian pyramid.
+    """Estimate flow from i0 to i1 with warping on a Gaussian pyramid: float32 (H, W, 2), u then v, px.
 
     On each level, coarsest first: ``cfg.warps`` times linearise around the current flow (bicubic warp of
     frame 1 and its gradient, outside pixels masked), run ``solve`` and median-filter the flow; then carry
     primal and dual variables to the next level. After the finest solved level, ``cfg.bregman_iterations``
     Bregman steps on the last linearisation (see :func:`bregman`). The finest solved level is
     ``cfg.finest_level`` (clamped to the coarsest level the image has); when it is not 0 its flow is
-    upsampled bilinearly to (H, W) with the vectors rescaled; finer levels are not solved.
+    upsampled bilinearly to (H, W) with the vectors rescaled; finer levels are not solved. The result is
+    interleaved (:func:`interleaved_flow`), the layout of the API and of a 32FC2 image.
     """
     spec = MODEL_SPECS[cfg.model]
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
@@ -122,7 +139,7 @@ def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: Level
                 state.v = median_filter(state.v, cfg.median_filter)
         if lvl == finest and cfg.bregman_iterations:
             stats.bregman_iterations = bregman(Problem(a, c), state, params, solve, cfg.bregman_iterations)
-    return (state.v if finest == 0 else resize_flow(state.v, shapes[0])), stats
+    return interleaved_flow(state.v, shapes[0]), stats
 
 
 def bregman(problem: Problem, state: PDState, p: SolveParams, solve: LevelSolver, n: int) -> int:

@@ -15,6 +15,7 @@ import threading
 import time
 from typing import Any
 
+import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
@@ -52,13 +53,28 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
     return d
 
 
+# The generated Image class keeps ``data`` in this slot; its setter turns anything but an array.array into one
+# (a full copy), while the C conversion in ``publish`` takes any buffer (rosidl's fast path for arrays of
+# primitives) and copies it once into the C message.
+_DIRECT_DATA = "_data" in getattr(Image, "__slots__", ())
+
+
 def image_msg(header: Header, fields: dict[str, Any]) -> Image:
-    """An rclpy Image from a header and :func:`array_to_image_fields` output."""
+    """An rclpy Image from a header and :func:`array_to_image_fields` output, for publishing.
+
+    The numpy payload goes into the message without a Python-side copy (``_DIRECT_DATA``; at 640x480 32FC2
+    the copy into an ``array.array`` cost ~0.5 ms a frame); ``publish`` copies it once into the C message.
+    Such a message's ``data`` is then the numpy array, so it is for publishing, not for handing around.
+    """
     msg = Image(header=header, height=fields["height"], width=fields["width"], encoding=fields["encoding"],
                 is_bigendian=fields["is_bigendian"], step=fields["step"])
-    data = array.array("B")
-    data.frombytes(fields["data"])
-    msg.data = data
+    payload = np.ascontiguousarray(fields["data"], dtype=np.uint8).reshape(-1)
+    if _DIRECT_DATA:
+        msg._data = payload  # noqa: SLF001 -- see _DIRECT_DATA
+    else:
+        data = array.array("B")
+        data.frombytes(payload.tobytes())
+        msg.data = data
     return msg
 
 
