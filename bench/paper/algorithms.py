@@ -67,13 +67,15 @@ class Algorithm:
 
 
 # Primal-dual iterations per warp: the smallest budget after which 4x more changes the static mean AEE (clean
-# and noisy, factor 1) by less than ~10 %. Budget study (clean / noisy mean AEE, static weights, 2026-12-01):
-#   L2-L2          50: 0.161 / 0.161   200: 0.098 / 0.099   1000: 0.0735 / 0.0737   4000: 0.0672 / 0.0676
-#   L2-TV          50: 0.061 / 0.062   200: 0.066 / 0.066   1000: 0.069 / 0.069   (converged at 50)
-#   L2-TV Bregman  50: 0.063 / 0.063   200: 0.055 / 0.055   1000: 0.056 / 0.056
-#   L1-TV          50: 0.0246 / 0.0365 200: 0.0240 / 0.0352
-#   L1-TV/L2       50: 0.0262 / 0.0390 200: 0.0241 / 0.0349  800: 0.0243 / 0.0351
-#   L1-TV/TV       noisy, fixed weights: 50: 0.0503, 150: 0.0447, 300: 0.0408-0.0426 (factor 1-2)
+# and noisy, factor 1) by less than ~10 %. Budget study, `python -m bench.paper.budget` (results/budget.json,
+# 2026-12-01), mean AEE clean / noisy with the static weights:
+#   L2-L2          50: 0.161 / 0.161    200: 0.098 / 0.099    1000: 0.0735 / 0.0737   4000: 0.0672 / 0.0676
+#   L2-TV          50: 0.0614 / 0.0615  200: 0.0656 / 0.0657  1000: 0.0693 / 0.0693   (converged at 50)
+#   L2-TV Bregman  50: 0.0626 / 0.0628  200: 0.0547 / 0.0549  1000: 0.0559 / 0.0559
+#   L1-TV          50: 0.0246 / 0.0365  200: 0.0240 / 0.0352
+#   L1-TV/L2       50: 0.0262 / 0.0390  200: 0.0241 / 0.0349   800: 0.0243 / 0.0351
+#   L1-TV/TV       50: 0.0359 / 0.0574  150: 0.0291 / 0.0448   300: 0.0278 / 0.0408   1200: 0.0261 / 0.0365
+# L1-TV/TV at 300 is on the line (noisy 300 -> 1200: -10.5 %); it stays at 300 for the run time of make paper.
 # The slow ones are slow for a reason: the L2-L2 minimiser is a Horn-Schunck field whose smoothing reaches
 # across the image (diffusion, ~sqrt(iterations) px per level), and L1-TV/TV has smaller steps (tau 1/5,
 # sigma 1/3) and a second field w coupled to v only through grad v - w. With 50 iterations L2-L2 stopped far

@@ -202,11 +202,12 @@ def differences(res: dict[str, Any]) -> str:
         "* **AE units**: the paper's AE is in radians (Table 2's AE/AEE ratio shows it); ours in degrees.",
         "* **Iteration budgets** differ per algorithm (" + ", ".join(f"{a.label} {its[a.key]}" for a in ALGORITHMS)
         + " primal-dual iterations per warp): each gets the smallest budget after which four times more "
-        "changes its static mean AEE by less than ~10 % (the budget study is the comment on ALGORITHMS in "
-        "bench/paper/algorithms.py). L2-L2 is the slow one: its Horn-Schunck minimiser smooths across the "
-        "whole image, which a primal-dual solver reaches only by diffusion; with 50 iterations it stopped far "
-        "short (static mean AEE 0.161, worst sequence 0.238) and looked as if the paper's weight were "
-        "~256x too large. L1-TV/TV has smaller steps (tau 1/5, sigma 1/3) and a second field coupled to v only "
+        "changes its static mean AEE by less than ~10 % (`python -m bench.paper.budget`, results/budget.json; "
+        "summarised above ALGORITHMS in bench/paper/algorithms.py). L2-L2 is the slow one: its Horn-Schunck "
+        "minimiser smooths across the whole image, which a primal-dual solver reaches only by diffusion; with "
+        "50 iterations it stopped far short of it (worst sequence above 0.2 with the static weight, see the "
+        "budget study) and looked as if the paper's weight were ~256x too large. L1-TV/TV has smaller steps "
+        "(tau 1/5, sigma 1/3) and a second field coupled to v only "
         "through grad v - w. The paper states no iteration counts.",
     ]
     return "\n".join(items)
