@@ -176,13 +176,18 @@ def conclusions(res: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def iterations(res: dict[str, Any]) -> dict[str, int]:
+    """Primal-dual iterations per warp each algorithm ran with, in ALGORITHMS order."""
+    return {a.key: res["clean"]["algorithms"][a.key]["config"]["iterations"] for a in ALGORITHMS}
+
+
 def differences(res: dict[str, Any]) -> str:
     """The systematic differences, with the numbers that show them."""
     c = res["clean"]["algorithms"]
     fx = {a.key: c[a.key]["fixed_factor"] for a in ALGORITHMS}
     st = {a.key: _mean(c[a.key]["static"], "aee") for a in ALGORITHMS}
     fi = {a.key: _mean(c[a.key]["fixed"], "aee") for a in ALGORITHMS}
-    its = {a.key: c[a.key]["config"]["iterations"] for a in ALGORITHMS}
+    its = iterations(res)
     items = [
         "* **Weights.** The refitted fixed weight is "
         + ", ".join(f"{k} x{fx[k]:g}" for k in fx) + " of the mapped paper weight (clean mean AEE static -> "
@@ -251,8 +256,7 @@ def render(res: dict[str, Any]) -> str:
         "## Settings and the parameter mapping",
         "",
         f"All algorithms: {', '.join(f'{k}={v}' for k, v in res['base'].items())}, except the "
-        "iterations per warp: " + ", ".join(f"{a.label} {res['clean']['algorithms'][a.key]['config']['iterations']}"
-                                            for a in ALGORITHMS)
+        "iterations per warp: " + ", ".join(f"{a.label} {iterations(res)[a.key]}" for a in ALGORITHMS)
         + " (Differences, below); both frames presmoothed "
         f"with a Gaussian of sigma {res['presmooth_sigma']:g} px (see Table 2 for why).",
         "",

@@ -15,7 +15,6 @@ import threading
 import time
 from typing import Any
 
-import numpy as np
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
@@ -68,12 +67,12 @@ def image_msg(header: Header, fields: dict[str, Any]) -> Image:
     """
     msg = Image(header=header, height=fields["height"], width=fields["width"], encoding=fields["encoding"],
                 is_bigendian=fields["is_bigendian"], step=fields["step"])
-    payload = np.ascontiguousarray(fields["data"], dtype=np.uint8).reshape(-1)
+    payload = fields["data"]  # contiguous 1-D uint8 (array_to_image_fields)
     if _DIRECT_DATA:
         msg._data = payload  # noqa: SLF001 -- see _DIRECT_DATA
     else:
         data = array.array("B")
-        data.frombytes(payload.tobytes())
+        data.frombytes(payload)
         msg.data = data
     return msg
 
