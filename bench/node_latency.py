@@ -11,7 +11,8 @@ each size (320x240, 640x480) and preset (realtime, quality), in one run:
   the latency ratio refers to);
 * latency: closed loop, publish a frame -> its ~/flow message received, next frame only after that, so
   nothing is dropped; in-node overhead = node handling time (decode, grey, magnitude, serialise, publish)
-  minus the engine's solve time, measured by the node itself per frame;
+  minus the engine's solve time, measured by the node itself per frame, and the part of it spent inside
+  rclpy's ``publish`` (C conversion, serialisation, Fast DDS send), also measured by the node;
 * throughput: open loop, frames published at 30 Hz for four solve times (at least 3 s): output rate, and
   the fraction of the wall time the worker spent inside the engine (1.0 = no overhead at all).
 
@@ -128,8 +129,8 @@ class Rig:
         with self.lock:
             return len(self.got)
 
-    def frame_times(self, published: int, timeout: float) -> tuple[float, float]:
-        """(solve, in-node overhead) seconds of the ``published``-th output."""
+    def frame_times(self, published: int, timeout: float) -> tuple[float, float, float]:
+        """(solve, in-node overhead, time in publish) seconds of the ``published``-th output."""
         raise NotImplementedError
 
     def handled(self) -> int:
@@ -153,10 +154,10 @@ class Rig:
             if not _wait(lambda b=before: self.count() > b, timeout):
                 raise RuntimeError("no flow received (frame lost?)")
             t1, msg = self.got[-1]
-            solve, overhead = self.frame_times(k + 1, timeout)
+            solve, overhead, publish = self.frame_times(k + 1, timeout)
             sign = 1.0 if k % 2 == 0 else -1.0
             out.append({"engine": direct, "latency": t1 - t0, "solve": solve, "node_overhead": overhead,
-                        "aee": interior_aee(sign * image_to_array(msg))})
+                        "node_publish": publish, "aee": interior_aee(sign * image_to_array(msg))})
         return out
 
     def open_loop(self, f0: np.ndarray, f1: np.ndarray, seconds: float, rate: float = 30.0) -> dict[str, float]:
@@ -204,10 +205,10 @@ class InProcessRig(Rig):
     def handled(self) -> int:
         return self.node._stats.totals.processed
 
-    def frame_times(self, published: int, timeout: float) -> tuple[float, float]:
+    def frame_times(self, published: int, timeout: float) -> tuple[float, float, float]:
         _wait(lambda: self.node._stats.totals.published >= published, timeout)
         w = self.node._stats.window()
-        return w.solve_times[-1], w.overheads[-1]
+        return w.solve_times[-1], w.overheads[-1], w.publish_times[-1]
 
     def counters(self) -> dict[str, float]:
         t = self.node._stats.totals
@@ -252,14 +253,14 @@ class ProcessRig(Rig):
         last = self._last()
         return 0 if last is None else int(last["frames published"]) + int(last["resets"])
 
-    def frame_times(self, published: int, timeout: float) -> tuple[float, float]:
+    def frame_times(self, published: int, timeout: float) -> tuple[float, float, float]:
         def window() -> dict[str, str] | None:
             with self.lock:
                 return next((d for d in self.diag if int(d["frames published"]) == published), None)
         if not _wait(lambda: window() is not None, timeout):
             raise RuntimeError(f"no diagnostics for output {published}")
         d = window()
-        return float(d["solve time mean (ms)"]) / 1e3, float(d["node overhead mean (ms)"]) / 1e3
+        return tuple(float(d[f"{k} mean (ms)"]) / 1e3 for k in ("solve time", "node overhead", "publish time"))
 
     def counters(self) -> dict[str, float]:
         with self.lock:
@@ -301,6 +302,8 @@ def run(preset: str, size: tuple[int, int], n: int, in_process: bool) -> dict[st
         "latency_max_s": max(d["latency"] for d in loop),
         "node_overhead_median_s": med["node_overhead"],
         "node_overhead_ratio": med["node_overhead"] / med["solve"],
+        "node_publish_median_s": med["node_publish"],
+        "node_publish_ratio": med["node_publish"] / med["solve"],
         "end_to_end_overhead_ratio": (med["latency"] - med["solve"]) / med["solve"],
         "latency_vs_engine_ratio": med["latency"] / eng,
         "aee_interior_px": med["aee"],
@@ -327,6 +330,7 @@ def main(argv: list[str] | None = None) -> int:
                   f"engine {r['engine_solve_median_s']*1e3:8.1f} ms"
                   f" | latency {r['latency_median_s']*1e3:8.1f} ms (x{r['latency_vs_engine_ratio']:.3f})"
                   f" | in-node overhead {100*r['node_overhead_ratio']:5.2f} %"
+                  f" (publish {100*r['node_publish_ratio']:5.2f} %)"
                   f" | end-to-end overhead {100*r['end_to_end_overhead_ratio']:5.2f} %"
                   f" | throughput {tp['output_rate_hz']:.2f} Hz (solving {tp['solver_busy_fraction']:.2f})"
                   f" | AEE {r['aee_interior_px']:.3f}", flush=True)

@@ -152,8 +152,14 @@ def test_resets_on_stamp_back_size_change_and_service(harness: Harness) -> None:
 
 
 def test_diagnostics_report_state(harness: Harness) -> None:
+    n0 = harness.count("diagnostics")
     harness.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2))
     n = harness.count("diagnostics")
+    # the period holding the solve: its node overhead includes the time in publish (flow is subscribed)
+    solved = wait_for(lambda: [v for v in ({kv.key: kv.value for kv in s.values}
+                                           for _, s in harness.received["diagnostics"][n0:])
+                               if v["solve time mean (ms)"] != "n/a"], 5.0, "diagnostics of the solve")[0]
+    assert 0.0 < float(solved["publish time mean (ms)"]) <= float(solved["node overhead mean (ms)"])
     st = wait_for(lambda: harness.count("diagnostics") > n and harness.last("diagnostics"), 5.0, "diagnostics")
     values = {kv.key: kv.value for kv in st.values}
     assert st.hardware_id == FRAME_ID

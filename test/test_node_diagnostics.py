@@ -20,7 +20,7 @@ def test_levels_in_order_of_severity() -> None:
     assert level_of(s.window(), ready=False) == (WARN, "warming up the engine")
     assert level_of(s.window(), ready=True) == (WARN, "no image received yet")
     s.received(False)
-    s.solved(0.02, 0.001, output(3.0))
+    s.solved(0.02, 0.001, 0.0005, output(3.0))
     assert level_of(s.window(), ready=True) == (OK, "computing flow")
     s.received(False)
     s.received(True)  # the first one was replaced while waiting
@@ -62,13 +62,14 @@ def test_status_values_and_window_reset() -> None:
     s = NodeStats()
     for k in range(4):
         s.received(False)
-        s.solved(0.010 * (k + 1), 0.001, output(0.6))
+        s.solved(0.010 * (k + 1), 0.001 * (k + 1), 0.0005 * (k + 1), output(0.6))
     w = s.window()
     st = status(w, name="cam_flow: optical flow", hardware_id="cam", ready=True, backend="numpy", model="l2_tv",
                 input_scale=0.5, resolution="5x4")
     values = {kv.key: kv.value for kv in st.values}
     assert st.name == "cam_flow: optical flow" and st.hardware_id == "cam" and st.level == OK
     assert values["solve time mean (ms)"] == "25.00" and values["solve time max (ms)"] == "40.00"
+    assert values["node overhead mean (ms)"] == "2.50" and values["publish time mean (ms)"] == "1.25"
     assert values["frames published"] == "4" and values["model"] == "l2_tv" and values["input scale"] == "0.5"
     expected = np.hypot(0.6, 0.6)
     assert abs(float(values["flow magnitude max (px)"]) - expected) < 1e-3
@@ -78,4 +79,5 @@ def test_status_values_and_window_reset() -> None:
     values = {kv.key: kv.value for kv in status(s.window(), name="n", hardware_id="h", ready=True,
                                                 backend="numpy", model="l1_tv", input_scale=1.0,
                                                 resolution="5x4").values}
-    assert values["solve time mean (ms)"] == "n/a" and values["frames published"] == "4"
+    assert values["solve time mean (ms)"] == "n/a" and values["publish time mean (ms)"] == "n/a"
+    assert values["frames published"] == "4"

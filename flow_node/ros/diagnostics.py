@@ -33,7 +33,7 @@ class Totals:
 
 @dataclass
 class Window:
-    """One diagnostics period: deltas of the totals, solve/overhead times (s), last values."""
+    """One diagnostics period: deltas of the totals, solve/overhead/publish times (s), last values."""
 
     seconds: float
     totals: Totals
@@ -44,6 +44,7 @@ class Window:
     errors: int
     solve_times: list[float]
     overheads: list[float]
+    publish_times: list[float]
     summary: FlowSummary | None
     last_reset: str
     last_rejection: str
@@ -61,6 +62,7 @@ class NodeStats:
     _mark: Totals = field(default_factory=Totals)
     _solve: list[float] = field(default_factory=list)
     _overhead: list[float] = field(default_factory=list)
+    _publish: list[float] = field(default_factory=list)
     _last: FlowOutput | None = None
     _last_input: float | None = None
     last_reset: str = ""
@@ -91,9 +93,10 @@ class NodeStats:
             self.totals.resets += 1
             self.last_reset = reason
 
-    def solved(self, solve_s: float, overhead_s: float, output: FlowOutput) -> None:
-        """A pair was solved and published: engine seconds, node seconds beyond the engine, the output (kept
-        until the next one; its magnitude summary is computed only when a diagnostics window needs it)."""
+    def solved(self, solve_s: float, overhead_s: float, publish_s: float, output: FlowOutput) -> None:
+        """A pair was solved and published: engine seconds, node seconds beyond the engine, the part of those
+        spent in rclpy's ``publish`` calls, the output (kept until the next one; its magnitude summary is
+        computed only when a diagnostics window needs it)."""
         with self._lock:
             self.totals.processed += 1
             self.totals.published += 1
@@ -101,6 +104,7 @@ class NodeStats:
             self.solve_max = max(self.solve_max, solve_s)
             self.solve_total += solve_s
             self._overhead.append(overhead_s)
+            self._publish.append(publish_s)
             self._last = output
 
     def window(self) -> Window:
@@ -111,9 +115,10 @@ class NodeStats:
             t, m, last = self.totals, self._mark, self._last
             w = Window(now - self._start, Totals(**vars(t)), t.received - m.received, t.published - m.published,
                        t.dropped - m.dropped, t.rejected - m.rejected, t.errors - m.errors, self._solve,
-                       self._overhead, None, self.last_reset, self.last_rejection, self.last_error,
+                       self._overhead, self._publish, None, self.last_reset, self.last_rejection, self.last_error,
                        None if self._last_input is None else now - self._last_input)
-            self._start, self._mark, self._solve, self._overhead = now, Totals(**vars(t)), [], []
+            self._start, self._mark = now, Totals(**vars(t))
+            self._solve, self._overhead, self._publish = [], [], []
         w.summary = None if last is None else last.summary
         return w
 
@@ -157,6 +162,7 @@ def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str,
         ("solve time mean (ms)", _ms(w.solve_times, "mean")),
         ("solve time max (ms)", _ms(w.solve_times, "max")),
         ("node overhead mean (ms)", _ms(w.overheads, "mean")),
+        ("publish time mean (ms)", _ms(w.publish_times, "mean")),
         ("solver busy (%)", f"{100.0 * sum(w.solve_times) / period:.1f}"),
         ("flow magnitude mean (px)", "n/a" if s is None else f"{s.mean:.3f}"),
         ("flow magnitude p95 (px)", "n/a" if s is None else f"{s.p95:.3f}"),

@@ -256,17 +256,23 @@ class FlowNode(Node):
             self.get_logger().info(f"new pair started: {self._stream.last_reset_reason}")
             return
         self._resolution = f"{out.flow.shape[1]}x{out.flow.shape[0]}"
-        self._publish(msg.header, out)
-        self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, out)
+        publish_s = self._publish(msg.header, out)
+        self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, publish_s, out)
 
-    def _publish(self, header: Header, out: FlowOutput) -> None:
+    def _publish(self, header: Header, out: FlowOutput) -> float:
         """Flow, magnitude and colour with the new frame's header; each is built and published only while
-        its topic has subscribers (the colour image is not even computed otherwise)."""
+        its topic has subscribers (the colour image is not even computed otherwise). Returns the seconds
+        spent inside rclpy's ``publish`` (C conversion, serialisation and the middleware's send)."""
+        publish_s = 0.0
         for pub, image, encoding in ((self._pub_flow, lambda: out.flow, "32FC2"),
                                      (self._pub_mag, lambda: out.magnitude, "32FC1"),
                                      (self._pub_color, out.color, "bgr8")):
             if pub.get_subscription_count() > 0:
-                pub.publish(image_msg(header, array_to_image_fields(image(), encoding)))
+                msg = image_msg(header, array_to_image_fields(image(), encoding))
+                t0 = time.perf_counter()
+                pub.publish(msg)
+                publish_s += time.perf_counter() - t0
+        return publish_s
 
     def destroy_node(self) -> None:
         """Stop the worker (after the frame it is solving) and destroy the node."""
