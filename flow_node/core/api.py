@@ -108,7 +108,7 @@ class FlowEstimator:
         if initial_flow is not None:
             if initial_flow.shape != i0.shape + (2,):
                 raise InputError(f"initial_flow: expected shape {i0.shape + (2,)}, got {initial_flow.shape}")
-            init = np.moveaxis(initial_flow.astype(np.float32), -1, 0)
+            init = np.moveaxis(initial_flow, -1, 0)  # coarse_to_fine casts it (once) as it resizes it
         start = time.perf_counter()
         flow, stats = coarse_to_fine(i0, i1, self._config, self._solve, init)
         seconds = time.perf_counter() - start  # the output layout included: it is part of the engine's work

@@ -124,7 +124,7 @@ def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: Level
     stats = SolveStats(shapes=shapes, iterations=[0] * len(shapes))
     state = PDState.zeros(spec, shapes[-1])
     if initial_flow is not None:
-        state.v = resize_flow(initial_flow.astype(np.float32), shapes[-1])
+        state.v = resize_flow(initial_flow.astype(np.float32, copy=False), shapes[-1])  # a new array
     for lvl in range(len(shapes) - 1, finest - 1, -1):
         if state.v.shape[1:] != shapes[lvl]:
             state = resize_state(state, shapes[lvl])
