@@ -175,11 +175,12 @@ class Rig:
         time.sleep(0.5)  # let the last counters arrive
         d1 = self.counters()
         return {"published": k, "received": d1["received"] - d0["received"],
-                "dropped": d1["dropped"] - d0["dropped"], "outputs": outputs, "seconds": elapsed,
+                "dropped": d1["dropped"] - d0["dropped"], "outputs": outputs,
+                "node_outputs": d1["published"] - d0["published"], "seconds": elapsed,
                 "output_rate_hz": outputs / elapsed, "solver_busy_fraction": busy / elapsed}
 
     def counters(self) -> dict[str, float]:
-        """received, dropped (totals) and busy (seconds solved since start)."""
+        """received, dropped, published (totals) and busy (seconds solved since start)."""
         raise NotImplementedError
 
     def close(self) -> None:
@@ -212,7 +213,8 @@ class InProcessRig(Rig):
 
     def counters(self) -> dict[str, float]:
         t = self.node._stats.totals
-        return {"received": t.received, "dropped": t.dropped, "busy": self.node._stats.solve_total}
+        return {"received": t.received, "dropped": t.dropped, "published": t.published,
+                "busy": self.node._stats.solve_total}
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=5.0)
@@ -225,12 +227,14 @@ class ProcessRig(Rig):
     published every 50 ms, so each window holds at most one solve in the closed loop."""
 
     PERIOD = 0.05
+    NODE_COMMAND = (sys.executable, "-m", "flow_node.ros.node")
 
-    def __init__(self, preset: str) -> None:
+    def __init__(self, preset: str, command: tuple[str, ...] = NODE_COMMAND) -> None:
+        """``command`` starts the node and takes ROS arguments after it (default: the node's own main())."""
         super().__init__()
         self._start()
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "flow_node.ros.node", "--ros-args", "-p", f"preset:={preset}",
+            [*command, "--ros-args", "-p", f"preset:={preset}",
              "-p", f"diagnostics_period:={self.PERIOD}", "-r", "__ns:=/bench", "-r", f"__node:={self.NAME}"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         ok = _wait(lambda: self.pub.get_subscription_count() > 0 and self._ready(), 120.0)
@@ -263,10 +267,18 @@ class ProcessRig(Rig):
         return tuple(float(d[f"{k} mean (ms)"]) / 1e3 for k in ("solve time", "node overhead", "publish time"))
 
     def counters(self) -> dict[str, float]:
+        """As the base class; busy sums each window's solve time mean times the solves in it (a window can be
+        longer than the timer period when the node is loaded, so its busy % times the period would not do)."""
+        busy, published = 0.0, 0
         with self.lock:
-            busy = sum(float(d["solver busy (%)"]) / 100.0 * self.PERIOD for d in self.diag)
-        last = self._last()
-        return {"received": int(last["frames received"]), "dropped": int(last["frames dropped"]), "busy": busy}
+            for d in self.diag:
+                solves = int(d["frames published"]) - published
+                if solves:
+                    busy += float(d["solve time mean (ms)"]) / 1e3 * solves
+                published += solves
+            last = self.diag[-1]
+        return {"received": int(last["frames received"]), "dropped": int(last["frames dropped"]),
+                "published": published, "busy": busy}
 
     def close(self) -> None:
         if self.proc.poll() is None:

@@ -17,7 +17,7 @@ import rclpy
 import small_frames
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CompressedImage, Image
@@ -72,7 +72,7 @@ class Harness:
     """FlowNode ``name`` in namespace ``ns`` with parameter overrides, plus publisher and collectors."""
 
     def __init__(self, ns: str, params: dict[str, Any] | None = None, name: str = "flow_node",
-                 color: bool = True) -> None:
+                 color: bool = True, executor: type[Executor] = SingleThreadedExecutor) -> None:
         self.ctx = Context()
         rclpy.init(context=self.ctx)
         overrides = [Parameter(k, value=v) for k, v in {**FAST, **(params or {})}.items()]
@@ -89,7 +89,9 @@ class Harness:
                       for t in topics]
         self._subs.append(self.client.create_subscription(DiagnosticArray, "/diagnostics",
                                                           self._diag_collector, 10))
-        self.executor = MultiThreadedExecutor(num_threads=3, context=self.ctx)
+        # by default the executor ``rclpy.spin`` (the node's main()) uses; rclpy's MultiThreadedExecutor keeps
+        # polling while frames flood in and starves the node's worker of the GIL (docs/node.md)
+        self.executor = executor(context=self.ctx)
         self.executor.add_node(self.node)
         self.executor.add_node(self.client)
         self._spin = threading.Thread(target=self.executor.spin, daemon=True)

@@ -18,7 +18,7 @@ from typing import Any
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
@@ -77,6 +77,20 @@ def image_msg(header: Header, fields: dict[str, Any]) -> Image:
     return msg
 
 
+def executor_advice(executor: Executor | None) -> str | None:
+    """A warning if ``executor`` is one the node is known to run badly on, else None.
+
+    rclpy's MultiThreadedExecutor (Jazzy's 7.1.6 at least; ros2/rclpy#1452) re-queues callbacks that have
+    not started yet and keeps its spin thread polling while they wait, so under a high input rate it holds
+    the GIL: the node takes a fraction of the frames and solves many times slower (bench.node_flood,
+    BENCHMARKS.md).
+    """
+    if isinstance(executor, MultiThreadedExecutor):
+        return ("spun by rclpy's MultiThreadedExecutor, which can starve the solver at high input rates "
+                "(ros2/rclpy#1452; docs/node.md): spin this node with a SingleThreadedExecutor (rclpy.spin)")
+    return None
+
+
 def stamp_ns(header: Header) -> int:
     return header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
 
@@ -124,6 +138,7 @@ class FlowNode(Node):
         self._ready = threading.Event()
         self._resolution = "none yet"
         self._frame_id = ""
+        self._executor_checked = False
 
         overrides = QoSOverridingOptions.with_default_policies()
         self._pub_flow = self.create_publisher(Image, "~/flow", 1, qos_overriding_options=overrides)
@@ -205,6 +220,10 @@ class FlowNode(Node):
     # ------------------------------------------------------------------------------------------ callbacks
     def _on_image(self, msg: Image | CompressedImage) -> None:
         """Subscription callback: never blocks; the newest frame replaces a waiting one."""
+        if not self._executor_checked:  # here the node is known to be spinning, and by which executor
+            self._executor_checked = True
+            if advice := executor_advice(self.executor):
+                self.get_logger().warning(advice)
         self._stats.received(self._mailbox.put(msg))
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
