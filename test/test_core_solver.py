@@ -188,7 +188,10 @@ def test_finest_level_solves_coarser_and_upsamples_to_full_size() -> None:
     err_full, err_half = (aee(interior(f.flow, 8), interior(gt, 8)) for f in (full, half))
     assert err_half < 0.15  # measured 0.10; vectors in full-size pixels (left in half-size ones: 0.64)
     assert err_full < err_half  # the finest level still adds accuracy
-    assert half.seconds < full.seconds
+    # the fastest of three each, so that one scheduling stall on a shared machine cannot flip the comparison
+    times = {k: min(FlowEstimator(c).estimate(i0, i1).seconds for _ in range(3))
+             for k, c in (("full", cfg), ("half", cfg.replace(finest_level=1)))}
+    assert times["half"] < times["full"], times
 
 
 def test_finest_level_is_clamped_to_the_levels_the_image_has() -> None:
