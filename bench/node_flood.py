@@ -110,7 +110,7 @@ def run(preset: str, executor: str, rate: float, seconds: float) -> dict[str, An
         tp = rig.open_loop(f0, f1, seconds, rate)
     finally:
         rig.close()
-    solve = tp["solver_busy_fraction"] * tp["seconds"] / tp["node_outputs"] if tp["node_outputs"] else None
+    solve = tp["node_solve_s"] / tp["node_outputs"] if tp["node_outputs"] else None
     return {"preset": preset, "executor": executor, "rate_hz": rate, "width": SIZE[1], "height": SIZE[0],
             "backend": rig.backend, "engine_solve_s": engine_s, "node_solve_mean_s": solve,
             "solve_vs_engine_ratio": None if solve is None else solve / engine_s,

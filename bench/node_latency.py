@@ -161,7 +161,9 @@ class Rig:
         return out
 
     def open_loop(self, f0: np.ndarray, f1: np.ndarray, seconds: float, rate: float = 30.0) -> dict[str, float]:
-        """Publish at ``rate`` Hz for ``seconds``; output rate, drops, fraction of the time spent solving."""
+        """Publish at ``rate`` Hz for ``seconds``; output rate, drops, fraction of the time spent solving. The
+        node's totals (``node_outputs`` and their solve seconds ``node_solve_s``) include the frames still
+        being solved when publishing stops."""
         before, d0 = self.count(), self.counters()
         start = time.perf_counter()
         k = 0
@@ -176,7 +178,8 @@ class Rig:
         d1 = self.counters()
         return {"published": k, "received": d1["received"] - d0["received"],
                 "dropped": d1["dropped"] - d0["dropped"], "outputs": outputs,
-                "node_outputs": d1["published"] - d0["published"], "seconds": elapsed,
+                "node_outputs": d1["published"] - d0["published"], "node_solve_s": d1["busy"] - d0["busy"],
+                "seconds": elapsed,
                 "output_rate_hz": outputs / elapsed, "solver_busy_fraction": busy / elapsed}
 
     def counters(self) -> dict[str, float]:
