@@ -45,6 +45,11 @@ def flood(h: Harness, n: int, start_stamp: int) -> dict[int, float]:
     return sent
 
 
+def drained(h: Harness) -> bool:
+    """Every frame received so far was handled or replaced, and none waits: the worker is idle."""
+    return h.totals.processed + h.totals.dropped >= h.totals.received and h.node._mailbox._item is None
+
+
 def test_flood_keeps_memory_flat_latency_bounded_and_counts_drops() -> None:
     # quality preset on numpy at 320x240: each solve takes far longer than the 2 ms between frames
     h = Harness("/t_flood", {"preset": "quality", "iterations": 20}, name="flow_flood", color=False)
@@ -52,18 +57,16 @@ def test_flood_keeps_memory_flat_latency_bounded_and_counts_drops() -> None:
         cli = h.client.create_client(GetParameters, f"{h.full_name}/get_parameters")
         assert cli.wait_for_service(timeout_sec=5.0)  # discovery is not what is timed below
         sent = flood(h, 150, 1_000)
-        wait_for(lambda: h.totals.processed + h.totals.dropped >= h.totals.received > 0
-                 and h.node._mailbox._item is None, 60.0, "the node to drain")
+        wait_for(lambda: h.totals.received > 0 and drained(h), 60.0, "the node to drain")
         rss_after_first = rss_mb()
         sent.update(flood(h, 300, 2_000))
         # parameter services answer while the worker solves the flood's last frames
-        solving = h.node._mailbox._item is not None or h.totals.processed + h.totals.dropped < h.totals.received
+        solving = not drained(h)
         t0 = time.monotonic()
         alpha = call(cli, GetParameters.Request(names=["alpha"]), timeout=5.0).values[0].double_value
         service_seconds = time.monotonic() - t0
         assert alpha == PRESETS["quality"]["alpha"]
-        wait_for(lambda: h.totals.processed + h.totals.dropped >= h.totals.received
-                 and h.node._mailbox._item is None, 60.0, "the node to drain")
+        wait_for(lambda: drained(h), 60.0, "the node to drain")
         time.sleep(0.3)
         t = h.totals
         # every received frame was either handled or replaced by a newer one while waiting
