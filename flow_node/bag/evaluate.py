@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import sys
 import time
 from collections.abc import Sequence
 from contextlib import nullcontext
@@ -37,6 +36,7 @@ from .bagio import (
     read_messages,
     stamp_ns,
 )
+from .progress import FrameCallback, FrameProgress
 
 NODE_NAMESPACE = "/flow_node"  # the node's default name: its ~/flow is /flow_node/flow
 OUTPUT_TOPICS = ("flow", "magnitude", "flow_color")
@@ -139,27 +139,6 @@ def choose_frames(spec: str, count: int) -> set[int]:
         raise InputError(f"--png-frames: expected auto, all, none or indices like 1,5,9; got {spec!r}") from None
 
 
-class Progress:
-    """A one-line progress bar on stderr (nothing when disabled)."""
-
-    def __init__(self, total: int, enabled: bool, width: int = 30) -> None:
-        self.total, self.enabled, self.width = max(total, 1), enabled, width
-        self.start = time.monotonic()
-
-    def update(self, done: int) -> None:
-        if not self.enabled:
-            return
-        fill = int(self.width * min(done, self.total) / self.total)
-        rate = done / max(time.monotonic() - self.start, 1e-9)
-        sys.stderr.write(f"\r  [{'#' * fill}{'.' * (self.width - fill)}] {done}/{self.total} frames "
-                         f"{rate:5.1f} fps")
-        sys.stderr.flush()
-
-    def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
-
-
 def _record(index: int, out: FlowOutput) -> FrameRecord:
     s = out.summary
     return FrameRecord(index, out.stamp_ns, out.previous_stamp_ns, out.seconds, out.stats.total_iterations,
@@ -171,8 +150,10 @@ def _score(rec: FrameRecord, flow: np.ndarray, gt: np.ndarray) -> None:
         rec.aee, rec.ae = aee(flow, gt), angular_error(flow, gt)
 
 
-def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig], opts: EvalOptions) -> EvalResult:
-    """Run every config over the bag; write the output bag to ``out_bag`` (if given). Returns the records."""
+def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig], opts: EvalOptions,
+             on_frame: FrameCallback | None = None) -> EvalResult:
+    """Run every config over the bag; write the output bag to ``out_bag`` (if given). Returns the records.
+    ``on_frame(done, total)`` is called after every image (progress of a batch)."""
     settings = [StreamSettings(config=c) if opts.max_flow is None else
                 StreamSettings(config=c, color_max_flow=opts.max_flow) for c in configs]
     runs = [ModelRun(c.model, c, FlowStream(s)) for c, s in zip(configs, settings, strict=True)]
@@ -194,14 +175,15 @@ def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig
                         writer.add_topic(run.topic(name, k == 0), IMAGE)
             for run in runs:
                 run.stream.warmup()  # JIT compilation (numba) now, not inside the first frame's time
-            _replay(reader, image_conns, gt_conns, result, chosen, writer, Progress(total, opts.progress))
+            _replay(reader, image_conns, gt_conns, result, chosen, writer,
+                    FrameProgress(total, opts.progress, Path(bag).name, on_frame))
     if result.images == 0:
         raise BagError(f"{bag}: the image topic {result.image_topic} has no messages")
     return result
 
 
 def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, chosen: set[int],
-            writer: BagWriter | None, progress: Progress) -> None:
+            writer: BagWriter | None, progress: FrameProgress) -> None:
     """The single pass over the bag: decode, process per model, write outputs, score against GT."""
     gts: dict[int, Any] = {}  # stamp -> GT message not yet matched
     pending: dict[int, list[tuple[FrameRecord, np.ndarray | None]]] = {}  # stamp -> outputs awaiting GT
@@ -281,7 +263,8 @@ def _write_outputs(writer: BagWriter, run: ModelRun, primary: bool, t: int, hdr:
         writer.write(run.topic(name, primary), t, image_message(hdr, array_to_image_fields(arr, enc)))
 
 
-def run_eval(bag: str | Path, output: str | Path, configs: Sequence[FlowConfig], opts: EvalOptions) -> EvalResult:
+def run_eval(bag: str | Path, output: str | Path, configs: Sequence[FlowConfig], opts: EvalOptions,
+             on_frame: FrameCallback | None = None) -> EvalResult:
     """Evaluate and write ``output``/{bag/, report.json, report.md, *.png}; all or nothing."""
     from .report import write_report
 
@@ -293,7 +276,7 @@ def run_eval(bag: str | Path, output: str | Path, configs: Sequence[FlowConfig],
     tmp.mkdir(parents=True)
     try:
         start = time.monotonic()
-        result = evaluate(bag, tmp / "bag", configs, opts)
+        result = evaluate(bag, tmp / "bag", configs, opts, on_frame)
         result.wall_seconds = time.monotonic() - start
         _rename_storage(tmp / "bag")
         write_report(result, tmp)

@@ -1,4 +1,5 @@
-"""The verdict of `flow_bag eval`: report.json, report.md, per-frame panels and a plot (PNG, drawn with OpenCV).
+"""The verdict of `flow_bag eval`: report.json, report.md, per-frame panels (OpenCV tiles of the exact pixels)
+and the per-frame plot (matplotlib, :mod:`flow_node.bag.plots`).
 
 Summary per model: AEE/AE (Middlebury definitions) where ground truth exists, solve time, magnitude
 statistics. With several models, a ranking as in the paper's Table 1: the mean over frames of
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,9 +20,8 @@ import numpy as np
 from ..core.errors import FileFormatError
 from ..core.flowio import flow_to_color
 from ..core.metrics import endpoint_error_map
+from . import plots
 from .evaluate import Drawn, EvalResult, ModelRun
-
-PALETTE = [(200, 80, 30), (40, 140, 230), (60, 170, 60), (30, 30, 200), (160, 60, 160)]  # BGR
 
 
 def _stat(values: list[float], fn: Any) -> float | None:
@@ -44,29 +45,38 @@ def summarise_run(run: ModelRun) -> dict[str, Any]:
     }
 
 
-def ranking(runs: list[ModelRun]) -> list[dict[str, Any]]:
-    """Paper Table 1 style: per model, mean over frames scored by every model of AEE/min AEE and AE/min AE;
-    sorted best first. Empty with fewer than two models or no common scored frame."""
-    if len(runs) < 2:
+def ratio_ranking(scores: Mapping[Any, Mapping[str, tuple[float, float]]], labels: Sequence[str],
+                  count_key: str = "frames") -> list[dict[str, Any]]:
+    """Paper Table 1 style over items (frames of a bag, or bags of a batch) keyed in ``scores`` to
+    {label: (AEE, AE)}: per label, the mean over the items scored (finitely) by every label of AEE / min AEE
+    and AE / min AE; sorted best first, with ``rank`` and the item count under ``count_key``. Empty with
+    fewer than two labels or no common item."""
+    if len(labels) < 2:
         return []
+    common = [v for v in scores.values()
+              if all(k in v and math.isfinite(v[k][0]) and math.isfinite(v[k][1]) for k in labels)]
+    if not common:
+        return []
+    rows = []
+    for label in labels:
+        q_aee = [v[label][0] / max(min(v[k][0] for k in labels), 1e-12) for v in common]
+        q_ae = [v[label][1] / max(min(v[k][1] for k in labels), 1e-12) for v in common]
+        rows.append({"model": label, "mean_aee_over_min": float(np.mean(q_aee)),
+                     "mean_ae_over_min": float(np.mean(q_ae)), count_key: len(common)})
+    rows.sort(key=lambda r: (r["mean_aee_over_min"], r["mean_ae_over_min"]))
+    for k, row in enumerate(rows, 1):
+        row["rank"] = k
+    return rows
+
+
+def ranking(runs: list[ModelRun]) -> list[dict[str, Any]]:
+    """:func:`ratio_ranking` over the frames of one bag."""
     per_frame: dict[int, dict[str, tuple[float, float]]] = {}
     for run in runs:
         for r in run.records:
             if r.aee is not None and r.ae is not None:
                 per_frame.setdefault(r.index, {})[run.label] = (r.aee, r.ae)
-    common = [v for v in per_frame.values() if len(v) == len(runs)]
-    if not common:
-        return []
-    rows = []
-    for run in runs:
-        q_aee = [v[run.label][0] / max(min(x[0] for x in v.values()), 1e-12) for v in common]
-        q_ae = [v[run.label][1] / max(min(x[1] for x in v.values()), 1e-12) for v in common]
-        rows.append({"model": run.label, "mean_aee_over_min": float(np.mean(q_aee)),
-                     "mean_ae_over_min": float(np.mean(q_ae)), "frames": len(common)})
-    rows.sort(key=lambda r: (r["mean_aee_over_min"], r["mean_ae_over_min"]))
-    for k, row in enumerate(rows, 1):
-        row["rank"] = k
-    return rows
+    return ratio_ranking(per_frame, [run.label for run in runs])
 
 
 def to_json(result: EvalResult) -> dict[str, Any]:
@@ -187,49 +197,17 @@ def panel(d: Drawn, max_flow: float, emax: float) -> np.ndarray:
     return np.vstack(rows)
 
 
-def plot(series: dict[str, list[tuple[int, float]]], title: str, size: tuple[int, int] = (720, 240)) -> np.ndarray:
-    """A line plot (BGR uint8) of y over frame index for each named series, with axes, ticks and legend."""
-    w, h = size
-    img = np.full((h, w, 3), 255, np.uint8)
-    left, right, top, bottom = 60, 10, 24, 28
-    pts = [p for s in series.values() for p in s]
-    cv2.putText(img, title, (left, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-    if not pts:
-        return img
-    x0, x1 = min(p[0] for p in pts), max(p[0] for p in pts)
-    y1 = max(p[1] for p in pts) * 1.1 or 1.0
-    x1 = x1 if x1 > x0 else x0 + 1
-
-    def px(x: float, y: float) -> tuple[int, int]:
-        return (int(left + (x - x0) / (x1 - x0) * (w - left - right)),
-                int(h - bottom - y / y1 * (h - top - bottom)))
-
-    for k in range(5):
-        y = y1 * k / 4
-        cv2.line(img, px(x0, y), px(x1, y), (225, 225, 225), 1)
-        cv2.putText(img, f"{y:.3g}", (4, px(x0, y)[1] + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
-    cv2.rectangle(img, px(x0, y1), px(x1, 0), (0, 0, 0), 1)
-    step = max(1, (x1 - x0) // 10)
-    for x in range(x0, x1 + 1, step):
-        cv2.putText(img, str(x), (px(x, 0)[0] - 4, h - bottom + 14), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
-    for k, (name, s) in enumerate(series.items()):
-        colour = PALETTE[k % len(PALETTE)]
-        pp = np.array([px(x, y) for x, y in s], np.int32)
-        if len(pp) > 1:
-            cv2.polylines(img, [pp], False, colour, 2, cv2.LINE_AA)
-        for p in pp:
-            cv2.circle(img, tuple(int(v) for v in p), 3, colour, -1, cv2.LINE_AA)
-        cv2.putText(img, name, (w - right - 110, top + 14 + 14 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.4, colour, 1)
-    cv2.putText(img, "frame", (w // 2, h - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (0, 0, 0), 1)
-    return img
-
-
-def per_frame_plot(result: EvalResult) -> np.ndarray:
-    """AEE (if any) above solve time (ms), per frame and model."""
-    aee = {r.label: [(x.index, x.aee) for x in r.records if x.aee is not None] for r in result.runs}
-    ms = {r.label: [(x.index, 1000 * x.seconds) for x in r.records if x.seconds is not None] for r in result.runs}
-    parts = [plot(aee, "AEE per frame (px)")] if any(aee.values()) else []
-    return np.vstack(parts + [plot(ms, "solve time per frame (ms)")])
+def per_frame_plot(result: EvalResult, path: Path) -> None:
+    """per_frame.png: AEE per frame (if any ground truth) above solve time per frame (ms), one line per model."""
+    aee = {r.label: [(x.index, x.aee) for x in r.records] for r in result.runs}
+    ms = {r.label: [(x.index, None if x.seconds is None else 1000 * x.seconds) for x in r.records]
+          for r in result.runs}
+    has_gt = any(x.aee is not None for r in result.runs for x in r.records)
+    fig, axes = plots.new_figure(2 if has_gt else 1)
+    if has_gt:
+        plots.line_panel(axes[0], aee, "AEE per frame", "frame", "AEE (px)")
+    plots.line_panel(axes[-1], ms, "solve time per frame", "frame", "time (ms)")
+    plots.save(fig, path)
 
 
 def _imwrite(path: Path, img: np.ndarray) -> None:
@@ -248,7 +226,7 @@ def write_report(result: EvalResult, folder: Path) -> list[str]:
             name = f"frame_{d.index:04d}.png"
             _imwrite(folder / name, panel(d, result.color_max_flow, emax))
             pngs.append(name)
-    _imwrite(folder / "per_frame.png", per_frame_plot(result))
+    per_frame_plot(result, folder / "per_frame.png")
     pngs.append("per_frame.png")
     (folder / "report.json").write_text(json.dumps(to_json(result), indent=1) + "\n")
     (folder / "report.md").write_text(to_markdown(result, pngs))
