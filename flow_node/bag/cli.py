@@ -8,11 +8,16 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from ..core.config import MODELS, PRESETS
 from ..core.errors import ConfigError, FlowError
-from .bagio import STORAGES
+from .bagio import STORAGES, BagError
 from .scenes import SCENES
+
+if TYPE_CHECKING:
+    from ..core.config import FlowConfig
+    from .evaluate import EvalOptions
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -45,9 +50,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--storage", choices=STORAGES, default=d.storage, help="rosbag2 storage plugin")
     s.add_argument("--seed", type=int, default=d.seed, help="random seed (same seed, same bytes)")
 
-    e = sub.add_parser("eval", help="replay a bag through the node's pipeline; write output bag and report")
-    e.add_argument("bag", help="rosbag2 folder (mcap or sqlite3)")
-    e.add_argument("--output", "-o", required=True, help="report folder to create (replaced if it exists)")
+    e = sub.add_parser("eval", help="replay bags through the node's pipeline; write output bags and reports")
+    e.add_argument("bag", nargs="+", help="rosbag2 folder (mcap or sqlite3); or several, folders of bags, globs, "
+                   "or text files listing bags: a batch, evaluated in parallel on Dask")
+    e.add_argument("--output", "-o", required=True,
+                   help="report folder (one bag: replaced if it exists; a batch: reused, evaluated bags skipped)")
     e.add_argument("--image-topic", help="image topic (default: the bag's only Image/CompressedImage topic)")
     e.add_argument("--gt-topic", help="ground-truth flow topic, 32FC2 (default: /camera/flow_gt if present)")
     e.add_argument("--model", help=f"model, or several separated by commas: {', '.join(MODELS)}")
@@ -61,6 +68,10 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--png-frames", default="auto",
                    help="frames to draw as PNG: comma-separated indices, 'all', 'none', or 'auto'")
     e.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
+    e.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="batch: run on this existing Dask cluster (default: an embedded local cluster)")
+    e.add_argument("--workers", type=int, metavar="N",
+                   help="batch: worker processes of the embedded cluster (default: one per core)")
 
     y = sub.add_parser("play", help="publish a bag over DDS with its recorded timing (rclpy)")
     y.add_argument("bag", help="rosbag2 folder (mcap or sqlite3)")
@@ -101,6 +112,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"flow_bag play: published {count} messages")
         return 0
     from ..cli.estimate import config_from_args
+    from .batch import is_single_bag
     from .evaluate import EvalOptions, run_eval
 
     models = _models(args.model)
@@ -109,7 +121,27 @@ def _run(args: argparse.Namespace) -> int:
     configs = [base if m is None else base.replace(model=m) for m in models]
     opts = EvalOptions(image_topic=args.image_topic, gt_topic=args.gt_topic, max_flow=args.max_flow,
                        png_frames=args.png_frames, progress=not args.quiet)
-    run_eval(args.bag, args.output, configs, opts)
+    if is_single_bag(args.bag) and args.scheduler is None and args.workers is None:
+        run_eval(args.bag[0], args.output, configs, opts)
+        return 0
+    return _batch(args, configs, opts)
+
+
+def _batch(args: argparse.Namespace, configs: list[FlowConfig], opts: EvalOptions) -> int:
+    """Many bags on Dask; exit 1 (after the report is written) when any bag failed."""
+    from .batch import run_batch
+
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError(f"--workers must be >= 1, got {args.workers}")
+    outcomes = run_batch(args.bag, args.output, configs, opts, scheduler=args.scheduler, workers=args.workers)
+    failed = [o for o in outcomes if o.status == "failed"]
+    if not args.quiet:
+        print(f"flow_bag eval: {len(outcomes)} bags: {sum(o.status == 'done' for o in outcomes)} evaluated, "
+              f"{sum(o.status == 'skipped' for o in outcomes)} skipped (cached), {len(failed)} failed; "
+              f"report {args.output}/report.md")
+    if failed:
+        raise BagError(f"{len(failed)} of {len(outcomes)} bags failed (first: {failed[0].name}: {failed[0].reason}); "
+                       f"see {args.output}/report.md")
     return 0
 
 

@@ -21,3 +21,7 @@ class InputError(FlowError, ValueError):
 
 class FileFormatError(FlowError, OSError):
     """A file that cannot be read or written in the expected format (.flo, PNG, YAML, bag)."""
+
+
+class ClusterError(FlowError, OSError):
+    """A compute cluster (Dask scheduler) that cannot be started or reached."""

@@ -1,0 +1,365 @@
+"""``flow_bag eval`` over many bags, in parallel on Dask.
+
+Inputs are bag folders, folders holding bags (searched recursively), glob patterns and text files that list
+bags (one path a line, ``#`` comments, relative to the list's folder). Every bag is one Dask task running
+:func:`evaluate_bag`: the single-bag :func:`~flow_node.bag.evaluate.run_eval` into ``OUT/bags/<name>/``, so
+each bag gets exactly what ``flow_bag eval BAG --output OUT/bags/<name>`` writes. The scheduler is an embedded
+``distributed.LocalCluster`` (one single-threaded worker process per core) or, with ``scheduler``, an
+existing cluster; both go through the same ``Client.submit`` / ``as_completed`` path. Workers must see the
+bags and ``OUT`` under the same paths (a shared file system) and have flow_node installed.
+
+A bag that fails is reported with its one-line reason; the others go on. A bag whose content (hash of its
+files) and configuration (every engine setting, topics, colour scale, PNG choice) match the key stored with
+its output is skipped, so an interrupted batch resumes where it stopped. dask and distributed are imported
+only when a batch runs.
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import json
+import os
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..core.config import FlowConfig
+from ..core.errors import ClusterError, FlowError
+from .bagio import BagError
+from .evaluate import EvalOptions, run_eval
+
+BATCH_FORMAT = 1  # part of every cache key: bump when the per-bag output changes meaning
+KEY_FILE = "batch_key.json"  # written into a bag's output folder once it is complete
+PROGRESS_TOPIC = "flow_bag-progress"  # Dask event topic of the per-frame progress
+BAG_SUFFIXES = (".mcap", ".db3")
+GLOB_CHARS = frozenset("*?[")
+
+
+@dataclass(frozen=True)
+class BagJob:
+    """One bag to evaluate: its path, its output folder, the configs and options, and the digest of
+    everything but the bag that the cache key covers."""
+
+    bag: str
+    name: str
+    output: str
+    configs: tuple[FlowConfig, ...]
+    opts: EvalOptions
+    config_digest: str
+
+
+@dataclass
+class BagOutcome:
+    """What became of one bag: ``status`` is 'done', 'skipped' (cached) or 'failed' (with ``reason``);
+    ``report`` is the bag's report.json as data (None when failed); ``seconds`` the task's wall time;
+    ``pid`` the process that ran it."""
+
+    bag: str
+    name: str
+    status: str
+    reason: str | None = None
+    key: str | None = None
+    seconds: float = 0.0
+    pid: int = 0
+    report: dict[str, Any] | None = field(default=None, repr=False)
+
+
+# ------------------------------------------------------------------------------------------------ inputs
+def is_bag(path: Path) -> bool:
+    """A rosbag2 folder (metadata.yaml or a storage file in it), or a single .mcap/.db3 file."""
+    if path.is_file():
+        return path.suffix in BAG_SUFFIXES
+    return path.is_dir() and ((path / "metadata.yaml").is_file()
+                              or any(p.suffix in BAG_SUFFIXES for p in path.iterdir() if p.is_file()))
+
+
+def is_single_bag(inputs: Sequence[str]) -> bool:
+    """True for one input that is a bag, or does not exist at all (single-bag eval reports it)."""
+    if len(inputs) != 1 or GLOB_CHARS & set(inputs[0]):
+        return False
+    p = Path(inputs[0])
+    return not p.exists() or is_bag(p)
+
+
+def _bags_below(folder: Path, exclude: Path | None) -> list[Path]:
+    """Bag folders under ``folder`` (not descending into a bag, hidden folders or ``exclude``), sorted."""
+    found = []
+    for root, dirs, _files in os.walk(folder):
+        here = Path(root)
+        if is_bag(here):
+            found.append(here)
+            dirs[:] = []
+            continue
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".")
+                         and (exclude is None or (here / d).resolve() != exclude))
+    return found
+
+
+def _list_file(path: Path) -> list[str]:
+    """Entries of a bag list: one path a line, blank lines and ``#`` comments ignored, relative paths
+    taken from the list's folder."""
+    try:
+        lines = path.read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BagError(f"{path}: cannot read the bag list: {exc}") from exc
+    entries = [line.split("#", 1)[0].strip() for line in lines]
+    return [e if os.path.isabs(e) else str(path.parent / e) for e in entries if e]
+
+
+def find_bags(inputs: Sequence[str], exclude: str | Path | None = None) -> list[Path]:
+    """Bags named by ``inputs`` (bag folders or files, folders of bags, globs, list files), in input
+    order without duplicates; ``exclude`` (the batch's output) is never searched. A path that does not
+    exist is kept (its evaluation reports it); a folder or glob with no bag in it is a BagError."""
+    skip = Path(exclude).resolve() if exclude is not None else None
+    out: dict[Path, Path] = {}
+    for item in inputs:
+        if GLOB_CHARS & set(item) and not Path(item).exists():
+            matches = sorted(glob.glob(item, recursive=True))
+            if not matches:
+                raise BagError(f"{item}: no file or folder matches")
+            found = find_bags(matches, exclude)
+        else:
+            p = Path(item)
+            if not p.exists() or is_bag(p):
+                found = [p.parent if p.is_file() else p]
+            elif p.is_file():
+                found = find_bags(_list_file(p), exclude)
+            else:
+                found = _bags_below(p, skip)
+                if not found:
+                    raise BagError(f"{item}: no rosbag2 folder in it")
+        for bag in found:
+            out.setdefault(bag.resolve(), bag)
+    if not out:
+        raise BagError("no bag to evaluate")
+    return list(out.values())
+
+
+def output_names(bags: Sequence[Path]) -> list[str]:
+    """A distinct folder name per bag: its path relative to the bags' common folder, '/' -> '__'."""
+    resolved = [b.resolve() for b in bags]
+    root = Path(os.path.commonpath(resolved)) if len(resolved) > 1 else resolved[0].parent
+    if root in resolved:
+        root = root.parent
+    return ["__".join(b.relative_to(root).parts) for b in resolved]
+
+
+# ------------------------------------------------------------------------------------------------ keys
+def config_digest(configs: Sequence[FlowConfig], opts: EvalOptions) -> str:
+    """sha256 of everything except the bag that decides a bag's output: every engine setting of every
+    model, topics, colour scale, PNG frames, and the batch format."""
+    data = {"format": BATCH_FORMAT, "configs": [c.to_dict() for c in configs],
+            "options": {k: v for k, v in asdict(opts).items() if k != "progress"}}
+    return hashlib.sha256(json.dumps(data, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def bag_digest(bag: str | Path, chunk: int = 1 << 20) -> str:
+    """sha256 over a bag's files (relative name and bytes of each, in name order): its content, wherever
+    it lies. A missing bag hashes to a BagError."""
+    p = Path(bag)
+    folder = p.parent if p.is_file() else p
+    if not folder.is_dir():
+        raise BagError(f"{bag}: no such bag")
+    h = hashlib.sha256()
+    for f in sorted(x for x in folder.rglob("*") if x.is_file()):
+        h.update(str(f.relative_to(folder)).encode() + b"\0")
+        with f.open("rb") as fh:
+            while block := fh.read(chunk):
+                h.update(block)
+        h.update(b"\0")
+    return h.hexdigest()
+
+
+def cached_key(output: Path) -> str | None:
+    """The key stored with a complete bag output, or None."""
+    try:
+        return str(json.loads((output / KEY_FILE).read_text())["key"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def make_jobs(bags: Sequence[Path], out: Path, configs: Sequence[FlowConfig], opts: EvalOptions) -> list[BagJob]:
+    """One job per bag, outputs in ``out/bags/<name>``; worker-side options (no terminal progress)."""
+    digest = config_digest(configs, opts)
+    worker_opts = EvalOptions(opts.image_topic, opts.gt_topic, opts.max_flow, opts.png_frames, progress=False)
+    return [BagJob(str(b), n, str(out / "bags" / n), tuple(configs), worker_opts, digest)
+            for b, n in zip(bags, output_names(bags), strict=True)]
+
+
+# ------------------------------------------------------------------------------------------------ one bag
+def _frame_events(name: str, period: float = 0.25) -> Callable[[int, int], None] | None:
+    """A progress callback that sends (done, total) to the client as Dask events, at most every
+    ``period`` s and on the last frame; None outside a Dask worker."""
+    try:
+        from distributed import get_worker
+
+        worker = get_worker()
+    except (ImportError, ValueError):
+        return None
+    last = [0.0]
+
+    def send(done: int, total: int) -> None:
+        now = time.monotonic()
+        if done >= total or now - last[0] >= period:
+            last[0] = now
+            worker.log_event(PROGRESS_TOPIC, {"name": name, "done": done, "total": total})
+
+    return send
+
+
+def evaluate_bag(job: BagJob) -> BagOutcome:
+    """The task of one bag: skip it if its output carries the same key, else run the single-bag eval into
+    ``job.output`` and store the key. Never raises: a failure becomes a 'failed' outcome."""
+    start = time.monotonic()
+    out = Path(job.output)
+    outcome = BagOutcome(job.bag, job.name, "failed", pid=os.getpid())
+    try:
+        key = hashlib.sha256(f"{bag_digest(job.bag)}:{job.config_digest}".encode()).hexdigest()
+        outcome.key = key
+        if cached_key(out) == key:
+            outcome.status = "skipped"
+        else:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            (out / KEY_FILE).unlink(missing_ok=True)
+            run_eval(job.bag, out, job.configs, job.opts, _frame_events(job.name))
+            (out / KEY_FILE).write_text(json.dumps({"key": key, "bag": job.bag}) + "\n")
+            outcome.status = "done"
+        outcome.report = json.loads((out / "report.json").read_text())
+    except FlowError as exc:
+        outcome.reason = str(exc)
+    except Exception as exc:  # noqa: BLE001 - one broken bag must not stop the batch
+        outcome.reason = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    outcome.seconds = time.monotonic() - start
+    return outcome
+
+
+# ------------------------------------------------------------------------------------------------ Dask
+def default_workers() -> int:
+    """Cores available to this process."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+@contextmanager
+def dask_client(scheduler: str | None, workers: int | None = None) -> Iterator[Any]:
+    """A ``distributed.Client``: connected to ``scheduler`` (tcp://host:port), or to an embedded
+    LocalCluster of ``workers`` single-threaded worker processes (default: one per core). Closed on exit."""
+    from distributed import Client, LocalCluster
+
+    cluster = None
+    try:
+        if scheduler:
+            client = Client(scheduler, timeout=30)
+        else:
+            cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
+                                   processes=True, dashboard_address=None)
+            client = Client(cluster)
+    except (OSError, TimeoutError, ValueError) as exc:
+        if cluster is not None:
+            cluster.close()
+        where = f"the Dask scheduler at {scheduler}" if scheduler else "a local Dask cluster"
+        raise ClusterError(f"cannot start or reach {where}: {' '.join(str(exc).split())}") from exc
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+class BatchProgress:
+    """tqdm bars on the client: the bags done overall, and the frames of each bag being evaluated (fed by
+    the workers' Dask events). Thread-safe: events arrive on the client's event-loop thread."""
+
+    def __init__(self, total: int, enabled: bool) -> None:
+        from tqdm import tqdm
+
+        self._tqdm, self.enabled = tqdm, enabled
+        self.overall = tqdm(total=total, unit="bag", desc="bags", disable=not enabled, dynamic_ncols=True)
+        self._bars: dict[str, Any] = {}
+        self._finished: set[str] = set()
+        self._lock = threading.Lock()
+
+    def on_event(self, event: Any) -> None:
+        """Handler of PROGRESS_TOPIC events: ``(timestamp, {"name", "done", "total"})``."""
+        msg = event[1] if isinstance(event, tuple) else event
+        with self._lock:
+            name = msg["name"]
+            if not self.enabled or name in self._finished:
+                return
+            bar = self._bars.get(name)
+            if bar is None:
+                bar = self._bars[name] = self._tqdm(total=msg["total"], unit="frame", desc=name, leave=False,
+                                                    dynamic_ncols=True)
+            bar.update(msg["done"] - bar.n)
+
+    def finish(self, outcome: BagOutcome) -> None:
+        """A bag is over: close its bar, count it, print a failure's reason above the bars."""
+        with self._lock:
+            self._finished.add(outcome.name)
+            bar = self._bars.pop(outcome.name, None)
+            if bar is not None:
+                bar.close()
+            self.overall.update(1)
+            if outcome.status == "failed" and self.enabled:
+                self.overall.write(f"flow_bag eval: {outcome.name}: failed: {outcome.reason}")
+
+    def close(self) -> None:
+        with self._lock:
+            for bar in self._bars.values():
+                bar.close()
+            self.overall.close()
+
+
+def run_jobs(client: Any, jobs: Sequence[BagJob], progress: BatchProgress) -> list[BagOutcome]:
+    """Submit every job to ``client`` and collect the outcomes in job order; a task lost with its worker
+    (killed, out of memory) becomes a 'failed' outcome."""
+    from distributed import as_completed
+
+    client.subscribe_topic(PROGRESS_TOPIC, progress.on_event)
+    futures = {client.submit(evaluate_bag, job, key=f"flow_bag-{job.name}-{job.config_digest[:8]}-{os.getpid()}",
+                             pure=False, retries=0): job for job in jobs}
+    done: dict[str, BagOutcome] = {}
+    try:
+        for fut in as_completed(futures):
+            job = futures[fut]
+            try:
+                outcome = fut.result()
+            except Exception as exc:  # noqa: BLE001 - the worker died or the task was lost
+                outcome = BagOutcome(job.bag, job.name, "failed",
+                                     reason=f"task lost: {type(exc).__name__}: {' '.join(str(exc).split())}")
+            done[job.name] = outcome
+            progress.finish(outcome)
+    finally:
+        client.unsubscribe_topic(PROGRESS_TOPIC)
+        for fut in futures:
+            fut.release()
+    return [done[j.name] for j in jobs]
+
+
+def run_batch(inputs: Sequence[str], output: str | Path, configs: Sequence[FlowConfig], opts: EvalOptions,
+              scheduler: str | None = None, workers: int | None = None) -> list[BagOutcome]:
+    """Evaluate every bag of ``inputs`` on Dask into ``output``/bags/, then write the batch report
+    (``output``/report.json, report.md, PNGs). Returns the outcomes in input order."""
+    from .batch_report import write_batch_report
+
+    out = Path(output)
+    if out.exists() and not out.is_dir():
+        raise BagError(f"output {out} exists and is not a folder")
+    jobs = make_jobs(find_bags(inputs, exclude=out), out, configs, opts)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.monotonic()
+    progress = BatchProgress(len(jobs), opts.progress)
+    try:
+        with dask_client(scheduler, workers) as client:
+            workers_seen = len(client.nthreads())
+            outcomes = run_jobs(client, jobs, progress)
+    finally:
+        progress.close()
+    where = f"{scheduler or 'embedded LocalCluster'}, {workers_seen} workers"
+    write_batch_report(outcomes, out, configs, time.monotonic() - start, where)
+    return outcomes
