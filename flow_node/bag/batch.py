@@ -20,6 +20,7 @@ import glob
 import hashlib
 import json
 import os
+import socket
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -57,7 +58,7 @@ class BagJob:
 class BagOutcome:
     """What became of one bag: ``status`` is 'done', 'skipped' (cached) or 'failed' (with ``reason``);
     ``report`` is the bag's report.json as data (None when failed); ``seconds`` the task's wall time;
-    ``pid`` the process that ran it."""
+    ``host`` and ``pid`` the machine and process that ran it."""
 
     bag: str
     name: str
@@ -65,6 +66,7 @@ class BagOutcome:
     reason: str | None = None
     key: str | None = None
     seconds: float = 0.0
+    host: str = ""
     pid: int = 0
     report: dict[str, Any] | None = field(default=None, repr=False)
 
@@ -217,7 +219,7 @@ def evaluate_bag(job: BagJob) -> BagOutcome:
     ``job.output`` and store the key. Never raises: a failure becomes a 'failed' outcome."""
     start = time.monotonic()
     out = Path(job.output)
-    outcome = BagOutcome(job.bag, job.name, "failed", pid=os.getpid())
+    outcome = BagOutcome(job.bag, job.name, "failed", host=socket.gethostname(), pid=os.getpid())
     try:
         key = hashlib.sha256(f"{bag_digest(job.bag)}:{job.config_digest}".encode()).hexdigest()
         outcome.key = key
@@ -245,15 +247,17 @@ def default_workers() -> int:
 
 
 @contextmanager
-def dask_client(scheduler: str | None, workers: int | None = None) -> Iterator[Any]:
-    """A ``distributed.Client``: connected to ``scheduler`` (tcp://host:port), or to an embedded
-    LocalCluster of ``workers`` single-threaded worker processes (default: one per core). Closed on exit."""
+def dask_client(scheduler: str | None, workers: int | None = None, worker_timeout: float = 60.0) -> Iterator[Any]:
+    """A ``distributed.Client``: connected to ``scheduler`` (tcp://host:port) once it has a worker (waiting
+    up to ``worker_timeout`` s), or to an embedded LocalCluster of ``workers`` single-threaded worker
+    processes (default: one per core). Closed on exit."""
     from distributed import Client, LocalCluster
 
     cluster = None
     try:
         if scheduler:
             client = Client(scheduler, timeout=30)
+            client.wait_for_workers(1, timeout=worker_timeout)
         else:
             cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
                                    processes=True, dashboard_address=None)
@@ -356,8 +360,8 @@ def run_batch(inputs: Sequence[str], output: str | Path, configs: Sequence[FlowC
     progress = BatchProgress(len(jobs), opts.progress)
     try:
         with dask_client(scheduler, workers) as client:
-            workers_seen = len(client.nthreads())
             outcomes = run_jobs(client, jobs, progress)
+            workers_seen = len(client.nthreads())
     finally:
         progress.close()
     where = f"{scheduler or 'embedded LocalCluster'}, {workers_seen} workers"

@@ -40,7 +40,8 @@ def bag_rows(outcomes: Sequence[BagOutcome]) -> list[dict[str, Any]]:
     """One row per bag and model (one row for a failed bag): the bag's summary numbers."""
     rows = []
     for o in outcomes:
-        base = {"bag": o.name, "path": o.bag, "status": o.status, "reason": o.reason, "task_seconds": o.seconds}
+        base = {"bag": o.name, "path": o.bag, "status": o.status, "reason": o.reason, "task_seconds": o.seconds,
+                "host": o.host, "pid": o.pid}
         if o.report is None:
             rows.append(base | {"model": None})
             continue

@@ -1,0 +1,185 @@
+"""flow_bag eval over many bags on Dask: the embedded LocalCluster and a separate `dask scheduler` + `dask
+worker` on loopback; per-bag results identical to single-bag eval, a corrupt bag reported while the others
+finish, the cache skipping evaluated bags and re-running them when a parameter changes."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import psutil
+import pytest
+import small_frames
+from rosbags.rosbag2 import Reader
+
+from flow_node.bag.batch import find_bags, output_names
+from flow_node.bag.cli import main as flow_bag
+from flow_node.bag.synth import SynthSpec, write_synth_bag
+
+FAST = small_frames.CLI_ARGS + ["-q"]
+TIMES = {"seconds", "wall_seconds", "seconds_mean", "seconds_median"}  # the only fields allowed to differ
+SCENES = {"translation": "mcap", "rotation": "sqlite3", "robot2/zoom": "mcap"}
+AEE_BOUND = 0.3  # px; the zero-flow AEE of these scenes is 0.5-2 px
+
+
+def untimed(data):
+    """report.json without timings (recursively)."""
+    if isinstance(data, dict):
+        return {k: untimed(v) for k, v in data.items() if k not in TIMES}
+    if isinstance(data, list):
+        return [untimed(v) for v in data]
+    return data
+
+
+def flow_messages(bag: Path) -> dict[str, list[bytes]]:
+    """Raw CDR bytes per output topic of an eval output bag."""
+    out: dict[str, list[bytes]] = {}
+    with Reader(bag) as reader:
+        for conn, _t, raw in reader.messages():
+            out.setdefault(conn.topic, []).append(bytes(raw))
+    return out
+
+
+def make_bags(root: Path) -> Path:
+    """Three tiny synthetic bags (one nested one level deeper, one sqlite3) and a truncated copy."""
+    for k, (name, storage) in enumerate(SCENES.items()):
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        write_synth_bag(root / name, SynthSpec(scene=Path(name).name, frames=4, size=(48, 40), storage=storage,
+                                               seed=k))
+    shutil.copytree(root / "translation", root / "corrupt")
+    storage = next((root / "corrupt").glob("*.mcap"))
+    storage.write_bytes(storage.read_bytes()[: storage.stat().st_size // 2])
+    return root
+
+
+def batch_report(out: Path) -> dict:
+    return json.loads((out / "report.json").read_text())
+
+
+def statuses(out: Path) -> dict[str, str]:
+    return {r["bag"]: r["status"] for r in batch_report(out)["bags"]}
+
+
+@pytest.fixture(scope="module")
+def bags(tmp_path_factory) -> Path:
+    return make_bags(tmp_path_factory.mktemp("batch") / "bags")
+
+
+def test_inputs_folders_globs_and_lists(bags, tmp_path):
+    """A folder is searched recursively, globs expand, a list file's relative lines resolve; no duplicates."""
+    found = find_bags([str(bags)])
+    assert sorted(output_names(found)) == ["corrupt", "robot2__zoom", "rotation", "translation"]
+    listing = tmp_path / "bags.txt"
+    listing.write_text(f"# week 12\n{os.path.relpath(bags / 'rotation', tmp_path)}\n\n{bags / 'translation'}  # ok\n")
+    found = find_bags([str(listing), str(bags / "rot*"), str(bags / "robot2")])
+    assert [p.resolve() for p in found] == [(bags / n).resolve() for n in ("rotation", "translation", "robot2/zoom")]
+
+
+def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert flow_bag(["eval", str(bags), "--output", str(out), *FAST]) == 1  # one bag failed
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("flow_bag eval: error: 1 of 4 bags failed (first: corrupt: ")
+    report = batch_report(out)
+    assert report["counts"] == {"bags": 4, "done": 3, "skipped": 0, "failed": 1}
+    assert report["scheduler"].startswith("embedded LocalCluster")
+    (failure,) = report["failures"]
+    assert failure["bag"] == "corrupt" and "corrupt" in failure["reason"] and "\n" not in failure["reason"]
+    assert not (out / "bags" / "corrupt").exists()
+    assert all(r["pid"] != os.getpid() for r in report["bags"])  # ran in the cluster's worker processes
+    for name in ("aee_per_bag.png", "time_per_frame.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "## Failed bags" in (out / "report.md").read_text()
+
+    # Each bag's output is what single-bag eval writes: same report (but timings), same flow bytes.
+    for name in ("translation", "rotation", "robot2/zoom"):
+        single = tmp_path / "single" / name
+        assert flow_bag(["eval", str(bags / name), "--output", str(single), *FAST]) == 0
+        mine = out / "bags" / name.replace("/", "__")
+        assert untimed(json.loads((mine / "report.json").read_text())) == \
+            untimed(json.loads((single / "report.json").read_text()))
+        assert flow_messages(mine / "bag") == flow_messages(single / "bag")
+        assert sorted(p.name for p in mine.iterdir()) == sorted([p.name for p in single.iterdir()] + ["batch_key.json"])
+    rows = {r["bag"]: r for r in report["bags"]}
+    assert all(rows[n]["pairs_with_gt"] == 3 and rows[n]["aee_mean"] < AEE_BOUND
+               for n in ("translation", "rotation", "robot2__zoom"))
+
+
+
+def test_rerun_skips_evaluated_bags_and_a_changed_parameter_reruns_them(bags, tmp_path):
+    """The cache: same configuration, nothing re-evaluated (outputs untouched), the corrupt bag retried; a
+    changed parameter re-evaluates every bag. Both reruns share one cluster (started once, --scheduler)."""
+    from distributed import LocalCluster
+
+    out = tmp_path / "out"
+    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:
+        remote = ["--scheduler", cluster.scheduler_address]
+        assert flow_bag(["eval", str(bags), "--output", str(out), *FAST, *remote]) == 1
+        report = batch_report(out)
+        assert report["counts"] == {"bags": 4, "done": 3, "skipped": 0, "failed": 1}
+        stamps = {p: p.stat().st_mtime_ns for p in (out / "bags").rglob("*") if p.is_file()}
+
+        assert flow_bag(["eval", str(bags), "--output", str(out), *FAST, *remote]) == 1
+        assert statuses(out) == {"corrupt": "failed", "translation": "skipped", "rotation": "skipped",
+                                 "robot2__zoom": "skipped"}
+        assert {p: p.stat().st_mtime_ns for p in (out / "bags").rglob("*") if p.is_file()} == stamps
+        assert [r.get("aee_mean") for r in batch_report(out)["bags"]] == [r.get("aee_mean") for r in report["bags"]]
+
+        assert flow_bag(["eval", str(bags), "--output", str(out), *FAST, *remote, "--set", "alpha=0.05"]) == 1
+    assert statuses(out) == {"corrupt": "failed", "translation": "done", "rotation": "done", "robot2__zoom": "done"}
+    rerun = json.loads((out / "bags" / "rotation" / "report.json").read_text())["models"][0]
+    assert rerun["config"]["alpha"] == 0.05
+    assert rerun["summary"]["aee_mean"] != {r["bag"]: r for r in report["bags"]}["rotation"]["aee_mean"]
+
+
+def _stop(procs: list[subprocess.Popen]) -> None:
+    for p in procs:
+        if p.poll() is None:
+            p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            for child in psutil.Process(p.pid).children(recursive=True):
+                child.kill()
+            p.kill()
+            p.wait(timeout=5)
+
+
+def test_batch_on_a_separate_dask_scheduler_and_worker(bags, tmp_path):
+    """`dask scheduler` and `dask worker` (distributed's CLIs) on 127.0.0.1, ephemeral port; --scheduler."""
+    good = tmp_path / "good"
+    for name in ("translation", "rotation"):
+        shutil.copytree(bags / name, good / name)
+    dask = str(Path(sys.executable).with_name("dask"))
+    info = tmp_path / "scheduler.json"
+    logs = [(tmp_path / f"{n}.log").open("w") for n in ("scheduler", "worker")]
+    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(info)], stdout=logs[0], stderr=subprocess.STDOUT)]
+    try:
+        deadline = time.monotonic() + 60
+        while not info.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        address = json.loads(info.read_text())["address"]
+        assert address.startswith("tcp://127.0.0.1:")
+        procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--nworkers", "1",
+                                       "--host", "127.0.0.1", "--no-dashboard"], stdout=logs[1],
+                                      stderr=subprocess.STDOUT))
+        out = tmp_path / "out"
+        assert flow_bag(["eval", str(good), "--output", str(out), "--scheduler", address, *FAST]) == 0
+        report = batch_report(out)
+        assert report["counts"] == {"bags": 2, "done": 2, "skipped": 0, "failed": 0}
+        assert report["scheduler"] == f"{address}, 1 workers"
+        worker_pids = {c.pid for c in psutil.Process(procs[1].pid).children(recursive=True)} | {procs[1].pid}
+        assert {r["pid"] for r in report["bags"]} <= worker_pids  # evaluated by the separate worker
+        assert all(r["pairs_with_gt"] == 3 and r["aee_mean"] < AEE_BOUND for r in report["bags"])
+    finally:
+        _stop(procs[::-1])
+        for f in logs:
+            f.close()
+    assert all(p.poll() is not None for p in procs)
