@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import socket
 import subprocess
 import sys
 import time
@@ -17,9 +18,11 @@ import pytest
 import small_frames
 from rosbags.rosbag2 import Reader
 
-from flow_node.bag.batch import find_bags, output_names
+from flow_node.bag import plots
+from flow_node.bag.batch import dask_client, find_bags, output_names
 from flow_node.bag.cli import main as flow_bag
 from flow_node.bag.synth import SynthSpec, write_synth_bag
+from flow_node.core.errors import ClusterError
 
 FAST = small_frames.CLI_ARGS + ["-q"]
 TIMES = {"seconds", "wall_seconds", "seconds_mean", "seconds_median"}  # the only fields allowed to differ
@@ -78,6 +81,36 @@ def test_inputs_folders_globs_and_lists(bags, tmp_path):
     listing.write_text(f"# week 12\n{os.path.relpath(bags / 'rotation', tmp_path)}\n\n{bags / 'translation'}  # ok\n")
     found = find_bags([str(listing), str(bags / "rot*"), str(bags / "robot2")])
     assert [p.resolve() for p in found] == [(bags / n).resolve() for n in ("rotation", "translation", "robot2/zoom")]
+
+
+def test_the_output_folder_is_never_an_input(bags, tmp_path):
+    out = tmp_path / "out"
+    shutil.copytree(bags / "rotation", out / "bags" / "rotation" / "bag")  # what a batch output holds
+    assert find_bags([str(bags / "rotation"), str(out), str(tmp_path / "o*")], exclude=out) == [bags / "rotation"]
+
+
+def test_plots_leave_out_missing_values(tmp_path):
+    """None, NaN and inf never reach a line, bar or histogram, and never fail the PNG."""
+    nan, inf = float("nan"), float("inf")
+    fig, (a, b, c) = plots.new_figure(3)
+    plots.line_panel(a, {"m": [(0, 1.0), (1, None), (2, nan), (3, 2.0), (4, inf)], "empty": [(0, nan)]}, "t", "x", "y")
+    assert [list(line.get_xdata()) for line in a.lines] == [[0.0, 3.0]]
+    plots.bar_panel(b, ["b0", "b1", "b2"], {"m": [0.5, None, nan]}, "t", "y")
+    assert [round(p.get_height(), 6) for p in b.patches] == [0.5]
+    assert sum(t.get_text() == "n/a" for t in b.texts) == 2
+    plots.histogram_panel(c, {"m": [nan, None], "k": []}, "t", "x")
+    assert [t.get_text() for t in c.texts] == ["no data"]
+    plots.save(fig, tmp_path / "p.png")
+    assert (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_an_unreachable_scheduler_is_a_one_line_error():
+    with socket.socket() as s:  # a loopback port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    with pytest.raises(ClusterError, match=rf"^cannot start or reach the Dask scheduler at tcp://127.0.0.1:{port}: "):
+        with dask_client(f"tcp://127.0.0.1:{port}", connect_timeout=1):
+            pass
 
 
 def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):

@@ -117,29 +117,37 @@ def find_bags(inputs: Sequence[str], exclude: str | Path | None = None) -> list[
     """Bags named by ``inputs`` (bag folders or files, folders of bags, globs, list files), in input
     order without duplicates; ``exclude`` (the batch's output) is never searched. A path that does not
     exist is kept (its evaluation reports it); a folder or glob with no bag in it is a BagError."""
-    skip = Path(exclude).resolve() if exclude is not None else None
     out: dict[Path, Path] = {}
-    for item in inputs:
-        if GLOB_CHARS & set(item) and not Path(item).exists():
-            matches = sorted(glob.glob(item, recursive=True))
-            if not matches:
-                raise BagError(f"{item}: no file or folder matches")
-            found = find_bags(matches, exclude)
-        else:
-            p = Path(item)
-            if not p.exists() or is_bag(p):
-                found = [p.parent if p.is_file() else p]
-            elif p.is_file():
-                found = find_bags(_list_file(p), exclude)
-            else:
-                found = _bags_below(p, skip)
-                if not found:
-                    raise BagError(f"{item}: no rosbag2 folder in it")
-        for bag in found:
-            out.setdefault(bag.resolve(), bag)
+    for bag in _collect(inputs, Path(exclude).resolve() if exclude is not None else None):
+        out.setdefault(bag.resolve(), bag)
     if not out:
         raise BagError("no bag to evaluate")
     return list(out.values())
+
+
+def _collect(inputs: Sequence[str], skip: Path | None) -> list[Path]:
+    """The bags of :func:`find_bags`, duplicates included."""
+    found: list[Path] = []
+    for item in inputs:
+        here = Path(item).resolve()
+        if skip is not None and (here == skip or skip in here.parents):
+            continue  # the batch's own output (a glob or list may name it)
+        p = Path(item)
+        if GLOB_CHARS & set(item) and not p.exists():
+            matches = sorted(glob.glob(item, recursive=True))
+            if not matches:
+                raise BagError(f"{item}: no file or folder matches")
+            found += _collect(matches, skip)
+        elif not p.exists() or is_bag(p):
+            found.append(p.parent if p.is_file() else p)
+        elif p.is_file():
+            found += _collect(_list_file(p), skip)
+        else:
+            below = _bags_below(p, skip)
+            if not below:
+                raise BagError(f"{item}: no rosbag2 folder in it")
+            found += below
+    return found
 
 
 def output_names(bags: Sequence[Path]) -> list[str]:
@@ -247,24 +255,26 @@ def default_workers() -> int:
 
 
 @contextmanager
-def dask_client(scheduler: str | None, workers: int | None = None, worker_timeout: float = 60.0) -> Iterator[Any]:
-    """A ``distributed.Client``: connected to ``scheduler`` (tcp://host:port) once it has a worker (waiting
-    up to ``worker_timeout`` s), or to an embedded LocalCluster of ``workers`` single-threaded worker
-    processes (default: one per core). Closed on exit."""
+def dask_client(scheduler: str | None, workers: int | None = None, connect_timeout: float = 30.0,
+                worker_timeout: float = 60.0) -> Iterator[Any]:
+    """A ``distributed.Client``: connected to ``scheduler`` (tcp://host:port; within ``connect_timeout``
+    s, then waiting up to ``worker_timeout`` s for a worker), or to an embedded LocalCluster of ``workers``
+    single-threaded worker processes (default: one per core). ClusterError if neither works; closed on exit."""
     from distributed import Client, LocalCluster
 
-    cluster = None
+    cluster = client = None
     try:
         if scheduler:
-            client = Client(scheduler, timeout=30)
+            client = Client(scheduler, timeout=connect_timeout)
             client.wait_for_workers(1, timeout=worker_timeout)
         else:
             cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
                                    processes=True, dashboard_address=None)
             client = Client(cluster)
     except (OSError, TimeoutError, ValueError) as exc:
-        if cluster is not None:
-            cluster.close()
+        for resource in (client, cluster):
+            if resource is not None:
+                resource.close()
         where = f"the Dask scheduler at {scheduler}" if scheduler else "a local Dask cluster"
         raise ClusterError(f"cannot start or reach {where}: {' '.join(str(exc).split())}") from exc
     try:
