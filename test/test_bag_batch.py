@@ -12,7 +12,9 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace as NS
 
+import cv2
 import psutil
 import pytest
 import small_frames
@@ -21,6 +23,8 @@ from rosbags.rosbag2 import Reader
 from flow_node.bag import plots
 from flow_node.bag.batch import dask_client, find_bags, output_names
 from flow_node.bag.cli import main as flow_bag
+from flow_node.bag.evaluate import FrameRecord
+from flow_node.bag.report import per_frame_plot
 from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.errors import ClusterError
 
@@ -216,3 +220,14 @@ def test_batch_on_a_separate_dask_scheduler_and_worker(bags, tmp_path):
         for f in logs:
             f.close()
     assert all(p.poll() is not None for p in procs)
+
+
+def test_single_bag_plot_tolerates_missing_values(tmp_path):
+    """per_frame.png (matplotlib): an AEE row only with ground truth; NaN, None and skipped frames are left out."""
+    records = [FrameRecord(0, 0, skipped="first frame"), FrameRecord(1, 1, 0, 0.01, 5, aee=float("nan")),
+               FrameRecord(2, 2, 1, None, None, aee=None), FrameRecord(3, 3, 2, 0.02, 5, aee=0.3)]
+    heights = []
+    for recs in (records, [FrameRecord(r.index, r.stamp_ns, r.previous_stamp_ns, r.seconds) for r in records]):
+        per_frame_plot(NS(runs=[NS(label="l1_tv", records=recs)]), tmp_path / "p.png")
+        heights.append(cv2.imread(str(tmp_path / "p.png")).shape[0])
+    assert heights[0] == 2 * heights[1] > 0  # AEE panel above the time panel only where there is ground truth
