@@ -7,7 +7,8 @@ Writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds 0..)
 ``--bags``, then evaluates the whole folder, each time into a fresh output (nothing cached), as:
 
 - ``loop``: one process running ``evaluate_bag`` for every job in a plain for loop: the same per-bag work
-  (single-bag eval, key, report) without Dask: the peer of the 1-worker run;
+  (single-bag eval, key, report) without Dask, in the environment the embedded cluster gives its workers
+  (``WORKER_ENV``: one numeric thread, glibc keeping freed memory): the peer of the 1-worker run;
 - ``dask-1`` / ``dask-2``: ``flow_bag eval FOLDER --workers N`` (embedded LocalCluster, N single-threaded
   worker processes).
 
@@ -32,7 +33,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from flow_node.bag.batch import evaluate_bag, find_bags, make_jobs
+from flow_node.bag.batch import WORKER_ENV, evaluate_bag, find_bags, make_jobs
 from flow_node.bag.batch_report import write_batch_report
 from flow_node.bag.evaluate import EvalOptions
 from flow_node.bag.scenes import SCENES
@@ -74,7 +75,8 @@ def run_variant(variant: str, bags: Path, out: Path, preset: str) -> dict[str, A
     """One timed run in a fresh interpreter; the numbers of its batch report."""
     shutil.rmtree(out, ignore_errors=True)
     start = time.monotonic()
-    proc = subprocess.run(command(variant, bags, out, preset), cwd=REPO, capture_output=True, text=True)
+    env = os.environ | WORKER_ENV if variant == "loop" else None  # the loop runs as a worker process would
+    proc = subprocess.run(command(variant, bags, out, preset), cwd=REPO, env=env, capture_output=True, text=True)
     wall = time.monotonic() - start
     if proc.returncode != 0:
         raise SystemExit(f"{variant} failed ({proc.returncode}): {proc.stderr.strip()[-2000:]}")
