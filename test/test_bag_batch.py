@@ -231,3 +231,12 @@ def test_single_bag_plot_tolerates_missing_values(tmp_path):
         per_frame_plot(NS(runs=[NS(label="l1_tv", records=recs)]), tmp_path / "p.png")
         heights.append(cv2.imread(str(tmp_path / "p.png")).shape[0])
     assert heights[0] == 2 * heights[1] > 0  # AEE panel above the time panel only where there is ground truth
+
+
+def test_single_bag_eval_and_the_node_do_not_import_dask(bags, tmp_path):
+    """dask/distributed load only when a batch runs (they cost ~1 s of imports)."""
+    code = ("import sys; import flow_node.ros.node; from flow_node.bag.cli import main; "
+            f"rc = main(['eval', {str(bags / 'rotation')!r}, '-o', {str(tmp_path / 'o')!r}, *{FAST!r}]); "
+            "print(rc, sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["0", "[]"]
