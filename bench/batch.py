@@ -1,21 +1,26 @@
 """Batch evaluation on Dask: throughput with 1 and 2 workers, and the Dask layer against a plain loop.
 
-    .venv/bin/python -m bench.batch [--bags 40] [--distinct 8] [--frames 50] [--size 160x120]
-                                    [--preset realtime] [--repeats 2] [--out bench/results/batch.json]
+    .venv/bin/python -m bench.batch [--bags 24] [--distinct 8] [--frames 50] [--size 160x120]
+                                    [--preset realtime] [--repeats 3] [--out bench/results/batch.json]
 
 Writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds 0..) and copies them up to
-``--bags``, then evaluates the whole folder, each time into a fresh output (nothing cached), as:
+``--bags``. Every run writes into a fresh output (nothing cached). Two measurements:
 
-- ``loop``: one process running ``evaluate_bag`` for every job in a plain for loop: the same per-bag work
-  (single-bag eval, key, report) without Dask, in the environment the embedded cluster gives its workers
-  (``WORKER_ENV``: one numeric thread, glibc keeping freed memory): the peer of the 1-worker run;
-- ``dask-1`` / ``dask-2``: ``flow_bag eval FOLDER --workers N`` (embedded LocalCluster, N single-threaded
-  worker processes).
+1. **Throughput**, whole processes: ``flow_bag eval FOLDER --workers N`` (embedded LocalCluster, N = 1, 2)
+   and ``loop`` (one process running ``evaluate_bag`` for every job in a plain for loop: the same per-bag
+   work without Dask), each a fresh interpreter timed from start to exit (imports, cluster start and stop,
+   JIT cache loads included); interleaved, the order rotated every repeat. Bags per minute.
+2. **The Dask layer's cost, paired bag by bag**: with ``dask scheduler`` and one ``dask worker`` running
+   (separate processes, so that no scheduler thread shares this process's GIL), every bag is evaluated
+   twice in turn (who goes first alternates): once by ``evaluate_bag`` in this process, once submitted to
+   the worker and waited for (``Client.submit(...).result()``: pickling, scheduling, the worker's thread,
+   the outcome's transfer). The two runs of a bag are seconds apart, so the machine's
+   load (shared by other jobs) is the same for both; the median of the per-bag ratios is the cost per
+   bag. The fixed cost of a batch is measured beside it: ``import distributed`` in a fresh interpreter,
+   and starting and closing the cluster (median of 3). Both processes run in ``WORKER_ENV`` (one numeric
+   thread, glibc keeping freed memory): this process re-executes itself with it.
 
-Each variant is a fresh interpreter started the same way, timed from start to exit (what a user waits for:
-imports, cluster start and stop, JIT cache loads included); variants are interleaved, their order rotated
-every repeat. Reported: bags per minute, the Dask layer's cost (dask-1 over loop, per repeat and of the
-medians) and the 2-worker speed-up. The machine is shared: compare the paired ratios, not absolute times.
+The machine is shared: compare the paired ratios, not absolute times.
 """
 
 from __future__ import annotations
@@ -30,10 +35,12 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from flow_node.bag.batch import WORKER_ENV, evaluate_bag, find_bags, make_jobs
+from flow_node.bag.batch import WORKER_ENV, BagJob, dask_client, evaluate_bag, find_bags, make_jobs
 from flow_node.bag.batch_report import write_batch_report
 from flow_node.bag.evaluate import EvalOptions
 from flow_node.bag.scenes import SCENES
@@ -75,8 +82,7 @@ def run_variant(variant: str, bags: Path, out: Path, preset: str) -> dict[str, A
     """One timed run in a fresh interpreter; the numbers of its batch report."""
     shutil.rmtree(out, ignore_errors=True)
     start = time.monotonic()
-    env = os.environ | WORKER_ENV if variant == "loop" else None  # the loop runs as a worker process would
-    proc = subprocess.run(command(variant, bags, out, preset), cwd=REPO, env=env, capture_output=True, text=True)
+    proc = subprocess.run(command(variant, bags, out, preset), cwd=REPO, capture_output=True, text=True)
     wall = time.monotonic() - start
     if proc.returncode != 0:
         raise SystemExit(f"{variant} failed ({proc.returncode}): {proc.stderr.strip()[-2000:]}")
@@ -88,37 +94,115 @@ def run_variant(variant: str, bags: Path, out: Path, preset: str) -> dict[str, A
 
 
 def summarise(runs: list[dict[str, Any]], repeats: int) -> dict[str, Any]:
-    """Medians per variant and the paired ratios."""
+    """Medians per variant, bags per minute, the 2-worker speed-up (paired per repeat and of the medians)."""
     by = {v: [r for r in runs if r["variant"] == v] for v in VARIANTS}
     med = {v: statistics.median(r["process_seconds"] for r in rs) for v, rs in by.items()}
-    paired = [by["dask-1"][k]["process_seconds"] / by["loop"][k]["process_seconds"] for k in range(repeats)]
     return {
         "median_process_seconds": med,
         "bags_per_minute": {v: 60.0 * by[v][0]["bags"] / med[v] for v in VARIANTS},
-        "dask1_over_loop_per_repeat": paired,
-        "dask_overhead_percent": 100.0 * (med["dask-1"] / med["loop"] - 1.0),
-        "speedup_2_workers_over_1": med["dask-1"] / med["dask-2"],
-        "per_bag_seconds_in_tasks": {v: statistics.median(r["task_seconds_sum"] for r in by[v]) / by[v][0]["bags"]
-                                     for v in VARIANTS},
+        "speedup_2_over_1_workers_per_repeat": [by["dask-1"][k]["process_seconds"] / by["dask-2"][k]["process_seconds"]
+                                                for k in range(repeats)],
+        "speedup_2_over_1_workers": med["dask-1"] / med["dask-2"],
+        "dask1_over_loop_per_repeat": [by["dask-1"][k]["process_seconds"] / by["loop"][k]["process_seconds"]
+                                       for k in range(repeats)],
+    }
+
+
+def _timed(fn: Any) -> float:
+    start = time.monotonic()
+    fn()
+    return time.monotonic() - start
+
+
+def _relocated(job: BagJob, out: Path) -> BagJob:
+    return BagJob(job.bag, job.name, str(out / "bags" / job.name), job.configs, job.opts, job.config_digest)
+
+
+@contextmanager
+def external_worker(work: Path) -> Iterator[str]:
+    """`dask scheduler` and one `dask worker --no-nanny --nthreads 1` (distributed's CLIs) on 127.0.0.1, so
+    that this process holds no scheduler thread while it runs the loop; the worker inherits WORKER_ENV (no
+    nanny to override it). Yields the scheduler address; stops both."""
+    dask = str(Path(sys.executable).with_name("dask"))
+    info = work / "scheduler.json"
+    work.mkdir(parents=True, exist_ok=True)
+    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(info)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.monotonic() + 60
+        while not info.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        address = json.loads(info.read_text())["address"]
+        procs.append(subprocess.Popen([dask, "worker", address, "--no-nanny", "--nthreads", "1", "--host",
+                                       "127.0.0.1", "--no-dashboard"], stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL))
+        yield address
+    finally:
+        for proc in procs[::-1]:
+            proc.terminate()
+            try:
+                proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+
+
+def paired_layer_cost(bags: Path, work: Path, preset: str) -> dict[str, Any]:
+    """Per bag: seconds evaluated here vs submitted to one Dask worker, alternating; and the fixed costs of
+    a batch (import of distributed, embedded cluster start and close)."""
+    jobs = make_jobs(find_bags([str(bags)]), work / "loop", [FlowConfig.preset(preset)], EvalOptions(progress=False))
+    imports = [float(subprocess.run([sys.executable, "-c", "import time; t = time.perf_counter(); import distributed; "
+                                     "print(time.perf_counter() - t)"], capture_output=True, text=True,
+                                    check=True).stdout) for _ in range(3)]
+    starts, closes = [], []
+    for _ in range(3):
+        start = time.monotonic()
+        ctx = dask_client(None, 1)
+        ctx.__enter__()
+        starts.append(time.monotonic() - start)
+        closes.append(_timed(lambda c=ctx: c.__exit__(None, None, None)))
+    pairs = []
+    with external_worker(work) as address, dask_client(address) as client:
+        evaluate_bag(_relocated(jobs[0], work / "warm-loop"))  # JIT cache and imports warm on both sides
+        client.submit(evaluate_bag, _relocated(jobs[0], work / "warm-dask"), pure=False).result()
+        for k, job in enumerate(jobs):
+            here, there = _relocated(job, work / "loop"), _relocated(job, work / "dask")
+            loop = lambda j=here: evaluate_bag(j)  # noqa: E731
+            dask = lambda j=there: client.submit(evaluate_bag, j, pure=False).result()  # noqa: E731
+            first, second = (loop, dask) if k % 2 == 0 else (dask, loop)
+            t1, t2 = _timed(first), _timed(second)
+            pairs.append({"bag": job.name, "loop": t1 if k % 2 == 0 else t2, "dask": t2 if k % 2 == 0 else t1})
+    ratios = [p["dask"] / p["loop"] for p in pairs]
+    per_bag = statistics.median(p["loop"] for p in pairs)
+    fixed = statistics.median(imports) + statistics.median(starts) + statistics.median(closes)
+    return {
+        "pairs": pairs, "import_distributed_seconds": imports, "cluster_start_seconds": starts,
+        "cluster_close_seconds": closes, "per_bag_loop_seconds_median": per_bag,
+        "per_bag_dask_over_loop_median": statistics.median(ratios),
+        "per_bag_dask_over_loop_sum": sum(p["dask"] for p in pairs) / sum(p["loop"] for p in pairs),
+        "fixed_seconds": fixed,
+        "bags_for_5_percent": fixed / (per_bag * max(0.05 - (statistics.median(ratios) - 1.0), 1e-9)),
     }
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--bags", type=int, default=40)
+    p.add_argument("--bags", type=int, default=24)
     p.add_argument("--distinct", type=int, default=8)
     p.add_argument("--frames", type=int, default=50)
     p.add_argument("--size", default="160x120")
     p.add_argument("--preset", default="realtime")
-    p.add_argument("--repeats", type=int, default=2)
+    p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--out", default=str(REPO / "bench" / "results" / "batch.json"))
     p.add_argument("--loop-run", nargs=2, metavar=("BAGS", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.loop_run:
         loop_main(*args.loop_run, args.preset)
         return 0
+    if any(os.environ.get(k) != v for k, v in WORKER_ENV.items()):  # run as the workers do (malloc reads it at start)
+        os.execve(sys.executable, [sys.executable, "-m", "bench.batch", *sys.argv[1:]],
+                  os.environ | WORKER_ENV | {"NUMBA_CACHE_DIR": os.environ.get("NUMBA_CACHE_DIR",
+                                                                               str(REPO / ".venv" / "numba_cache"))})
     w, h = (int(x) for x in args.size.split("x"))
-    os.environ.setdefault("NUMBA_CACHE_DIR", str(REPO / ".venv" / "numba_cache"))
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
         bags = Path(tmp) / "bags"
         make_bags(bags, args.bags, args.distinct, args.frames, (w, h))
@@ -129,12 +213,15 @@ def main(argv: list[str] | None = None) -> int:
             for v in order:
                 runs.append(run_variant(v, bags, Path(tmp) / "out", args.preset) | {"repeat": r})
                 print(json.dumps(runs[-1]), flush=True)
+        paired = paired_layer_cost(bags, Path(tmp) / "paired", args.preset)
+        print(json.dumps({k: v for k, v in paired.items() if k != "pairs"}), flush=True)
     result = {"command": "python -m bench.batch " + " ".join(argv if argv is not None else sys.argv[1:]),
               "bags": args.bags, "distinct": args.distinct, "frames": args.frames, "size": args.size,
               "preset": args.preset, "repeats": args.repeats, "machine": platform.platform(),
-              "cores": os.cpu_count(), "runs": runs, "summary": summarise(runs, args.repeats)}
+              "cores": os.cpu_count(), "runs": runs, "summary": summarise(runs, args.repeats), "paired": paired}
     Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
     print(json.dumps(result["summary"], indent=1))
+    print(json.dumps({k: v for k, v in paired.items() if k != "pairs"}, indent=1))
     return 0
 
 
