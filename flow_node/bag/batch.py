@@ -25,7 +25,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -202,7 +202,7 @@ def cached_key(output: Path) -> str | None:
 def make_jobs(bags: Sequence[Path], out: Path, configs: Sequence[FlowConfig], opts: EvalOptions) -> list[BagJob]:
     """One job per bag, outputs in ``out/bags/<name>``; worker-side options (no terminal progress)."""
     digest = config_digest(configs, opts)
-    worker_opts = EvalOptions(opts.image_topic, opts.gt_topic, opts.max_flow, opts.png_frames, progress=False)
+    worker_opts = replace(opts, progress=False)
     return [BagJob(str(b), n, str(out / "bags" / n), tuple(configs), worker_opts, digest)
             for b, n in zip(bags, output_names(bags), strict=True)]
 
