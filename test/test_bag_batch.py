@@ -119,7 +119,9 @@ def test_an_unreachable_scheduler_is_a_one_line_error():
 
 def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
     out = tmp_path / "out"
+    environ = dict(os.environ)
     assert flow_bag(["eval", str(bags), "--output", str(out), *FAST]) == 1  # one bag failed
+    assert dict(os.environ) == environ  # Dask's nanny writes the workers' environment into its parent
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("flow_bag eval: error: 1 of 4 bags failed (first: corrupt: ")
     report = batch_report(out)

@@ -87,11 +87,12 @@ def is_bag(path: Path) -> bool:
 
 
 def is_single_bag(inputs: Sequence[str]) -> bool:
-    """True for one input that is a bag, or does not exist at all (single-bag eval reports it)."""
+    """True for one input that is a bag, or that single-bag eval reports as it always did: a path that does
+    not exist, or a folder with no bag in it."""
     if len(inputs) != 1 or GLOB_CHARS & set(inputs[0]):
         return False
     p = Path(inputs[0])
-    return not p.exists() or is_bag(p)
+    return not p.exists() or is_bag(p) or (p.is_dir() and not _bags_below(p, None))
 
 
 def _bags_below(folder: Path, exclude: Path | None) -> list[Path]:
@@ -260,6 +261,14 @@ def default_workers() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
+def _restore_environ(before: dict[str, str]) -> None:
+    """Put this process's environment back to ``before``: Dask's nanny writes its pre-spawn environment
+    into the parent process each time it starts a worker, and must not change the caller's."""
+    for k in set(os.environ) - set(before):
+        del os.environ[k]
+    os.environ.update(before)
+
+
 @contextmanager
 def dask_client(scheduler: str | None, workers: int | None = None, connect_timeout: float = 30.0,
                 worker_timeout: float = 60.0) -> Iterator[Any]:
@@ -270,6 +279,7 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
     from distributed import Client, LocalCluster
 
     cluster = client = None
+    environ = dict(os.environ)
     try:
         if scheduler:
             client = Client(scheduler, timeout=connect_timeout)
@@ -278,11 +288,13 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
             with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}):
                 cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
                                        processes=True, host="127.0.0.1", dashboard_address=":0")
+            _restore_environ(environ)
             client = Client(cluster)
     except (OSError, TimeoutError, ValueError) as exc:
         for resource in (client, cluster):
             if resource is not None:
                 resource.close()
+        _restore_environ(environ)
         where = f"the Dask scheduler at {scheduler}" if scheduler else "a local Dask cluster"
         raise ClusterError(f"cannot start or reach {where}: {' '.join(str(exc).split())}") from exc
     try:
@@ -291,6 +303,7 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
         client.close()
         if cluster is not None:
             cluster.close()
+        _restore_environ(environ)  # a worker restarted by its nanny wrote it again
 
 
 class BatchProgress:

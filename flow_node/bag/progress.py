@@ -12,13 +12,14 @@ FrameCallback = Callable[[int, int], None]  # (frames done, frames in the bag)
 
 class FrameProgress:
     """Frames of one bag: a tqdm bar when ``enabled``, and ``callback(done, total)`` on every update
-    (a batch worker forwards it to the client's bars). ``update`` takes the absolute count."""
+    (a batch worker forwards it to the client's bars). ``update`` takes the absolute count; the bar's final
+    state stays on the terminal."""
 
     def __init__(self, total: int, enabled: bool, desc: str | None = None,
                  callback: FrameCallback | None = None) -> None:
         self.total, self.callback = total, callback
         self.bar = tqdm(total=total, desc=desc, unit="frame", disable=not enabled, file=sys.stderr,
-                        dynamic_ncols=True, leave=False)
+                        dynamic_ncols=True)
 
     def update(self, done: int) -> None:
         """``done`` frames of ``total`` processed."""
