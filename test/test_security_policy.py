@@ -113,6 +113,7 @@ def test_policy_names_are_what_the_node_creates() -> None:
     resolved = {a: {sp.resolve(n, ns, name) for n in names} for a, names in policy.items()}
     ahead = {sp.resolve(n, ns, name) for n in NOT_YET_CREATED}
     for access in ("publish", "subscribe", "reply"):
-        assert created[access] <= resolved[access], f"{access}: the policy misses {created[access] - resolved[access]}"
-        assert resolved[access] - created[access] <= ahead, f"{access}: not created {resolved[access] - created[access]}"
+        missing, extra = created[access] - resolved[access], resolved[access] - created[access]
+        assert not missing, f"{access}: the policy misses {missing} (add a row to INTERFACES)"
+        assert extra <= ahead, f"{access}: the policy allows {extra - ahead}, which the node does not create"
     assert f"{ns}/{name}/reset" in created["reply"] and image in created["subscribe"]
