@@ -24,11 +24,11 @@ SHIPPED = ROOT / "config" / "flow_node.policy.xml"
 NOT_YET_CREATED = {"~/confidence"}
 
 
-def rules(xml: str) -> dict[str, set[str]]:
-    """{access: names} of an sros2 policy with one profile (e.g. {"publish": {"~/flow", ...}})."""
+def rules(xml: str, profile_index: int = 0) -> dict[str, set[str]]:
+    """{access: names} of a profile of an sros2 policy (e.g. {"publish": {"~/flow", ...}})."""
     root = ET.fromstring(xml)
     assert root.tag == "policy" and root.get("version") == "0.2.0"
-    (profile,) = root.findall("enclaves/enclave/profiles/profile")
+    profile = root.findall("enclaves/enclave/profiles/profile")[profile_index]
     out: dict[str, set[str]] = {}
     for group in profile:
         ((access, verdict),) = group.attrib.items()
@@ -83,7 +83,11 @@ def test_options_adapt_the_profile_and_the_input() -> None:
 
 
 def test_client_policy_mirrors_the_node() -> None:
-    got = rules(sp.render(["--client", "--namespace", "/robot", "--image", "/cam/image"]))
+    xml = sp.render(["--client", "--namespace", "/robot", "--image", "/cam/image"])
+    nodes = [p.get("node") for p in ET.fromstring(xml).findall("enclaves/enclave/profiles/profile")]
+    assert nodes == ["flow_client", "_ros2cli_*"]  # a client node and the ros2 CLI's (ros2 param set ...)
+    assert rules(xml, 0) == rules(xml, 1)
+    got = rules(xml)
     assert "/cam/image" in got["publish"] and {"/rosout", "/parameter_events"} <= got["publish"]
     assert got["subscribe"] == {"/robot/flow_node/flow", "/robot/flow_node/magnitude", "/robot/flow_node/flow_color",
                                 "/robot/flow_node/confidence", "/diagnostics"}
