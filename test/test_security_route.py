@@ -27,7 +27,7 @@ from flow_node.ros import security_policy as sp
 
 ROUTE = os.environ.get("FLOW_NODE_SECURITY_ROUTE", "")
 pytestmark = pytest.mark.skipif(
-    not (ROUTE and (Path(ROUTE) / "secure.sh").is_file()),
+    not ROUTE,
     reason="no SROS2 route: the venv's Fast DDS has no DDS-Security; set FLOW_NODE_SECURITY_ROUTE to a folder "
            "built by ros2-toolchain + ros2-security (.ci/security does) to run these")
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,6 +38,7 @@ NODE_ARGS = ["-p", "preset:=realtime", "-p", "finest_level:=0", "-p", "backend:=
 
 def route_env() -> dict[str, str]:
     """The environment of DIR/activate.sh + DIR/secure.sh, with this run's domain and localhost discovery."""
+    assert (Path(ROUTE) / "secure.sh").is_file(), f"FLOW_NODE_SECURITY_ROUTE={ROUTE}: not a built route (no secure.sh)"
     script = f'set +u; source "{ROUTE}/activate.sh" >/dev/null; source "{ROUTE}/secure.sh"; env -0'
     out = subprocess.run(["bash", "-c", script], check=True, capture_output=True, env={
         "PATH": os.environ.get("PATH", "/usr/bin:/bin"), "HOME": os.environ.get("HOME", "/tmp")}).stdout
@@ -139,7 +140,7 @@ def node(secure: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> It
 
 
 def test_node_under_enforce_serves_only_the_authorised_client(node: Path, secure: dict[str, str]) -> None:
-    assert "secured (SROS2): enclave /flow_node, rmw rmw_cyclonedds_cpp, strategy Enforce" in node.read_text()
+    assert "secured (SROS2): enclave /flow_node, enclave override none, rmw rmw_cyclonedds_cpp, strategy Enforce" in node.read_text()
 
     unauthenticated = {k: v for k, v in secure.items() if not k.startswith("ROS_SECURITY_")}
     stranger = client(["feed", "4"], unauthenticated)

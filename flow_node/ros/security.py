@@ -100,8 +100,8 @@ def assess(settings: SecuritySettings, enclave: str, rmw: str, rmw_security: boo
     if not settings.enabled:
         return SecurityCheck(None, (), ())
     where = str(enclave_dir(settings.keystore, enclave, settings.enclave_override)) if settings.keystore else ""
-    details = (("enclave", enclave or "/"), ("rmw", rmw), ("strategy", "Enforce" if settings.enforce
-                                                                     else "Permissive"),
+    details = (("enclave", enclave or "/"), ("enclave override", settings.enclave_override or "none"),
+               ("rmw", rmw), ("strategy", "Enforce" if settings.enforce else "Permissive"),
                ("keystore", settings.keystore or "unset"), ("enclave directory", where or "n/a"))
     problems = []
     if rmw_security is False:
