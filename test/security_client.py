@@ -18,7 +18,6 @@ import sys
 import time
 from typing import Any
 
-import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -26,30 +25,14 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from ros_helpers import I0, I1, image, mono8
 from sensor_msgs.msg import Image
+from small_frames import PARAMS
 from std_srvs.srv import Trigger
-from synth import constant_flow, pair_from_flow, texture
 
-from flow_node.pipeline.codec import array_to_image_fields, image_to_array
+from flow_node.pipeline.codec import image_to_array
 
-H, W = 60, 80
-GT = (1.5, -0.75)
 NODE = "/flow_node"
-PARAMS = {"preset": "realtime", "finest_level": 0, "backend": "numpy"}  # test/small_frames.py
-
-
-def frames() -> tuple[np.ndarray, np.ndarray]:
-    i0, i1 = pair_from_flow(texture(H, W, seed=3), constant_flow(H, W, *GT))
-    return tuple((np.clip(i, 0, 1) * 255).round().astype(np.uint8) for i in (i0, i1))  # type: ignore[return-value]
-
-
-def image(arr: np.ndarray, stamp: int) -> Image:
-    f = array_to_image_fields(arr, "mono8")
-    msg = Image(height=f["height"], width=f["width"], encoding="mono8", step=f["step"])
-    msg.data = f["data"].tobytes()
-    msg.header.stamp.sec = stamp
-    msg.header.frame_id = "cam_secure"
-    return msg
 
 
 def call(node: Node, executor: SingleThreadedExecutor, srv_type: Any, name: str, request: Any) -> Any:
@@ -86,7 +69,7 @@ def feed(seconds: float, args: list[str]) -> dict[str, Any]:
         pub = node.create_publisher(Image, "/image", 10)
     except Exception as exc:  # refused by access control
         pub, report["publisher_error"] = None, str(exc)
-    i0, i1 = frames()
+    i0, i1 = mono8(I0), mono8(I1)
     end = time.monotonic() + 2.5  # first listen: the node's count of received frames before this client fed it
     while time.monotonic() < end:
         executor.spin_once(timeout_sec=0.1)
@@ -95,7 +78,7 @@ def feed(seconds: float, args: list[str]) -> dict[str, Any]:
     end, k = time.monotonic() + seconds, 0
     while time.monotonic() < end:
         if pub is not None:
-            pub.publish(image(i1 if k % 2 else i0, 100 + k))
+            pub.publish(image(i1 if k % 2 else i0, "mono8", (100 + k) * 1_000_000_000))
             k += 1
         executor.spin_once(timeout_sec=0.2)
     executor.spin_once(timeout_sec=1.0)

@@ -22,6 +22,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
+from small_frames import PARAMS
 
 from flow_node.ros import security_policy as sp
 
@@ -32,8 +33,8 @@ pytestmark = pytest.mark.skipif(
            "built by ros2-toolchain + ros2-security (.ci/security does) to run these")
 ROOT = Path(__file__).resolve().parents[1]
 CLIENT = str(ROOT / "test" / "security_client.py")
-GT = (1.5, -0.75)
-NODE_ARGS = ["-p", "preset:=realtime", "-p", "finest_level:=0", "-p", "backend:=numpy"]  # small_frames.PARAMS
+GT = (1.5, -0.75)  # ros_helpers.GT, the pair the client sends
+NODE_ARGS = [a for k, v in PARAMS.items() for a in ("-p", f"{k}:={v}")]
 
 
 def route_env() -> dict[str, str]:
@@ -140,7 +141,8 @@ def node(secure: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> It
 
 
 def test_node_under_enforce_serves_only_the_authorised_client(node: Path, secure: dict[str, str]) -> None:
-    assert "secured (SROS2): enclave /flow_node, enclave override none, rmw rmw_cyclonedds_cpp, strategy Enforce" in node.read_text()
+    started = "secured (SROS2): enclave /flow_node, enclave override none, rmw rmw_cyclonedds_cpp, strategy Enforce"
+    assert started in node.read_text()
 
     unauthenticated = {k: v for k, v in secure.items() if not k.startswith("ROS_SECURITY_")}
     stranger = client(["feed", "4"], unauthenticated)
