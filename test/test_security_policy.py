@@ -95,14 +95,16 @@ def test_client_policy_mirrors_the_node() -> None:
     assert got["reply"] == {n for n in sp.NODE_BASICS if n.startswith("~")}  # the client node's own services
 
 
-def test_policy_names_are_what_the_node_creates() -> None:
+@pytest.mark.parametrize("compressed", [False, True])
+def test_policy_names_are_what_the_node_creates(compressed: bool) -> None:
     """Renamed, namespaced and remapped: rcl's graph of the node equals the generated policy, resolved."""
-    ns, name, image = "/sec_policy_ns", "cam_flow", "/sec_policy_cam/image_raw"
+    ns, name, image = f"/sec_policy_ns{int(compressed)}", "cam_flow", "/sec_policy_cam/image_raw"
+    params = {**FAST, "warmup": False, "use_compressed": compressed}
     ctx = Context()
     rclpy.init(context=ctx)
     try:
         node = FlowNode(name, namespace=ns, context=ctx, cli_args=["--ros-args", "-r", f"image:={image}"],
-                        parameter_overrides=[Parameter(k, value=v) for k, v in {**FAST, "warmup": False}.items()])
+                        parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
         try:
             created = {
                 "publish": {t for t, _ in node.get_publisher_names_and_types_by_node(name, ns)},
@@ -113,11 +115,13 @@ def test_policy_names_are_what_the_node_creates() -> None:
             node.destroy_node()
     finally:
         rclpy.try_shutdown(context=ctx)
-    policy = rules(sp.render(["--image", image, "--namespace", ns, "--name", name]))
+    policy = rules(sp.render(["--image", image, "--namespace", ns, "--name", name]
+                             + (["--compressed"] if compressed else [])))
     resolved = {a: {sp.resolve(n, ns, name) for n in names} for a, names in policy.items()}
     ahead = {sp.resolve(n, ns, name) for n in NOT_YET_CREATED}
     for access in ("publish", "subscribe", "reply"):
         missing, extra = created[access] - resolved[access], resolved[access] - created[access]
         assert not missing, f"{access}: the policy misses {missing} (add a row to INTERFACES)"
         assert extra <= ahead, f"{access}: the policy allows {extra - ahead}, which the node does not create"
-    assert f"{ns}/{name}/reset" in created["reply"] and image in created["subscribe"]
+    assert f"{ns}/{name}/reset" in created["reply"]
+    assert created["subscribe"] == {image + ("/compressed" if compressed else "")}
