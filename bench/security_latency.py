@@ -16,9 +16,7 @@ Setting the security environment is process-wide state: only this main() does it
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import statistics
 import sys
 import tempfile
@@ -26,6 +24,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bench.common import machine, write_json
 from bench.node_latency import ProcessRig, frames
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
@@ -118,11 +117,9 @@ def main(argv: list[str] | None = None) -> int:
     print("median over rounds: " + ", ".join(f"{k} {v*1e3:.2f} ms" if k.endswith("_s") else f"{k} {v:.3f}"
                                             for k, v in summary.items()))
     meta = {"command": "python -m bench.security_latency " + " ".join(sys.argv[1:] if argv is None else argv),
-            "rmw": os.environ["RMW_IMPLEMENTATION"], "size": args.size, "preset": args.preset,
-            "python": platform.python_version(), "cpus": os.cpu_count(),
+            "rmw": os.environ["RMW_IMPLEMENTATION"], "size": args.size, "preset": args.preset, **machine(),
             "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps({"meta": meta, "summary": summary, "rounds": rounds}, indent=1))
+    write_json(Path(args.out), {"meta": meta, "summary": summary, "rounds": rounds})
     return 0
 
 
