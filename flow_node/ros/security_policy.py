@@ -112,7 +112,8 @@ def node_interfaces(image: str = DEFAULT_IMAGE, *, compressed: bool = False,
 
 def client_interfaces(interfaces: Iterable[Interface], namespace: str, node: str) -> list[Interface]:
     """The other side of ``interfaces`` (of node ``node`` in ``namespace``), with absolute names, plus what
-    the client's own rclpy node needs (:data:`NODE_BASICS`)."""
+    the client's own rclpy node needs (:data:`NODE_BASICS`). The node's /rosout and /parameter_events are
+    not mirrored: a client of the node has no need to read them."""
     basics = {i.name: i for i in INTERFACES if i.name in NODE_BASICS}
     mirrored = [Interface(resolve(i.name, namespace, node), MIRROR[i.access], f"flow_node: {i.why}")
                 for i in interfaces if i.name not in basics or i.name.startswith("~")]
