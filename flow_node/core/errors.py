@@ -21,3 +21,7 @@ class InputError(FlowError, ValueError):
 
 class FileFormatError(FlowError, OSError):
     """A file that cannot be read or written in the expected format (.flo, PNG, YAML, bag)."""
+
+
+class NonFiniteResult(InputError):
+    """The engine produced NaN or infinite flow from this input: the frame is unusable, never a result."""
