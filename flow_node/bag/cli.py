@@ -24,10 +24,11 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from ..cli.estimate import OneLineParser, finite_scale
     from .synth import ENCODINGS, SynthSpec
 
     d = SynthSpec()
-    p = argparse.ArgumentParser(prog="flow_bag", description=__doc__.splitlines()[0])
+    p = OneLineParser(prog="flow_bag", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("synth", help="write a synthetic rosbag2 with exact ground-truth flow")
@@ -55,7 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--params", metavar="FILE.yaml", help="YAML parameters (plain or ROS params file)")
     e.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override one parameter; repeatable")
-    e.add_argument("--max-flow", type=float, default=None,
+    e.add_argument("--max-flow", type=finite_scale, default=None,
                    help="colour scale in px for flow_color and PNGs (0 = each frame's maximum; "
                    "default: the node's color_max_flow default)")
     e.add_argument("--png-frames", default="auto",
