@@ -101,7 +101,7 @@ def _run(args: argparse.Namespace) -> int:
         count = run_play(args.bag, opts)
         print(f"flow_bag play: published {count} messages")
         return 0
-    from ..cli.estimate import config_from_args
+    from ..cli.estimate import config_from_args, one_line
     from .evaluate import EvalOptions, run_eval
 
     models = _models(args.model)
@@ -110,7 +110,9 @@ def _run(args: argparse.Namespace) -> int:
     configs = [base if m is None else base.replace(model=m) for m in models]
     opts = EvalOptions(image_topic=args.image_topic, gt_topic=args.gt_topic, max_flow=args.max_flow,
                        png_frames=args.png_frames, progress=not args.quiet)
-    run_eval(args.bag, args.output, configs, opts)
+    result = run_eval(args.bag, args.output, configs, opts)
+    for warning in result.warnings:
+        print(f"flow_bag eval: warning: {one_line(warning)}", file=sys.stderr)
     return 0
 
 
@@ -119,7 +121,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _run(args)
     except FlowError as exc:
-        print(f"flow_bag {args.command}: error: {exc}", file=sys.stderr)
+        from ..cli.estimate import one_line
+
+        print(f"flow_bag {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"flow_bag {args.command}: interrupted", file=sys.stderr)
