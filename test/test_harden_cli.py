@@ -114,7 +114,7 @@ def test_input_kinds_have_their_own_message(tmp_path, capfd, pair) -> None:
              ("x" * 5000 + ".png", "File name too long")]
     for path, expect in cases:
         line = fails(capfd, [str(path), str(pair[1]), "-o", str(tmp_path / "o.flo"), *FAST])
-        assert expect in line and "cannot read" in line, line
+        assert expect in line and line.count("cannot read") == 1, line
     assert not (tmp_path / "o.flo").exists()
 
 

@@ -87,15 +87,17 @@ def os_reason(exc: OSError) -> str:
     return exc.strerror or (os.strerror(exc.errno) if exc.errno else str(exc) or type(exc).__name__)
 
 
-_KINDS = ((stat.S_ISDIR, "is a directory"), (stat.S_ISFIFO, "is a FIFO"), (stat.S_ISCHR, "is a character device"),
-          (stat.S_ISBLK, "is a block device"), (stat.S_ISSOCK, "is a socket"))
+_KINDS = ((stat.S_ISDIR, "is a directory"), (stat.S_ISFIFO, "is a FIFO"),
+          (stat.S_ISCHR, "is a character device"), (stat.S_ISBLK, "is a block device"),
+          (stat.S_ISSOCK, "is a socket"))
 
 
 def _not_regular(mode: int) -> str | None:
     """Why a file of this mode cannot be an input image (None for a regular file)."""
     if stat.S_ISREG(mode):
         return None
-    return next((why for test, why in _KINDS if test(mode)), "is not a regular file")
+    kind = next((why for test, why in _KINDS if test(mode)), "is not a regular file")
+    return f"{kind}, not an image file"
 
 
 @contextmanager
@@ -119,14 +121,12 @@ def read_frame(path: str) -> np.ndarray:
     (missing, a directory/FIFO/device, empty, undecodable, over the size limit, garbage float values)."""
     shown = short_path(path)
     try:
-        mode = os.stat(path).st_mode
-        why = _not_regular(mode)
-        if why is not None:
-            raise FileFormatError(f"cannot read {shown}: {why}, not an image file")
-        data = Path(path).read_bytes()
+        why = _not_regular(os.stat(path).st_mode)
+        data = Path(path).read_bytes() if why is None else b""  # never open a FIFO: it would block
     except OSError as exc:
         why = "no such file" if exc.errno == errno.ENOENT else os_reason(exc)
-        raise FileFormatError(f"cannot read {shown}: {why}") from None
+    if why is not None:
+        raise FileFormatError(f"cannot read {shown}: {why}")
     if not data:
         raise FileFormatError(f"cannot read {shown}: the file is empty")
     with native_stderr_silenced():
