@@ -127,8 +127,8 @@ def open_bag(path: str | Path) -> Iterator[Reader | RecoveredReader]:
         reader: Reader | RecoveredReader = Reader(p)
         reader.open()
     except _READ_ERRORS as exc:
-        unfinished = [f for f in files if not mcapfile.has_footer(f)]
-        if not files or (not unfinished and (p / "metadata.yaml").exists()):
+        unfinished = [f for f in files if mcapfile.unfinished(f)]
+        if not unfinished and (not files or (p / "metadata.yaml").exists()):
             raise BagError(f"{path}: cannot open bag: {_reason(exc)}") from exc
         try:
             reader = RecoveredReader(p, files)

@@ -311,6 +311,11 @@ def run_eval(bag: str | Path, output: str | Path, configs: Sequence[FlowConfig],
         if out.exists():
             shutil.rmtree(out)
         tmp.rename(out)
+    except BagError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if str(bag) in str(exc):
+            raise
+        raise BagError(f"{bag}: {exc}") from exc  # every bag error names the bag
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -66,13 +66,16 @@ def _footer(buf: bytes | mmap.mmap) -> tuple[int, int, int] | None:
     return at, summary_start, crc
 
 
-def has_footer(path: str | Path) -> bool:
-    """Whether the file ends as a complete MCAP does (footer record and closing magic)."""
+def unfinished(path: str | Path) -> bool:
+    """Whether the file starts as an MCAP but does not end as a complete one (no footer and closing magic):
+    what a recorder that crashed leaves behind."""
     with open(path, "rb") as fh:
+        head = fh.read(len(MAGIC))
         size = fh.seek(0, 2)
         fh.seek(max(0, size - len(MAGIC) - _FOOTER_SIZE))
         tail = fh.read()
-    return len(tail) == len(MAGIC) + _FOOTER_SIZE and tail[0] == FOOTER and tail.endswith(MAGIC)
+    complete = len(tail) == len(MAGIC) + _FOOTER_SIZE and tail[0] == FOOTER and tail.endswith(MAGIC)
+    return head == MAGIC and not complete
 
 
 def _data_end(buf: bytes | mmap.mmap, end: int) -> int | None:
@@ -109,6 +112,8 @@ def add_crcs(path: str | Path) -> None:
 def verify(path: str | Path) -> None:
     """McapDamage unless the data section and summary match their CRCs (fields left 0 are not checked; a
     file without a footer is :func:`scan`'s business)."""
+    if Path(path).stat().st_size < 2 * len(MAGIC) + _FOOTER_SIZE:
+        return  # too short to be complete: rosbags (or scan) says what it is
     with open(path, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         foot = _footer(buf)
         if foot is None:
