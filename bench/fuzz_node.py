@@ -43,6 +43,8 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import CompressedImage, Image
 from std_srvs.srv import Trigger
 
+from bench.node_latency import _wait as wait
+
 NS, NAME = "/fuzz", "flow_node"
 H, W = 60, 80
 OUT = Path(__file__).resolve().parent / "results" / "fuzz_node.json"
@@ -155,15 +157,6 @@ def rss_kb(pid: int) -> int:
     except OSError:
         pass
     return 0
-
-
-def wait(pred: Any, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.01)
-    return False
 
 
 class Campaign:
