@@ -168,3 +168,13 @@ def test_params_that_are_a_directory_or_fifo(tmp_path, capfd, pair) -> None:
     for p in (tmp_path, fifo):
         line = fails(capfd, [*map(str, pair), "-o", str(tmp_path / "o.flo"), "--params", str(p)])
         assert "not a regular file" in line
+
+
+def test_symlinked_output_is_written_through(tmp_path, capfd, pair) -> None:
+    target = tmp_path / "real.flo"
+    target.write_bytes(b"old")
+    link = tmp_path / "link.flo"
+    link.symlink_to(target)
+    assert flow_estimate([*map(str, pair), "-o", str(link), *FAST]) == 0
+    assert link.is_symlink() and read_flo(target).shape == (40, 48, 2)
+    no_outputs(tmp_path, "f0.png", "f1.png", "real.flo", "link.flo")

@@ -167,23 +167,25 @@ def write_outputs(flow: np.ndarray, output: str, color: str | None, max_flow: fl
     files = [(output, flo_bytes(flow))]
     if color:
         files.append((color, _encode_color(color, flow_to_color(flow, max_flow, bgr=True))))
-    staged: list[tuple[Path, str]] = []
+    staged: list[tuple[Path, str, str]] = []
     current = output
     try:
         for k, (current, data) in enumerate(files):
             if os.path.isdir(current):
                 raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), current)
-            tmp = _temp_for(current, k)
+            real = os.path.realpath(current)  # a symlinked output is written through, not replaced
+            tmp = _temp_for(real, k)
             if tmp is not None:
-                staged.append((tmp, current))
+                staged.append((tmp, real, current))
             with open(tmp if tmp is not None else current, "wb") as fh:
                 fh.write(data)
-        for tmp, current in staged:
-            os.replace(tmp, current)
+        for tmp, real, name in staged:
+            current = name  # for the error message
+            os.replace(tmp, real)
     except OSError as exc:
         raise FileFormatError(f"cannot write {short_path(current)}: {os_reason(exc)}") from None
     finally:
-        for tmp, _ in staged:
+        for tmp, _, _ in staged:
             with suppress(OSError):
                 tmp.unlink()
 
