@@ -178,3 +178,9 @@ def test_symlinked_output_is_written_through(tmp_path, capfd, pair) -> None:
     assert flow_estimate([*map(str, pair), "-o", str(link), *FAST]) == 0
     assert link.is_symlink() and read_flo(target).shape == (40, 48, 2)
     no_outputs(tmp_path, "f0.png", "f1.png", "real.flo", "link.flo")
+
+
+def test_synth_refuses_a_size_it_cannot_render(tmp_path, capfd) -> None:
+    line = fails(capfd, ["synth", str(tmp_path / "b"), "--size", "100000x100000"], cli=flow_bag)
+    assert "size must be from 8x8 to 4096x4096, got 100000x100000" in line
+    assert not any(tmp_path.iterdir())
