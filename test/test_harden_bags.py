@@ -179,3 +179,18 @@ def test_recorder_without_metadata_and_a_bare_mcap_path(tmp_path, capfd) -> None
         assert report["recovered"]["messages"] > 0 and "recovered" in err[0]
     store.write_bytes(store.read_bytes()[:30])  # nothing intact
     assert "scanning its MCAP found no message" in eval_fails(capfd, bag, tmp_path / "o")
+
+
+def test_play_publishes_what_a_crashed_recording_holds(tmp_path, capfd) -> None:
+    bag = shutil.copytree(BAGS / "objects", tmp_path / "crashed")
+    store = bag / "objects.mcap"
+    store.write_bytes(store.read_bytes()[: store.stat().st_size // 2])
+    assert flow_bag(["play", str(bag), "--rate", "50"]) == 0
+    io = capfd.readouterr()
+    err = io.err.strip().splitlines()
+    assert len(err) == 1 and "has no summary" in err[0]
+    n = int(err[0].split("recovered ")[1].split()[0])
+    assert 0 < n < 19 and f"published {n} messages" in io.out
+    for bad in ("nan", "-1", "inf"):
+        assert flow_bag(["play", str(bag), "--wait-for-subscribers", bad]) == 1
+        assert "wait-for-subscribers must be" in capfd.readouterr().err
