@@ -104,12 +104,11 @@ def _not_regular(mode: int) -> str | None:
 def native_stderr_silenced() -> Iterator[None]:
     """Point file descriptor 2 at /dev/null for the duration: libpng prints its warnings ("libpng warning:
     iCCP: ...") straight to fd 2, past OpenCV's logging. Python's own messages are not written meanwhile."""
-    sys.stderr.flush()
-    try:
-        saved = os.dup(2)
-    except OSError:  # no fd 2 at all (started with 2>&-): nothing to protect
+    if sys.stderr is None:  # started without fd 2 (2>&-): fd 2 may be any file opened since; leave it be
         yield
         return
+    sys.stderr.flush()
+    saved = os.dup(2)
     devnull = os.open(os.devnull, os.O_WRONLY)
     try:
         os.dup2(devnull, 2)
