@@ -6,6 +6,8 @@ library warnings never reach stderr. Run in-process with ``capfd``, so anything 
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import cv2
@@ -93,15 +95,35 @@ def test_success_writes_both_and_leaves_no_temporary(tmp_path, capfd, pair) -> N
     assert capfd.readouterr().err == ""
 
 
-def test_libpng_warnings_never_reach_stderr(tmp_path, capfd, pair) -> None:
-    """A PNG with a damaged ancillary chunk: libpng warns on fd 2 ("tEXt: CRC error"); the run succeeds
-    silently."""
-    raw = pair[0].read_bytes()
+def with_bad_text_chunk(png: bytes) -> bytes:
+    """``png`` with a tEXt chunk whose CRC is wrong: libpng warns on fd 2 ("tEXt: CRC error") and decodes."""
     text = b"Comment\0hello"
-    chunk = len(text).to_bytes(4, "big") + b"tEXt" + text + b"\xde\xad\xbe\xef"  # wrong CRC
+    return png[:33] + len(text).to_bytes(4, "big") + b"tEXt" + text + b"\xde\xad\xbe\xef" + png[33:]
+
+
+def test_libpng_warnings_never_reach_stderr(tmp_path, capfd, pair) -> None:
     warn = tmp_path / "warn.png"
-    warn.write_bytes(raw[:33] + chunk + raw[33:])
+    warn.write_bytes(with_bad_text_chunk(pair[0].read_bytes()))
+    assert cv2.imread(str(warn)) is not None
+    assert "libpng warning" in capfd.readouterr().err  # what OpenCV alone lets through
     assert flow_estimate([str(warn), str(pair[1]), "-o", str(tmp_path / "o.flo"), *FAST]) == 0
+    assert capfd.readouterr().err == ""
+    # a real process (stderr is fd 2 itself): the error is the only line
+    small = tmp_path / "small.png"
+    small.write_bytes(with_bad_text_chunk(cv2.imencode(".png", np.zeros((8, 8), np.uint8))[1].tobytes()))
+    proc = subprocess.run([sys.executable, "-m", "flow_node.cli.estimate", str(warn), str(small), "-o",
+                           str(tmp_path / "x.flo"), *FAST], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1 and proc.stderr.splitlines() == [
+        "flow_estimate: error: frames differ in size: frame0 is 48x40, frame1 is 8x8"], proc.stderr
+
+
+def test_eval_of_pngs_libpng_warns_about_is_silent(tmp_path, capfd) -> None:
+    from test_harden_bags import scene, write
+
+    frames, gts = scene(3)
+    pngs = [("png", with_bad_text_chunk(cv2.imencode(".png", f)[1].tobytes())) for f in frames]
+    bag = write(tmp_path / "bag", pngs, gts)
+    assert flow_bag(["eval", str(bag), "-o", str(tmp_path / "out"), *FAST, "-q"]) == 0
     assert capfd.readouterr().err == ""
 
 

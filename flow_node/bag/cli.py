@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+import cv2
+
 from ..core.config import MODELS, PRESETS
 from ..core.errors import ConfigError, FlowError
 from .bagio import STORAGES
@@ -117,9 +119,15 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from ..cli.estimate import native_stderr_silenced
+
     args = build_parser().parse_args(argv)
     try:
-        return _run(args)
+        if args.command == "play":  # rclpy logs through fd 2: keep it
+            return _run(args)
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        with native_stderr_silenced():  # libpng warnings while decoding compressed frames
+            return _run(args)
     except FlowError as exc:
         from ..cli.estimate import one_line
 

@@ -102,21 +102,34 @@ def _not_regular(mode: int) -> str | None:
 
 @contextmanager
 def native_stderr_silenced() -> Iterator[None]:
-    """Point file descriptor 2 at /dev/null for the duration: libpng prints its warnings ("libpng warning:
-    iCCP: ...") straight to fd 2, past OpenCV's logging. Python's own messages are not written meanwhile."""
+    """For an executable's main(): file descriptor 2 goes to /dev/null for the duration, while Python's own
+    ``sys.stderr`` keeps writing where it did (if it is fd 2 itself, it is moved to a duplicate of it). So
+    what native libraries print straight to fd 2 -- libpng's "libpng warning: iCCP: ...", past OpenCV's
+    logging -- never lands between our one-line messages. Nothing changes when the process has no fd 2."""
     if sys.stderr is None:  # started without fd 2 (2>&-): fd 2 may be any file opened since; leave it be
         yield
         return
     sys.stderr.flush()
-    saved = os.dup(2)
+    try:
+        python_on_fd2 = sys.stderr.fileno() == 2
+    except (AttributeError, OSError, ValueError):  # a captured stream (tests): not on fd 2
+        python_on_fd2 = False
+    saved, previous = os.dup(2), sys.stderr
+    if python_on_fd2:
+        sys.stderr = open(os.dup(saved), "w", buffering=1, encoding=previous.encoding,  # noqa: SIM115
+                          errors=previous.errors)
     devnull = os.open(os.devnull, os.O_WRONLY)
     try:
         os.dup2(devnull, 2)
         yield
     finally:
+        os.close(devnull)
+        if python_on_fd2:
+            sys.stderr.close()
+            sys.stderr = previous
+        previous.flush()
         os.dup2(saved, 2)
         os.close(saved)
-        os.close(devnull)
 
 
 def read_frame(path: str) -> np.ndarray:
@@ -132,9 +145,7 @@ def read_frame(path: str) -> np.ndarray:
         raise FileFormatError(f"cannot read {shown}: {why}")
     if not data:
         raise FileFormatError(f"cannot read {shown}: the file is empty")
-    with native_stderr_silenced():
-        img = decode_bytes(np.frombuffer(data, np.uint8), shown)
-    return to_grey(img, shown)
+    return to_grey(decode_bytes(np.frombuffer(data, np.uint8), shown), shown)
 
 
 def _temp_for(path: str, k: int) -> Path | None:
@@ -196,6 +207,11 @@ def write_outputs(flow: np.ndarray, output: str, color: str | None, max_flow: fl
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # our errors say it in one line
+    with native_stderr_silenced():
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     try:
         cfg = config_from_args(args)
         i0, i1 = read_frame(args.frame0), read_frame(args.frame1)
