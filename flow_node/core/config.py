@@ -157,7 +157,7 @@ class FlowConfig:
         if not regular:
             raise FileFormatError(f"cannot read parameter file {shown}: not a regular file")
         try:
-            data = yaml.safe_load(raw.decode("utf-8"))
+            data = yaml.safe_load(raw.decode("utf-8"))  # pure Python: the C loader crashes on deep nesting
         except UnicodeDecodeError as exc:
             raise FileFormatError(f"parameter file {shown} is not UTF-8 text (byte 0x{raw[exc.start]:02x} at "
                                   f"offset {exc.start})") from None
