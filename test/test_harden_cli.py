@@ -163,6 +163,7 @@ def test_max_flow_must_be_finite_and_not_negative(tmp_path, capfd, pair, value) 
 PARAMS = {
     "latin1.yaml": ("alpha: 1.0  # caf\xe9\n".encode("latin-1"), "not UTF-8 text (byte 0xe9"),
     "deep.yaml": (b"alpha: " + b"[" * 5000 + b"]" * 5000 + b"\n", "nested"),
+    "blockdeep.yaml": (b"a:\n" + b"- " * 200000 + b"x\n", "nested"),  # libyaml's C loader segfaults here
     "deep16.yaml": (b"a: " + b"[" * 40 + b"]" * 40 + b"\n", "nested deeper than 16 levels"),
     "invalid.yaml": (b"alpha: 1\n  beta: [2\n", "is not valid YAML: "),
     "laughs.yaml": (b"a: &a [x, x, x, x, x, x, x, x, x]\n" + b"".join(
