@@ -184,6 +184,8 @@ def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig
         gt_topic = opts.gt_topic
         if gt_topic is None and any(c.topic == DEFAULT_GT_TOPIC for c in reader.connections):
             gt_topic = DEFAULT_GT_TOPIC
+        if gt_topic is not None and opts.image_topic == gt_topic:
+            raise BagError(f"{bag}: {gt_topic} is the ground-truth topic; the image topic must be another one")
         gt_conns = find_connections(reader, gt_topic, (IMAGE,), "gt") if gt_topic else []
         image_conns = find_connections(reader, opts.image_topic, IMAGE_TYPES, "image",
                                        exclude=(gt_topic,) if gt_topic else ())
