@@ -51,8 +51,16 @@ def targets_table(checks: list[dict[str, Any]]) -> str:
 
 
 def markdown(res: dict[str, Any]) -> str:
-    """The whole report: every regime's table, then the target checks."""
-    parts = [regime_table(n, r) for n, r in res["regimes"].items()]
+    """The whole report: how it was run, every regime's table, then the target checks."""
+    v = res.get("versions", {})
+    head = (f"Command: `{res.get('command', 'run_suite(...)')}`; split `{res['split']}`"
+            f"{' (QUICK: fewer pairs, indicative only)' if res['quick'] else ''}; started {res.get('started', '?')}, "
+            f"wall {res.get('wall_seconds', 0) / 60:.0f} min; commit {v.get('commit', '?')}; "
+            f"numpy {v.get('numpy', '?')}, "
+            f"OpenCV {v.get('opencv', '?')}, scikit-image {v.get('scikit-image', '?')}, numba {v.get('numba', '?')}; "
+            f"per pair the median of {res['repeats']} interleaved timed runs ({res['slow_repeats']} for a method "
+            f"slower than {res['slow_seconds']} s per pair). Times in ms, ratios against DIS in the same run.")
+    parts = [head] + [regime_table(n, r) for n, r in res["regimes"].items()]
     parts += ["**Targets (issue 11)**", "", targets_table(res.get("targets", []))]
     return "\n\n".join(parts) + "\n"
 
@@ -63,6 +71,7 @@ def plot(res: dict[str, Any], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FormatStrFormatter
 
     names = list(res["regimes"])
     cols = 3
@@ -75,6 +84,9 @@ def plot(res: dict[str, Any], path: Path) -> None:
             ax.annotate(n, (1e3 * m["seconds"], m["aee"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
         ax.set(xscale="log", yscale="log", title=name, xlabel="ms per pair (same run)", ylabel="mean AEE (px)")
         ax.grid(True, which="both", alpha=0.3)
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_formatter(FormatStrFormatter("%g"))
+            axis.set_minor_formatter(FormatStrFormatter(""))
     for ax in list(axes.flat)[len(names):]:
         ax.axis("off")
     fig.suptitle("flow_node presets (dots) and peers (squares): AEE against time per regime")

@@ -2,7 +2,7 @@
 with sensor noise, exposure changes, low contrast or large flat areas.
 
 Every pair comes from a seed. The scene of seed s is the same in every regime (texture band and motion
-kind cycle with the seed's index in its split, so a few seeds cover every combination): the 8-bit pair of
+kind cycle with the seed's index in its split: 4 seeds cover every motion, 12 every motion x band): the 8-bit pair of
 seed s in ``bit_depth`` is the pair of seed s in ``fine_320``, and ``exposure`` compares a gain variant with
 the unchanged pair of the same seed. Frames are rendered in float64 by evaluating the texture at the exactly
 transformed coordinates (flow_node.bag.scenes: I0(x) = T(x), I1(y) = T(A^-1(y)), gt(x) = A(x) - x), then
@@ -55,7 +55,7 @@ def scene_for(index: int, seed: int, size: tuple[int, int], contrast: float | No
     cycle with ``index``; ``contrast`` (fraction of full scale) narrows the grey range about 0.41;
     ``flat`` blends about half the area to a constant grey."""
     kind = FINE_MOTIONS[index % len(FINE_MOTIONS)]
-    band = tuple(BANDS)[(index // len(FINE_MOTIONS)) % len(BANDS)]
+    band = tuple(BANDS)[index % len(BANDS)]  # 4 motions x 3 bands: every combination in 12 seeds
     rng = np.random.default_rng(seed)
     lo, hi = (0.1, 0.72) if contrast is None else (0.41 - contrast / 2, 0.41 + contrast / 2)
     tex = BandTexture.band(rng, *BANDS[band], lo=lo, hi=hi)
@@ -75,8 +75,9 @@ def _pair(seed: int, index: int, size: tuple[int, int], contrast: float | None =
 
 
 def fine(split: str, quick: bool, size: tuple[int, int]) -> Iterator[Sample]:
-    """Fine textures x {shift, rotation, zoom, affine} at ``size``, 8 bit (12 seeds; quick 4)."""
-    for k, s in seeds(split, 4 if quick else 12):
+    """Fine textures x {shift, rotation, zoom, affine} at ``size``, 8 bit (12 seeds at 320x240, 8 at
+    640x480; quick 4)."""
+    for k, s in seeds(split, 4 if quick else (12 if size[0] <= 320 else 8)):
         i0, i1, gt, label = _pair(s, k, size)
         yield Sample(f"s{s}_{label}", quantise(i0, 8), quantise(i1, 8), gt, 8, label.split("/")[0])
 
