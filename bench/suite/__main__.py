@@ -54,7 +54,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                     "(default: DIS when quick, all otherwise); 'none' for no peers")
     ap.add_argument("--repeats", type=int, default=None, help="timed runs per pair (default 5; quick 3)")
     ap.add_argument("--slow-repeats", type=int, default=None,
-                    help="timed runs per pair of a method slower than 0.25 s per pair (default 2; quick 1)")
+                    help="timed runs per pair of a method slower than 0.25 s per pair (default 1)")
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default bench/results/suite[_quick].json;"
                     " the .md and .png go beside it)")
     ap.add_argument("--update-benchmarks", action="store_true", help="rewrite the generated suite section "
