@@ -58,8 +58,9 @@ def markdown(res: dict[str, Any]) -> str:
             f"wall {res.get('wall_seconds', 0) / 60:.0f} min; commit {v.get('commit', '?')}; "
             f"numpy {v.get('numpy', '?')}, "
             f"OpenCV {v.get('opencv', '?')}, scikit-image {v.get('scikit-image', '?')}, numba {v.get('numba', '?')}; "
-            f"per pair the median of {res['repeats']} interleaved timed runs ({res['slow_repeats']} for a method "
-            f"slower than {res['slow_seconds']} s per pair). Times in ms, ratios against DIS in the same run.")
+            f"per pair the median of {res['repeats']} interleaved timed runs ({res['slow_repeats']} for the TV-L1 "
+            f"peers and a method slower than {res['slow_seconds']} s per pair). Times in ms, ratios against DIS "
+            "in the same run.")
     parts = [head] + [regime_table(n, r) for n, r in res["regimes"].items()]
     parts += ["**Targets (issue 11)**", "", targets_table(res.get("targets", []))]
     return "\n\n".join(parts) + "\n"

@@ -2,9 +2,11 @@
 
 Per pair: every method runs once (its output is scored; methods in rotating order), then ``repeats`` timed
 rounds in which the methods take turns (the order rotating each round), so load changes on a shared
-machine hit all of them alike; the pair's time is the median of a method's timed runs. A method whose
-first run took longer than ``slow_seconds`` is timed by that run and ``slow_repeats - 1`` more (the slow
-TV-L1 peers have no JIT or cache to warm, and would otherwise dominate the run time).
+machine hit all of them alike; the pair's time is the median of a method's timed runs. Slow methods get
+``slow_repeats`` timed runs instead of ``repeats`` (they would otherwise dominate the run time): the slow
+TV-L1 peers (SLOW_PEERS; nothing to warm up, so their scored run is also their first timed run), and any
+other method whose scored run *and* first timed run both took longer than ``slow_seconds`` (one stall on a
+fast method does not make it slow, nor become its time).
 """
 
 from __future__ import annotations
@@ -39,19 +41,20 @@ def run_pair(made: Mapping[str, Method], sample: Any, repeats: int, slow_repeats
     times: dict[str, list[float]] = {n: [] for n in names}
     want: dict[str, int] = {}
     scores: dict[str, dict[str, Any]] = {}
+    first: dict[str, float] = {}
     for n in names[turn % len(names):] + names[:turn % len(names)]:
-        secs, out = _timed(made[n], prepared[n])
+        first[n], out = _timed(made[n], prepared[n])
         scores[n] = metrics.score_pair(out, sample.gt)
-        if secs > slow_seconds:
-            times[n].append(secs)
-            want[n] = slow_repeats
-        else:
-            want[n] = repeats
+        if n in SLOW_PEERS:
+            times[n].append(first[n])
+        want[n] = slow_repeats if n in SLOW_PEERS else repeats
     for r in range(max(want.values())):
         k = (turn + r + 1) % len(names)
         for n in names[k:] + names[:k]:
             if len(times[n]) < want[n]:
                 times[n].append(_timed(made[n], prepared[n])[0])
+                if r == 0 and n not in SLOW_PEERS and min(first[n], times[n][0]) > slow_seconds:
+                    want[n] = max(1, slow_repeats)
     return {n: {**scores[n], "seconds": float(np.median(times[n])), "runs": len(times[n]),
                 "variant": sample.variant} for n in names}
 
