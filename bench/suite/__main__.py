@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         regimes = [r for r in args.regimes.split(",") if r] or None
         peers = None if not args.peers else ([] if args.peers == "none" else args.peers.split(","))
-        head = {"command": "python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv),
+        head = {"command": ("python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv)).strip(),
                 "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine(),
                 "versions": versions()}  # the commit as the run starts
         res = {**head, **run_suite(None, regimes, args.split, args.quick, peers, args.repeats, args.slow_repeats,

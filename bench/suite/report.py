@@ -41,6 +41,25 @@ def regime_table(name: str, r: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def summary_table(res: dict[str, Any]) -> str:
+    """One row per regime, one column per method: mean AEE (px) and, in brackets, time / DIS medium of the
+    same run (DIS medium itself: its ms per pair)."""
+    names = list(dict.fromkeys(n for r in res["regimes"].values() for n in r["methods"]))
+    lines = ["| regime | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
+    for reg, r in res["regimes"].items():
+        cells = []
+        for n in names:
+            m = r["methods"].get(n)
+            if m is None:
+                cells.append("-")
+            elif n == DIS_MEDIUM:
+                cells.append(f"{m['aee']:.3f} ({1e3 * m['seconds']:.1f} ms)")
+            else:
+                cells.append(f"{m['aee']:.3f} ({_num(m.get(f'time_vs_{DIS_MEDIUM}'), '.2f')}x)")
+        lines.append(f"| {reg} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def targets_table(checks: list[dict[str, Any]]) -> str:
     """Markdown table of the target checks: met / missed / not run, with the numbers."""
     lines = ["| target | regime | method | result | numbers |", "|---|---|---|---|---|"]
@@ -53,7 +72,7 @@ def targets_table(checks: list[dict[str, Any]]) -> str:
 def markdown(res: dict[str, Any]) -> str:
     """The whole report: how it was run, every regime's table, then the target checks."""
     v = res.get("versions", {})
-    head = (f"Command: `{res.get('command', 'run_suite(...)')}`; split `{res['split']}`"
+    head = (f"Command: `{res.get('command', 'run_suite(...)').strip()}`; split `{res['split']}`"
             f"{' (QUICK: fewer pairs, indicative only)' if res['quick'] else ''}; started {res.get('started', '?')}, "
             f"wall {res.get('wall_seconds', 0) / 60:.0f} min; commit {v.get('commit', '?')}; "
             f"numpy {v.get('numpy', '?')}, "
@@ -61,7 +80,8 @@ def markdown(res: dict[str, Any]) -> str:
             f"per pair the median of {res['repeats']} interleaved timed runs ({res['slow_repeats']} for the TV-L1 "
             f"peers and a method slower than {res['slow_seconds']} s per pair). Times in ms, ratios against DIS "
             "in the same run.")
-    parts = [head] + [regime_table(n, r) for n, r in res["regimes"].items()]
+    parts = [head, "**Summary**: mean AEE (px) per regime and, in brackets, time / DIS medium (same run)",
+             summary_table(res)] + [regime_table(n, r) for n, r in res["regimes"].items()]
     parts += ["**Targets (issue 11)**", "", targets_table(res.get("targets", []))]
     return "\n\n".join(parts) + "\n"
 
@@ -72,7 +92,7 @@ def plot(res: dict[str, Any], path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import FormatStrFormatter
+    from matplotlib.ticker import FormatStrFormatter, LogLocator
 
     names = list(res["regimes"])
     cols = 3
@@ -88,6 +108,8 @@ def plot(res: dict[str, Any], path: Path) -> None:
         for axis in (ax.xaxis, ax.yaxis):
             axis.set_major_formatter(FormatStrFormatter("%g"))
             axis.set_minor_formatter(FormatStrFormatter(""))
+        ax.yaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+        ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
     for ax in list(axes.flat)[len(names):]:
         ax.axis("off")
     fig.suptitle("flow_node presets (dots) and peers (squares): AEE against time per regime")
