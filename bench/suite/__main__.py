@@ -3,6 +3,7 @@
     python -m bench.suite                       # full, report seeds -> bench/results/suite.{json,md,png}
     python -m bench.suite --quick               # 1-3 min loop -> bench/results/suite_quick.{json,md,png}
     python -m bench.suite --regimes fine_320,exposure --split tune --quick
+    python -m bench.suite --quick --split tune --method cand=realtime,alpha=0.03 --method realtime=realtime
     python -m bench.suite --update-benchmarks   # also rewrite the generated part of BENCHMARKS.md
     python -m bench.suite --from-json bench/results/suite.json --update-benchmarks   # re-render only
 """
@@ -18,6 +19,8 @@ import sys
 import time
 from pathlib import Path
 from typing import Any
+
+from flow_node.core.config import FlowConfig
 
 from ..common import REPO, machine, write_json
 from . import report, targets
@@ -52,6 +55,9 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--regimes", default="", help=f"comma-separated subset of {', '.join(REGIMES)}")
     ap.add_argument("--peers", default="", help=f"comma-separated subset of {', '.join(PEERS)} "
                     "(default: DIS when quick, all otherwise); 'none' for no peers")
+    ap.add_argument("--method", action="append", default=[], metavar="NAME=BASE[,key=value...]",
+                    help="run this flow_node config instead of the default set (repeatable); BASE is a preset or "
+                    "'default' (FlowConfig()), e.g. --method cand=realtime,alpha=0.03,warps=3")
     ap.add_argument("--repeats", type=int, default=None, help="timed runs per pair (default 5; quick 3)")
     ap.add_argument("--slow-repeats", type=int, default=None,
                     help="timed runs per pair of a method slower than 0.25 s per pair (default 1)")
@@ -61,6 +67,21 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                     "of BENCHMARKS.md")
     ap.add_argument("--from-json", type=Path, default=None, help="re-render a saved result instead of running")
     return ap.parse_args(argv)
+
+
+def method_configs(specs: list[str]) -> dict[str, FlowConfig] | None:
+    """``NAME=BASE[,key=value...]`` strings -> named configs (None: the default set)."""
+    if not specs:
+        return None
+    out = {}
+    for spec in specs:
+        name, sep, rest = spec.partition("=")
+        base, *sets = rest.split(",")
+        if not sep or not name or not base:
+            raise SystemExit(f"--method: expected NAME=BASE[,key=value...], got {spec!r}")
+        cfg = FlowConfig() if base == "default" else FlowConfig.preset(base)
+        out[name] = cfg.with_overrides(sets)
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -74,8 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         head = {"command": ("python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv)).strip(),
                 "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine(),
                 "versions": versions()}  # the commit as the run starts
-        res = {**head, **run_suite(None, regimes, args.split, args.quick, peers, args.repeats, args.slow_repeats,
-                                   log=lambda s: print(s, flush=True))}
+        res = {**head, **run_suite(method_configs(args.method), regimes, args.split, args.quick, peers,
+                                   args.repeats, args.slow_repeats, log=lambda s: print(s, flush=True))}
         out = args.out or RESULTS / ("suite_quick.json" if args.quick else "suite.json")
     res["targets"] = targets.all_checks(res)
     write_json(out, res)
