@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import shlex
 import subprocess
@@ -94,10 +95,11 @@ def main(argv: list[str] | None = None) -> int:
         peers = None if not args.peers else ([] if args.peers == "none" else args.peers.split(","))
         head = {"command": ("python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv)).strip(),
                 "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine(),
-                "versions": versions()}  # the commit as the run starts
+                "versions": versions(), "load_average_start": os.getloadavg()}  # as the run starts
         res = {**head, **run_suite(method_configs(args.method), regimes, args.split, args.quick, peers,
                                    args.repeats, args.slow_repeats, log=lambda s: print(s, flush=True))}
         out = args.out or RESULTS / ("suite_quick.json" if args.quick else "suite.json")
+        res["load_average_end"] = os.getloadavg()
     res["targets"] = targets.all_checks(res)
     write_json(out, res)
     md = report.markdown(res)

@@ -23,7 +23,8 @@ def regime_table(name: str, r: dict[str, Any]) -> str:
     variants = list(next(iter(methods.values())).get("per_variant", {}))
     has_ause = any(m.get("ause") is not None for m in methods.values())
     head = ["method", "mean AEE", "AE (deg)", "ms/pair", "time / DIS med", "time / DIS uf", "AEE / DIS med"]
-    head += [f"AEE {v}" for v in variants] + (["AUSE (rel)"] if has_ause else []) + ["beaten by (<= 1.5x time)"]
+    head += [f"AEE {v}" for v in variants] + (["AUSE (rel)"] if has_ause else [])
+    head += ["worst pair (AEE)", "beaten by (<= 1.5x time)"]
     lines = [f"**{name}**: {r['title']} ({len(r['pairs'])} pairs)", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for n, m in methods.items():
@@ -33,6 +34,8 @@ def regime_table(name: str, r: dict[str, Any]) -> str:
         row += [_num(m["per_variant"][v]["aee"], ".4f") for v in variants]
         if has_ause:
             row.append("-" if m.get("ause") is None else f"{m['ause']:.3f} ({m['ause_rel']:.2f})")
+        worst = max(m["per_pair"], key=lambda p: m["per_pair"][p]["aee"])
+        row.append(f"{m['per_pair'][worst]['aee']:.3f} {worst}")
         if n not in PEER_NAMES:
             row.append(", ".join(r["beaten_by"].get(n, [])) or "no")
         else:
