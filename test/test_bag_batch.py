@@ -53,14 +53,14 @@ def flow_messages(bag: Path) -> dict[str, list[bytes]]:
 
 
 def make_bags(root: Path) -> Path:
-    """Three tiny synthetic bags (one nested one level deeper, one sqlite3) and a truncated copy."""
+    """Three tiny synthetic bags (one nested one level deeper, one sqlite3) and a copy with garbage storage."""
     for k, (name, storage) in enumerate(SCENES.items()):
         (root / name).parent.mkdir(parents=True, exist_ok=True)
         write_synth_bag(root / name, SynthSpec(scene=Path(name).name, frames=4, size=(48, 40), storage=storage,
                                                seed=k))
     shutil.copytree(root / "translation", root / "corrupt")
     storage = next((root / "corrupt").glob("*.mcap"))
-    storage.write_bytes(storage.read_bytes()[: storage.stat().st_size // 2])
+    storage.write_bytes(b"not an mcap file " * 200)  # nothing to recover (a truncated one is read up to the cut)
     return root
 
 

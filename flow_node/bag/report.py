@@ -88,6 +88,7 @@ def to_json(result: EvalResult) -> dict[str, Any]:
         "models": [{"label": run.label, "config": run.config.to_dict(), "summary": summarise_run(run),
                     "frames": [vars(r) for r in run.records]} for run in result.runs],
         "ranking": ranking(result.runs),
+        "recovered": result.recovered, "warnings": result.warnings,
     }
 
 
