@@ -93,11 +93,15 @@ def _run(args: argparse.Namespace) -> int:
         write_synth_bag(args.output, spec)
         return 0
     if args.command == "play":
-        from .play import PlayOptions, parse_remap, run_play
+        from .play import PlaybackInterrupted, PlayOptions, parse_remap, run_play
 
         opts = PlayOptions(args.rate, args.loop, 1, parse_remap(args.topic_remap), tuple(args.topics),
                            args.wait_for_subscribers)
-        count = run_play(args.bag, opts)
+        try:
+            count = run_play(args.bag, opts)
+        except PlaybackInterrupted as exc:
+            print(f"flow_bag play: interrupted after publishing {exc.published} messages", file=sys.stderr)
+            return 130
         print(f"flow_bag play: published {count} messages")
         return 0
     from ..cli.estimate import config_from_args

@@ -140,8 +140,15 @@ def too_slow(w: Window) -> str | None:
 def level_of(w: Window, ready: bool, backend_warning: str | None = None) -> tuple[int, str]:
     """Level and reason: ERROR if the engine failed or every frame of the period was rejected; WARN while
     warming up, without input for 3 periods, with rejections, when the solver is slower than the input
-    (:func:`too_slow`) or drops more than half the frames, or when ``backend_warning`` is given (the
-    numpy fallback: numba missing)."""
+    (:func:`too_slow`) or drops more than half the frames. ``backend_warning`` (the numpy fallback: numba
+    missing) makes any OK a WARN and is appended to every other reason: it lasts as long as the process."""
+    level, reason = _level_of(w, ready)
+    if not backend_warning:
+        return level, reason
+    return (WARN, backend_warning) if level == OK else (level, f"{reason}; {backend_warning}")
+
+
+def _level_of(w: Window, ready: bool) -> tuple[int, str]:
     if w.errors:
         return ERROR, f"engine failed on {w.errors} frame(s): {w.last_error}"
     if w.rejected and w.rejected >= w.received:
@@ -158,8 +165,6 @@ def level_of(w: Window, ready: bool, backend_warning: str | None = None) -> tupl
         return WARN, slow
     if w.received and w.dropped > w.received / 2:
         return WARN, f"solver too slow: dropped {w.dropped} of {w.received} frames"
-    if backend_warning:
-        return WARN, backend_warning
     return OK, "computing flow"
 
 

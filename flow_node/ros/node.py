@@ -181,7 +181,8 @@ class FlowNode(Node):
     def _declare_parameters(self) -> None:
         """Declare ``preset`` first; its values (if any) become the defaults of the other parameters, so a
         params file with ``preset: realtime`` and ``iterations: 20`` means realtime with 20 iterations."""
-        preset = self.declare_parameter("preset", "", descriptor(self._specs["preset"])).value
+        spec = self._specs["preset"]
+        preset = self.declare_parameter("preset", spec.default, descriptor(spec)).value
         try:
             base = preset_values(preset) if preset else {}
         except ConfigError as exc:
