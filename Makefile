@@ -56,7 +56,7 @@ NOBLE_VENV := .venv-noble
 NOBLE_STAMP := $(NOBLE_VENV)/.installed
 NOBLE_PYTHON ?= $(shell for p in python3.12 $(HOME)/.pyenv/versions/3.12*/bin/python3.12; do \
 		$$p -c '' 2>/dev/null && { command -v $$p; break; }; done)
-$(NOBLE_STAMP): .ci/noble-requirements.txt setup.py
+$(NOBLE_STAMP): .ci/noble-requirements.txt requirements-system-ros.txt setup.py
 	@test -n "$(NOBLE_PYTHON)" || { echo "test-noble: no python3.12 found (set NOBLE_PYTHON=...)"; exit 1; }
 	test -x $(NOBLE_VENV)/bin/python || $(NOBLE_PYTHON) -m venv $(NOBLE_VENV)
 	$(NOBLE_VENV)/bin/pip install --quiet --upgrade pip

@@ -7,12 +7,11 @@ Exit codes: 0 success, 1 a one-line error (bad bag, bad parameter), 2 bad usage,
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 from ..core.config import MODELS, PRESETS
 from ..core.errors import ConfigError, FlowError
-from .bagio import STORAGES
-from .scenes import SCENES
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -24,6 +23,8 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .bagio import STORAGES  # imports rosbags: here, so that main() can say it is missing
+    from .scenes import SCENES
     from .synth import ENCODINGS, SynthSpec
 
     d = SynthSpec()
@@ -97,6 +98,9 @@ def _run(args: argparse.Namespace) -> int:
 
         opts = PlayOptions(args.rate, args.loop, 1, parse_remap(args.topic_remap), tuple(args.topics),
                            args.wait_for_subscribers)
+        # Ctrl-C stops playback with KeyboardInterrupt even when this process was started with SIGINT
+        # ignored (a background job of a non-interactive shell inherits SIG_IGN, which Python keeps)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         try:
             count = run_play(args.bag, opts)
         except PlaybackInterrupted as exc:
@@ -117,8 +121,19 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+MISSING_ROSBAGS = ("flow_bag: the rosbags package is not installed (the bag tools read and write bags with it): "
+                   "pip install -r requirements-system-ros.txt (README, 'ROS 2 workspace')")
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        parser = build_parser()
+    except ModuleNotFoundError as exc:
+        if (exc.name or "").split(".")[0] != "rosbags":
+            raise
+        print(MISSING_ROSBAGS, file=sys.stderr)
+        return 1
+    args = parser.parse_args(argv)
     try:
         return _run(args)
     except FlowError as exc:
