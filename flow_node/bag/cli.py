@@ -1,7 +1,8 @@
 """``flow_bag``: recorded data — ``synth`` writes a bag with ground truth, ``eval`` replays a bag through the
 node's per-frame pipeline and reports, ``play`` publishes a bag over DDS for a live node.
 
-Exit codes: 0 success, 1 a one-line error (bad bag, bad parameter), 2 bad usage, 130 interrupted.
+Exit codes: 0 success (and ``play`` stopped by Ctrl-C), 1 a one-line error (bad bag, bad parameter), 2 bad usage,
+130 ``synth``/``eval`` interrupted.
 """
 
 from __future__ import annotations
@@ -103,9 +104,9 @@ def _run(args: argparse.Namespace) -> int:
         signal.signal(signal.SIGINT, signal.default_int_handler)
         try:
             count = run_play(args.bag, opts)
-        except PlaybackInterrupted as exc:
-            print(f"flow_bag play: interrupted after publishing {exc.published} messages", file=sys.stderr)
-            return 130
+        except PlaybackInterrupted as exc:  # Ctrl-C is how a (looping) playback ends: a normal stop
+            print(f"flow_bag play: stopped by Ctrl-C after publishing {exc.published} messages")
+            return 0
         print(f"flow_bag play: published {count} messages")
         return 0
     from ..cli.estimate import config_from_args
