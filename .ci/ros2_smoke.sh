@@ -66,4 +66,5 @@ has "$(param /smoke/smoke_launch preset)" "String value is: fastest" || fail "la
 has "$(ros2 node info /smoke/smoke_launch 2>&1)" "/smoke/cam: sensor_msgs/msg/Image" || fail "launch remap image"
 stop launch
 ! grep -q Traceback "$log/launch" || fail "launch traceback: $(cat "$log/launch")"
+! grep -qi "XMLPARSER\|error" "$log/launch" || fail "launch (Fast DDS profile) errors: $(cat "$log/launch")"
 echo "ok: ros2 launch with image, node_name, namespace, params_file, log_level (exit $rc)"

@@ -11,6 +11,7 @@ frames the node drops because it is busy do not count against the middleware. Va
 * ``default``: Fast DDS as it comes (shared memory and UDP transports, 512 KB shared-memory segments);
 * ``profile``: config/fastdds_localhost.xml (shared memory with 32 MB segments, UDP kept for discovery and
   other hosts), given to every process by FASTRTPS_DEFAULT_PROFILES_FILE;
+* ``profile_node_only``: the profile for the node (and camera) only, the subscriber as it comes;
 * ``large_data``: Fast DDS's built-in ``FASTDDS_BUILTIN_TRANSPORTS=LARGE_DATA`` (TCP + shared memory).
 """
 
@@ -30,10 +31,13 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 PROFILE = ROOT / "config" / "fastdds_localhost.xml"
-VARIANTS: dict[str, dict[str, str]] = {
-    "default": {},
-    "profile": {"FASTRTPS_DEFAULT_PROFILES_FILE": str(PROFILE)},
-    "large_data": {"FASTDDS_BUILTIN_TRANSPORTS": "LARGE_DATA"},
+# variant -> (environment of the node and the camera, environment of the subscriber)
+_PROFILE_ENV = {"FASTRTPS_DEFAULT_PROFILES_FILE": str(PROFILE)}
+VARIANTS: dict[str, tuple[dict[str, str], dict[str, str]]] = {
+    "default": ({}, {}),
+    "profile": (_PROFILE_ENV, _PROFILE_ENV),
+    "profile_node_only": (_PROFILE_ENV, {}),
+    "large_data": ({"FASTDDS_BUILTIN_TRANSPORTS": "LARGE_DATA"}, {"FASTDDS_BUILTIN_TRANSPORTS": "LARGE_DATA"}),
 }
 SIZES = {"640x480": (480, 640), "1280x720": (720, 1280)}
 NODE = "delivery_flow"
@@ -80,10 +84,12 @@ def subscribe(seconds: float) -> int:
     from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import Image
 
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # even when started with SIGINT ignored (nohup)
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("delivery_subscriber")
     got: list[int] = []
     diag: dict[str, str] = {}
+    solve_ms: list[float] = []  # per diagnostics window that solved
 
     def on_flow(msg: Image) -> None:
         got.append(msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
@@ -93,6 +99,8 @@ def subscribe(seconds: float) -> int:
             if st.name == f"{NODE}: optical flow":
                 diag.clear()
                 diag.update({kv.key: kv.value for kv in st.values}, _message=st.message)
+                if diag["solve time mean (ms)"] != "n/a":
+                    solve_ms.append(float(diag["solve time mean (ms)"]))
 
     node.create_subscription(Image, f"{NS}/{NODE}/flow", on_flow, 10)
     node.create_subscription(DiagnosticArray, "/diagnostics", on_diag, 10)
@@ -104,7 +112,8 @@ def subscribe(seconds: float) -> int:
             executor.spin_once(timeout_sec=0.05)
     except KeyboardInterrupt:
         pass
-    print(json.dumps({"received": len(got), "unique": len(set(got)), "diagnostics": diag}), flush=True)
+    print(json.dumps({"received": len(got), "unique": len(set(got)), "diagnostics": diag,
+                      "solve_ms_median": float(np.median(solve_ms)) if solve_ms else None}), flush=True)
     node.destroy_node()
     rclpy.try_shutdown()
     return 0
@@ -127,26 +136,30 @@ def _stop(proc: subprocess.Popen, timeout: float = 30.0) -> str:
 
 def run(size: str, variant: str, seconds: float) -> dict[str, Any]:
     """One run: node, subscriber, then camera for ``seconds``; the counts after everything settled."""
-    env = {**os.environ, **VARIANTS[variant]}
+    node_env, sub_env = ({**os.environ, **e} for e in VARIANTS[variant])
     me = [sys.executable, "-m", "bench.node_delivery"]
     node = _popen([sys.executable, "-m", "flow_node.ros.node", "--ros-args", "-r", f"__ns:={NS}",
-                   "-r", f"__node:={NODE}", "-r", f"image:={NS}/image"], env)
-    sub = _popen([*me, "--subscribe", "--seconds", str(seconds + 120)], env)
+                   "-r", f"__node:={NODE}", "-r", f"image:={NS}/image"], node_env)
+    sub = _popen([*me, "--subscribe", "--seconds", str(seconds + 120)], sub_env)
+    sent = None
     try:
         time.sleep(5.0)  # node warm-up and discovery
-        cam = subprocess.run([*me, "--camera", size, "--seconds", str(seconds)], env=env, capture_output=True,
-                             text=True, timeout=seconds + 90)
+        cam = subprocess.run([*me, "--camera", size, "--seconds", str(seconds)], env=node_env,
+                             capture_output=True, text=True, timeout=seconds + 90)
         sent = json.loads(cam.stdout.strip().splitlines()[-1])["sent"]
         time.sleep(3.0)  # the last flows and a diagnostics message after them
+    except (subprocess.TimeoutExpired, IndexError):
+        pass  # recorded as a failed run (camera_frames null)
     finally:
-        got = json.loads(_stop(sub).strip().splitlines()[-1])
+        sub_out = _stop(sub)
         _stop(node)
+    got = json.loads(sub_out.strip().splitlines()[-1])
     d = got["diagnostics"]
     published = int(d.get("frames published", 0))
     return {"size": size, "variant": variant, "camera_frames": sent,
             "node_received": int(d.get("frames received", 0)), "node_published": published,
             "subscriber_received": got["received"], "delivery": got["received"] / published if published else None,
-            "node_solve_mean_ms": d.get("solve time mean (ms)"), "backend": d.get("backend")}
+            "node_solve_ms_median": got["solve_ms_median"], "backend": d.get("backend")}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -170,9 +183,10 @@ def main(argv: list[str] | None = None) -> int:
                 r["repeat"] = rep
                 runs.append(r)
                 print(json.dumps(r), flush=True)
-    payload = {"command": "python -m bench.node_delivery " + " ".join(argv if argv is not None else sys.argv[1:]),
-               "seconds": args.seconds, "rate_hz": 30.0, "runs": runs}
-    args.out.write_text(json.dumps(payload, indent=1) + "\n")
+                payload = {"command": "python -m bench.node_delivery "
+                           + " ".join(argv if argv is not None else sys.argv[1:]),
+                           "seconds": args.seconds, "rate_hz": 30.0, "runs": runs}
+                args.out.write_text(json.dumps(payload, indent=1) + "\n")  # after every run
     return 0
 
 
