@@ -51,8 +51,8 @@ try:
         rclpy.spin_once(node, timeout_sec=0.05)
 except KeyboardInterrupt:
     pass
-print(json.dumps({{"received": len(got), "sizes": sorted(set(got)), "published": int(diag.get("frames published", -1))}}),
-      flush=True)
+published = int(diag.get("frames published", -1))
+print(json.dumps({{"received": len(got), "sizes": sorted(set(got)), "published": published}}), flush=True)
 """
 
 
