@@ -11,7 +11,8 @@ if [ ! -x "$tool" ]; then
   if [ "${CI:-}" = true ]; then echo "colcon step: $tool not found"; exit 1; fi
   echo "colcon step skipped: no $tool (it is only beside CI's and the developers' clones)"; exit 0
 fi
-work=${FLOW_NODE_COLCON_WORK:-$root/.ci-work}
+# outside the clone: the workspace links the clone in as src/flow_node, and colcon test runs pytest there
+work=${FLOW_NODE_COLCON_WORK:-$(dirname "$root")/.flow_node-colcon-$(basename "$root")}
 rm -rf "$work" && mkdir -p "$work"
 grep -vE '^(pytest|ruff)==' requirements.txt > "$work/runtime-requirements.txt"  # the toolchain pins pytest<8
 echo "== ros2 toolchain (real ros2 CLI, colcon, launch_testing) into $work/r2"
