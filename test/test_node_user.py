@@ -155,11 +155,16 @@ def test_flow_in_px_per_second_with_the_pairs_earlier_stamp() -> None:
         assert (p.header.stamp.sec, p.header.stamp.nanosec) == divmod(t1, 1_000_000_000)
         assert (p.time_ref.sec, p.time_ref.nanosec) == divmod(t0, 1_000_000_000)
         assert p.header.frame_id == h.last("flow").header.frame_id
+        h.send_frame(image(mono8(I0), "mono8", t1 + 500))
+        rejected, published = h.totals.rejected, h.totals.published
+        h.send_frame(image(mono8(I1), "mono8", t1 + 500))  # same stamp: no interval, no velocity
+        assert (h.totals.rejected, h.totals.published) == (rejected + 1, published)
+        assert "the pair's stamps are 0 ns apart" in h.node._stats.last_rejection
         results = h.set_params(flow_units="px/frame")
         assert all(r.successful for r in results)
         (bad,) = h.set_params(flow_units="m/s")
         assert not bad.successful and "flow_units: 'm/s' is not one of px/frame, px/s" in bad.reason
-        flow = image_to_array(h.send_pair(image(mono8(I0), "mono8", t1 + 1), image(mono8(I1), "mono8", t1 + 2)))
+        flow = image_to_array(h.send_pair(image(mono8(I0), "mono8", t1 + 1000), image(mono8(I1), "mono8", t1 + 2000)))
         assert aee(flow, GT) < 0.25  # px/frame again, whatever the interval
     finally:
         h.close()
