@@ -28,7 +28,7 @@ ros2 run flow_node flow_bag --help > /dev/null || fail "flow_bag --help"
 
 # a relative params file that does not exist here: one line, exit 1 (no traceback)
 out=$(ros2 run flow_node flow_node --ros-args --params-file config/flow_node.yaml 2>&1)
-grep -q "cannot start: cannot read params file config/flow_node.yaml" <<< "$out" || fail "missing params file: $out"
+grep -q "cannot start: cannot read parameter file config/flow_node.yaml" <<< "$out" || fail "missing params file: $out"
 ! grep -q Traceback <<< "$out" || fail "traceback for a missing params file: $out"
 echo "ok: missing params file -> $(grep 'cannot start' <<< "$out")"
 

@@ -209,9 +209,10 @@ def test_scaling_to_the_input_size_changes_nothing() -> None:
 
 
 @pytest.mark.parametrize("content,reason", [
-    (None, "cannot read params file missing.yaml: No such file or directory (relative to the current directory"),
+    (None, "cannot read parameter file missing.yaml: No such file or directory (relative to the current directory"),
     ("/**:\n  ros__parameters:\n    alpha: [0.1,\n", "is not valid YAML: "),
-    ("- alpha\n", "is not a ROS parameter file"),
+    ("- alpha\n", "expected a mapping at top level"),
+    ("alpha: 0.1\n", "is not a ROS parameter file"),
 ])
 def test_bad_params_file_gives_one_line(tmp_path: Path, content: str | None, reason: str) -> None:
     name = "missing.yaml" if content is None else "bad.yaml"

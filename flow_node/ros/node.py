@@ -34,7 +34,7 @@ from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import array_to_image_fields, decode
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
 from ..pipeline.units import output_in_units
-from . import camera_info, diagnostics, startup
+from . import camera_info, diagnostics, security, startup
 from .params import ParamSpec, coerce, param_specs, preset_values, settings_from_values
 
 _TYPES = {bool: Parameter.Type.BOOL, int: Parameter.Type.INTEGER, float: Parameter.Type.DOUBLE,
@@ -176,6 +176,7 @@ class FlowNode(Node):
                                f"backend {self._stream.backend}")
         if self._backend_warning:
             self.get_logger().warning(self._backend_warning)
+        self._security = security.check_and_log(self)  # warns when SROS2 is asked for but not in effect
 
     # ------------------------------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> None:
@@ -259,7 +260,8 @@ class FlowNode(Node):
                                 backend_warning=self._backend_warning)
         if st.message.startswith("solver too slow"):
             self.get_logger().warning(st.message, throttle_duration_sec=10.0)
-        self._pub_diag.publish(diagnostics.array(self.get_clock().now().to_msg(), [st]))
+        sec = security.statuses(self._security, self.get_name(), hw)
+        self._pub_diag.publish(diagnostics.array(self.get_clock().now().to_msg(), [st, *sec]))
 
     # ------------------------------------------------------------------------------------------ worker
     def _run(self) -> None:

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import yaml
 
-from ..core.errors import ConfigError
+from ..core.config import FlowConfig
+from ..core.errors import ConfigError, FileFormatError
 
 
 def params_files(args: Sequence[str]) -> list[str]:
@@ -32,14 +33,6 @@ def params_files(args: Sequence[str]) -> list[str]:
     return out
 
 
-def _yaml_problem(exc: yaml.YAMLError) -> str:
-    """A YAML error as one line: the problem and its line/column (1-based)."""
-    mark = getattr(exc, "problem_mark", None)
-    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-    return f"{problem}{where}"
-
-
 def _has_parameters(node: object) -> bool:
     """True if ``node`` is a mapping with a ``ros__parameters`` mapping in it, directly or under a namespace
     (rcl accepts ``/ns: {node: {ros__parameters: ...}}``)."""
@@ -51,22 +44,22 @@ def _has_parameters(node: object) -> bool:
 
 
 def check_params_file(path: str) -> None:
-    """ConfigError with a one-line reason if ``path`` cannot be read or is not a ROS parameter file."""
+    """ConfigError with a one-line reason if ``path`` cannot be read, is not YAML (FlowConfig.from_yaml's
+    checks: encoding, syntax, nesting) or is not a ROS parameter file. Invalid values are left to the node,
+    which validates them together with every other source (several files, ``-p``)."""
     if not path:
         raise ConfigError("--params-file needs a file name")
-    p = Path(path)
-    hint = ""
-    if not p.is_absolute():
-        hint = (f" (relative to the current directory {os.getcwd()}; installed files are in "
-                "$(ros2 pkg prefix flow_node)/share/flow_node/config/)")
     try:
-        text = p.read_text()
-    except OSError as exc:
-        raise ConfigError(f"cannot read params file {path}: {exc.strerror}{hint}") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"params file {path} is not valid YAML: {_yaml_problem(exc)}") from None
+        FlowConfig.from_yaml(path)
+    except FileFormatError as exc:
+        hint = ""
+        if not Path(path).is_absolute() and not Path(path).exists():
+            hint = (f" (relative to the current directory {os.getcwd()}; installed files are in "
+                    "$(ros2 pkg prefix flow_node)/share/flow_node/config/)")
+        raise ConfigError(f"{exc}{hint}") from None
+    except ConfigError:
+        pass
+    data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))  # read fine just above
     if not isinstance(data, dict) or not data or not all(_has_parameters(v) for v in data.values()):
         raise ConfigError(f"params file {path} is not a ROS parameter file: expected "
                           "'<node name or /**>: {ros__parameters: {name: value, ...}}'")
