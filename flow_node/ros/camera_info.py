@@ -12,11 +12,9 @@ from __future__ import annotations
 from sensor_msgs.msg import CameraInfo
 from std_msgs.msg import Header
 
+from .names import camera_info_topic
 
-def camera_info_topic(image_topic: str) -> str:
-    """``/ns/camera_info`` for the resolved image topic ``/ns/image_raw`` (image_transport's convention)."""
-    base = image_topic.rsplit("/", 1)[0]
-    return f"{base}/camera_info"
+__all__ = ["camera_info_topic", "scaled_camera_info", "unscalable"]
 
 
 def unscalable(info: CameraInfo) -> str | None:
