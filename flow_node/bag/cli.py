@@ -11,8 +11,6 @@ import argparse
 import signal
 import sys
 
-import cv2
-
 from ..core.config import MODELS, PRESETS
 from ..core.errors import ConfigError, FlowError
 
@@ -132,7 +130,7 @@ MISSING_ROSBAGS = ("flow_bag: the rosbags package is not installed (the bag tool
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ..cli.estimate import native_stderr_silenced
+    from ..cli.estimate import native_stderr_silenced, silence_opencv_log
 
     try:
         parser = build_parser()
@@ -145,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "play":  # rclpy logs through fd 2: keep it
             return _run(args)
-        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        silence_opencv_log()
         with native_stderr_silenced():  # libpng warnings while decoding compressed frames
             return _run(args)
     except FlowError as exc:
