@@ -9,7 +9,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba_cache
 
-.PHONY: all venv test lint demo fuzz bench bench-quick bench-accuracy bench-venv paper clean
+.PHONY: all venv test lint demo fuzz bench bench-quick bench-accuracy bench-venv paper clean test-noble noble-venv
 
 all: test
 
@@ -65,5 +65,24 @@ bench-accuracy: $(BENCH_STAMP)
 paper: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.paper
 
+# Ubuntu 24.04's library versions (python 3.12, numpy 1.26, OpenCV 4.6, numba 0.61): the same suite in a
+# second venv (.ci/noble-requirements.txt). NOBLE_PYTHON: a python3.12 on PATH, else pyenv's.
+NOBLE_VENV := .venv-noble
+NOBLE_STAMP := $(NOBLE_VENV)/.installed
+NOBLE_PYTHON ?= $(shell for p in python3.12 $(HOME)/.pyenv/versions/3.12*/bin/python3.12; do \
+		$$p -c '' 2>/dev/null && { command -v $$p; break; }; done)
+$(NOBLE_STAMP): .ci/noble-requirements.txt requirements-system-ros.txt setup.py
+	@test -n "$(NOBLE_PYTHON)" || { echo "test-noble: no python3.12 found (set NOBLE_PYTHON=...)"; exit 1; }
+	test -x $(NOBLE_VENV)/bin/python || $(NOBLE_PYTHON) -m venv $(NOBLE_VENV)
+	$(NOBLE_VENV)/bin/pip install --quiet --upgrade pip
+	$(NOBLE_VENV)/bin/pip install --quiet -r .ci/noble-requirements.txt
+	$(NOBLE_VENV)/bin/pip install --quiet --no-deps -e .
+	touch $(NOBLE_STAMP)
+
+noble-venv: $(NOBLE_STAMP)
+
+test-noble: $(NOBLE_STAMP)
+	NUMBA_CACHE_DIR=$(CURDIR)/$(NOBLE_VENV)/numba_cache $(NOBLE_VENV)/bin/python -m pytest -q test
+
 clean:
-	rm -rf $(VENV) $(BENCH_VENV) build install log *.egg-info
+	rm -rf $(VENV) $(BENCH_VENV) $(NOBLE_VENV) build install log *.egg-info

@@ -12,7 +12,8 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.rviz") + glob("config/*.foxglove.json")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.rviz") + glob("config/*.foxglove.json")
+         + ["config/fastdds_localhost.xml"]),  # params, viewers (docs/node.md), Fast DDS profile
         (f"share/{PACKAGE}/config", ["config/flow_node.policy.xml"]),  # SROS2 policy (docs/security.md)
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
     ],

@@ -195,3 +195,15 @@ def test_eval_is_deterministic_and_shows_progress(tmp_path, capsys):
             return [bytes(raw) for _, _, raw in reader.messages(connections=conns)]
 
     assert len(flows(tmp_path / "a")) == 5 and flows(tmp_path / "a") == flows(tmp_path / "b")
+
+
+def test_flow_bag_without_rosbags_says_what_to_install() -> None:
+    """An installed flow_bag on a system ROS without rosbags: one line naming the missing package, exit 1."""
+    import subprocess
+    import sys
+
+    code = "import sys; sys.modules['rosbags'] = None; from flow_node.bag.cli import main; sys.exit(main(['--help']))"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1 and proc.stdout == ""
+    assert proc.stderr.count("\n") == 1 and "rosbags package is not installed" in proc.stderr
+    assert "requirements-system-ros.txt" in proc.stderr

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import re
+import signal
 import subprocess
 import sys
 import threading
@@ -112,3 +114,29 @@ def test_play_errors():
     proc = subprocess.run([sys.executable, "-m", "flow_node.bag", "play", str(BAGS / "zoom"), "--topics", "/x"],
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 1 and proc.stderr.strip() == "flow_bag play: error: topic /x is not in the bag"
+
+
+def test_cli_play_ctrl_c_reports_what_it_published_and_exits_0():
+    """Ctrl-C ends a looping playback normally (exit 0, like ros2 bag play and the node) and says the real count,
+    at least what a subscriber received; no rcl warning about flow_bag's own OLD:=NEW argument read as a
+    deprecated remapping rule."""
+    listener = Listener("/play_int/image", Image)
+    cmd = [sys.executable, "-m", "flow_node.bag", "play", str(BAGS / "rotation"), "--loop", "--rate", "5",
+           "--topic-remap", "/camera/image_raw:=/play_int/image", "--topics", "/camera/image_raw",
+           "--wait-for-subscribers", "15"]
+    proc = subprocess.Popen(cmd, env=os.environ.copy(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        listener.wait(20, timeout=30.0)  # more than three loops of the 6-frame bag
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=20)
+        received = len(listener.got)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        listener.close()
+    assert proc.returncode == 0, err
+    match = re.fullmatch(r"flow_bag play: stopped by Ctrl-C after publishing (\d+) messages\n", out)
+    assert match, (out, err)
+    assert int(match.group(1)) >= received >= 20
+    assert err == ""  # in particular no rcl deprecation warning

@@ -224,8 +224,11 @@ def test_node_process_keeps_freed_memory_instead_of_faulting_in_fresh_pages() ->
     applied, kept = faults("keep")
     _, default = faults("default")
     assert applied == "True"
-    assert default > 50 * 200  # ~2 x 300 pages per iteration faulted in again with glibc's defaults
-    assert kept < default / 20
+    assert kept < 50 * 10  # under 10 page faults a frame: the freed heap pages are reused
+    # With glibc's defaults numpy 2 faults ~2 x 300 pages in again every frame (28400 measured); numpy 1.26
+    # (Ubuntu 24.04's) already reuses them itself (0 measured), so there keep_freed_memory changes nothing.
+    if np.__version__.startswith("2."):
+        assert default > 50 * 200 and kept < default / 20
 
 
 @pytest.mark.parametrize("direct", [True, False])

@@ -42,6 +42,36 @@ def test_levels_in_order_of_severity() -> None:
     assert level == ERROR and "boom" in msg
 
 
+def test_solver_slower_than_input_warns_with_both_times() -> None:
+    s = NodeStats()
+    for _ in range(5):
+        s.received(False)
+    s.solved(0.120, 0.001, 0.0005, output(1.0))
+    time.sleep(0.25)  # 5 frames in ~0.25 s: one every ~50 ms, solved in 120 ms
+    level, msg = level_of(s.window(), ready=True)
+    assert level == WARN and msg.startswith("solver too slow for the input: 120 ms per pair, a frame every")
+    interval = float(msg.split("a frame every ")[1].split(" ms")[0])
+    assert 48 <= interval <= 70
+    for _ in range(3):
+        s.received(False)
+    s.solved(0.010, 0.001, 0.0005, output(1.0))
+    time.sleep(0.1)  # every ~33 ms, solved in 10 ms: keeps up
+    assert level_of(s.window(), ready=True) == (OK, "computing flow")
+
+
+def test_numba_fallback_is_a_warning_below_every_other_state() -> None:
+    s = NodeStats()
+    s.received(False)
+    s.solved(0.010, 0.001, 0.0005, output(1.0))
+    fallback = "numba not importable (No module named 'numba'): running the numpy reference backend"
+    assert level_of(s.window(), ready=True, backend_warning=fallback) == (WARN, fallback)
+    assert level_of(s.window(), ready=False, backend_warning=fallback) == (WARN, f"warming up the engine; {fallback}")
+    s.received(False)
+    s.error("RuntimeError: boom")
+    level, msg = level_of(s.window(), ready=True, backend_warning=fallback)
+    assert level == ERROR and msg.startswith("engine failed on 1 frame(s)") and msg.endswith(fallback)
+
+
 def test_stale_input_warns_after_three_periods() -> None:
     s = NodeStats()
     s.received(False)
@@ -63,6 +93,7 @@ def test_status_values_and_window_reset() -> None:
     for k in range(4):
         s.received(False)
         s.solved(0.010 * (k + 1), 0.001 * (k + 1), 0.0005 * (k + 1), output(0.6))
+    time.sleep(0.2)  # 4 frames in > 0.2 s: every 50+ ms, slower than the 25 ms mean solve (else "too slow")
     w = s.window()
     st = status(w, name="cam_flow: optical flow", hardware_id="cam", ready=True, backend="numpy", model="l2_tv",
                 input_scale=0.5, resolution="5x4")

@@ -119,13 +119,13 @@ def test_descriptors_come_from_the_config_table(harness: Harness) -> None:
 
 def test_yaml_files_are_in_sync_and_load_as_configs() -> None:
     assert (ROOT / "config/flow_node.yaml").read_text() == render_yaml()
-    assert FlowConfig.from_yaml(ROOT / "config/flow_node.yaml") == FlowConfig()
+    assert FlowConfig.from_yaml(ROOT / "config/flow_node.yaml") == FlowConfig.preset("realtime")  # the default
     for name in PRESETS:
         path = ROOT / f"config/{name}.yaml"
         assert path.read_text() == render_yaml(name)
         assert FlowConfig.from_yaml(path) == FlowConfig.preset(name)
     text = (ROOT / "config/flow_node.yaml").read_text()
-    assert "    alpha: 0.025\n" in text and "    tolerance: 0.0\n" in text and "    level_alpha_factor: 1.0\n" in text
+    assert "    alpha: 0.015\n" in text and "    tolerance: 0.0\n" in text and "    level_alpha_factor: 1.0\n" in text
 
 
 def test_settings_from_values_rejects_bad_combinations() -> None:

@@ -7,8 +7,10 @@ specialisation serves all cases, so the JIT cost (cold cache) is paid once for t
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import sys
+from collections.abc import Iterator
 
 import numba
 import numpy as np
@@ -165,26 +167,57 @@ def test_threads_cap() -> None:
     numba_backend.set_threads(0)
 
 
-def test_backend_selection_and_log(caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level(logging.INFO, logger="flow_node"):
+class _Records(logging.Handler):
+    """Collects the records that reach it."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.DEBUG)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)
+
+
+@contextlib.contextmanager
+def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
+    """The records of the ``flow_node`` logger at ``level`` and above, taken at that logger itself.
+
+    Not pytest's caplog: caplog listens on the root logger, and once ``launch`` is imported (colcon test
+    loads launch_testing's pytest plugin in every ROS install) loggers created afterwards are LaunchLoggers
+    that do not propagate, so caplog would see nothing although the backend logged.
+    """
+    logger = logging.getLogger("flow_node")
+    handler, old = _Records(), logger.level
+    logger.addHandler(handler)
+    logger.setLevel(level)
+    try:
+        yield handler.records
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(old)
+
+
+def test_backend_selection_and_log() -> None:
+    with flow_node_log(logging.INFO) as records:
         assert select_backend("numpy") == ("numpy", solve_numpy)
         assert select_backend("auto") == ("numba", solve_numba)
         assert select_backend("numba") == ("numba", solve_numba)
-    lines = [r.getMessage() for r in caplog.records]
+    lines = [r.getMessage() for r in records]
+    assert len(lines) == 3
     assert lines[0].startswith("flow_node backend: numpy")
     assert lines[1].startswith("flow_node backend: numba") and lines[2].startswith("flow_node backend: numba")
 
 
-def test_fallback_when_numba_is_missing(monkeypatch: pytest.MonkeyPatch,
-                                        caplog: pytest.LogCaptureFixture) -> None:
+def test_fallback_when_numba_is_missing(monkeypatch: pytest.MonkeyPatch) -> None:
     """With the numba backend unimportable, auto degrades to numpy (with a warning), numba is an error."""
     import flow_node.core as core
 
     monkeypatch.setitem(sys.modules, "flow_node.core.numba_backend", None)  # import now raises ImportError
     monkeypatch.delattr(core, "numba_backend")
-    with caplog.at_level(logging.WARNING, logger="flow_node"):
+    with flow_node_log(logging.WARNING) as records:
         assert select_backend("auto") == ("numpy", solve_numpy)
-    assert "numba not importable" in caplog.text
+    assert [r.levelno for r in records] == [logging.WARNING]
+    assert "numba not importable" in records[0].getMessage()
     with pytest.raises(ConfigError, match="numba"):
         select_backend("numba")
     assert FlowEstimator(FlowConfig(backend="auto")).backend == "numpy"

@@ -16,6 +16,7 @@ from rclpy.parameter import Parameter
 from ros_helpers import FAST
 
 from flow_node.ros import security_policy as sp
+from flow_node.ros.names import camera_info_topic
 from flow_node.ros.node import FlowNode
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,9 +50,9 @@ def test_default_policy_lists_the_node_interfaces() -> None:
     (profile,) = enclave.findall("profiles/profile")
     assert (enclave.get("path"), profile.get("ns"), profile.get("node")) == ("/flow_node", "/", "flow_node")
     got = rules(SHIPPED.read_text())
-    assert got["subscribe"] == {"image"}
-    assert got["publish"] == {"~/flow", "~/magnitude", "~/flow_color", "~/confidence", "/diagnostics", "/rosout",
-                              "/parameter_events"}
+    assert got["subscribe"] == {"image", "camera_info"}
+    assert got["publish"] == {"~/flow", "~/magnitude", "~/flow_color", "~/confidence", "~/flow_pair",
+                              "~/camera_info", "/diagnostics", "/rosout", "/parameter_events"}
     assert got["reply"] == {"~/reset", "~/get_type_description"} | {
         f"~/{s}" for s in ("describe_parameters", "get_parameter_types", "get_parameters", "list_parameters",
                            "set_parameters", "set_parameters_atomically")}
@@ -76,9 +77,9 @@ def test_options_adapt_the_profile_and_the_input() -> None:
     assert root.find("enclaves/enclave").get("path") == "/robot/cam_flow"
     profile = root.find("enclaves/enclave/profiles/profile")
     assert (profile.get("ns"), profile.get("node")) == ("/robot", "cam_flow")
-    assert rules(xml)["subscribe"] == {"/camera/image_raw"}
-    assert rules(sp.render(["--compressed", "--enclave", "/e"]))["subscribe"] == {"image/compressed"}
-    assert rules(sp.render(["--sim-time"]))["subscribe"] == {"image", "/clock"}
+    assert rules(xml)["subscribe"] == {"/camera/image_raw", "/camera/camera_info"}
+    assert rules(sp.render(["--compressed", "--enclave", "/e"]))["subscribe"] == {"image/compressed", "camera_info"}
+    assert rules(sp.render(["--sim-time"]))["subscribe"] == {"image", "camera_info", "/clock"}
     assert "with image=/camera/image_raw, namespace=/robot, name=cam_flow" in xml  # the header says how
 
 
@@ -88,9 +89,10 @@ def test_client_policy_mirrors_the_node() -> None:
     assert nodes == ["flow_client", "_ros2cli_*"]  # a client node and the ros2 CLI's (ros2 param set ...)
     assert rules(xml, 0) == rules(xml, 1)
     got = rules(xml)
-    assert "/cam/image" in got["publish"] and {"/rosout", "/parameter_events"} <= got["publish"]
+    assert {"/cam/image", "/cam/camera_info"} <= got["publish"] and {"/rosout", "/parameter_events"} <= got["publish"]
     assert got["subscribe"] == {"/robot/flow_node/flow", "/robot/flow_node/magnitude", "/robot/flow_node/flow_color",
-                                "/robot/flow_node/confidence", "/diagnostics"}
+                                "/robot/flow_node/confidence", "/robot/flow_node/flow_pair",
+                                "/robot/flow_node/camera_info", "/diagnostics"}
     assert "/robot/flow_node/reset" in got["request"] and "/robot/flow_node/set_parameters" in got["request"]
     assert got["reply"] == {n for n in sp.NODE_BASICS if n.startswith("~")}  # the client node's own services
 
@@ -124,4 +126,4 @@ def test_policy_names_are_what_the_node_creates(compressed: bool) -> None:
         assert not missing, f"{access}: the policy misses {missing} (add a row to INTERFACES)"
         assert extra <= ahead, f"{access}: the policy allows {extra - ahead}, which the node does not create"
     assert f"{ns}/{name}/reset" in created["reply"]
-    assert created["subscribe"] == {image + ("/compressed" if compressed else "")}
+    assert created["subscribe"] == {image + ("/compressed" if compressed else ""), camera_info_topic(image)}

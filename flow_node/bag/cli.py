@@ -1,21 +1,19 @@
 """``flow_bag``: recorded data — ``synth`` writes a bag with ground truth, ``eval`` replays a bag through the
 node's per-frame pipeline and reports, ``play`` publishes a bag over DDS for a live node.
 
-Exit codes: 0 success, 1 a one-line error (bad bag, bad parameter), 2 bad usage, 130 interrupted.
+Exit codes: 0 success (and ``play`` stopped by Ctrl-C), 1 a one-line error (bad bag, bad parameter), 2 bad usage,
+130 ``synth``/``eval`` interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from typing import TYPE_CHECKING
 
-import cv2
-
 from ..core.config import MODELS, PRESETS
 from ..core.errors import ConfigError, FlowError
-from .bagio import STORAGES, BagError
-from .scenes import SCENES
 
 if TYPE_CHECKING:
     from ..core.config import FlowConfig
@@ -32,6 +30,8 @@ def _size(text: str) -> tuple[int, int]:
 
 def build_parser() -> argparse.ArgumentParser:
     from ..cli.estimate import OneLineParser, finite_scale
+    from .bagio import STORAGES  # imports rosbags: here, so that main() can say it is missing
+    from .scenes import SCENES
     from .synth import ENCODINGS, SynthSpec
 
     d = SynthSpec()
@@ -107,11 +107,18 @@ def _run(args: argparse.Namespace) -> int:
         write_synth_bag(args.output, spec)
         return 0
     if args.command == "play":
-        from .play import PlayOptions, parse_remap, run_play
+        from .play import PlaybackInterrupted, PlayOptions, parse_remap, run_play
 
         opts = PlayOptions(args.rate, args.loop, 1, parse_remap(args.topic_remap), tuple(args.topics),
                            args.wait_for_subscribers)
-        count = run_play(args.bag, opts)
+        # Ctrl-C stops playback with KeyboardInterrupt even when this process was started with SIGINT
+        # ignored (a background job of a non-interactive shell inherits SIG_IGN, which Python keeps)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        try:
+            count = run_play(args.bag, opts)
+        except PlaybackInterrupted as exc:  # Ctrl-C is how a (looping) playback ends: a normal stop
+            print(f"flow_bag play: stopped by Ctrl-C after publishing {exc.published} messages")
+            return 0
         print(f"flow_bag play: published {count} messages")
         return 0
     from ..cli.estimate import config_from_args, one_line
@@ -134,6 +141,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _batch(args: argparse.Namespace, configs: list[FlowConfig], opts: EvalOptions) -> int:
     """Many bags on Dask; exit 1 (after the report is written) when any bag failed."""
+    from .bagio import BagError
     from .batch import run_batch
 
     if args.workers is not None and args.workers < 1:
@@ -150,14 +158,25 @@ def _batch(args: argparse.Namespace, configs: list[FlowConfig], opts: EvalOption
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    from ..cli.estimate import native_stderr_silenced
+MISSING_ROSBAGS = ("flow_bag: the rosbags package is not installed (the bag tools read and write bags with it): "
+                   "pip install -r requirements-system-ros.txt (README, 'ROS 2 workspace')")
 
-    args = build_parser().parse_args(argv)
+
+def main(argv: list[str] | None = None) -> int:
+    from ..cli.estimate import native_stderr_silenced, silence_opencv_log
+
+    try:
+        parser = build_parser()
+    except ModuleNotFoundError as exc:
+        if (exc.name or "").split(".")[0] != "rosbags":
+            raise
+        print(MISSING_ROSBAGS, file=sys.stderr)
+        return 1
+    args = parser.parse_args(argv)
     try:
         if args.command == "play":  # rclpy logs through fd 2: keep it
             return _run(args)
-        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        silence_opencv_log()
         with native_stderr_silenced():  # libpng warnings while decoding compressed frames
             return _run(args)
     except FlowError as exc:

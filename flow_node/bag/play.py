@@ -77,13 +77,22 @@ def load_schedule(path: str | Path, topics: Sequence[str] = ()) -> tuple[dict[st
     return types, msgs
 
 
+class PlaybackInterrupted(KeyboardInterrupt):
+    """Ctrl-C during playback; ``published`` says how many messages went out before it."""
+
+    def __init__(self, published: int) -> None:
+        super().__init__(f"interrupted after publishing {published} messages")
+        self.published = published
+
+
 def play(node: Any, path: str | Path, opts: PlayOptions,
          on_publish: Callable[[str, int, float], None] | None = None,
          should_stop: Callable[[], bool] = lambda: False) -> int:
     """Publish the bag through ``node`` (an rclpy Node) with recorded timing; returns messages published.
 
     ``on_publish(topic, bag_time_ns, wall_time)`` is called after each publish. The caller owns the node and
-    spins it (or not) as it likes; this function only publishes and sleeps.
+    spins it (or not) as it likes; this function only publishes and sleeps. Ctrl-C (KeyboardInterrupt)
+    while playing raises :class:`PlaybackInterrupted` with the count published so far.
     """
     types, msgs = load_schedule(path, opts.topics)
     remap = dict(opts.remap)
@@ -91,19 +100,22 @@ def play(node: Any, path: str | Path, opts: PlayOptions,
             for topic, mt in types.items()}
     _wait_for_subscribers(list(pubs.values()), opts.wait_for_subscribers)
     count, loop = 0, 0
-    while loop < opts.loops or opts.loop:
-        start_wall, start_bag = time.monotonic(), msgs[0][0]
-        for t, topic, raw in msgs:
-            delay = start_wall + (t - start_bag) / 1e9 / opts.rate - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-            if should_stop():
-                return count
-            pubs[topic].publish(raw)
-            count += 1
-            if on_publish is not None:
-                on_publish(topic, t, time.monotonic())
-        loop += 1
+    try:
+        while loop < opts.loops or opts.loop:
+            start_wall, start_bag = time.monotonic(), msgs[0][0]
+            for t, topic, raw in msgs:
+                delay = start_wall + (t - start_bag) / 1e9 / opts.rate - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+                if should_stop():
+                    return count
+                pubs[topic].publish(raw)
+                count += 1
+                if on_publish is not None:
+                    on_publish(topic, t, time.monotonic())
+            loop += 1
+    except KeyboardInterrupt:
+        raise PlaybackInterrupted(count) from None
     _wait_for_acks(list(pubs.values()))
     return count
 
@@ -136,15 +148,21 @@ def _wait_for_acks(pubs: list[Any]) -> None:
 
 
 def run_play(path: str | Path, opts: PlayOptions) -> int:
-    """Stand-alone playback: own rclpy context and node; Ctrl-C stops cleanly. Returns messages published."""
-    import rclpy
+    """Stand-alone playback: own rclpy context and node. Returns messages published; Ctrl-C raises
+    :class:`PlaybackInterrupted` (with the count) after a clean shutdown.
 
-    rclpy.init()
+    rclpy is initialised with no command-line arguments: flow_bag's own (``--topic-remap OLD:=NEW``) are not
+    ROS arguments, and rcl would read ``OLD:=NEW`` as a deprecated remapping rule and warn about it. Nor
+    does it install rclpy's signal handlers: those shut the context down on SIGINT without raising, and the
+    next publish would fail; Python's own handler raises KeyboardInterrupt where playback is.
+    """
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("flow_bag_play")
     try:
         return play(node, path, opts)
-    except KeyboardInterrupt:
-        return 0
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

@@ -204,9 +204,19 @@ def write_outputs(flow: np.ndarray, output: str, color: str | None, max_flow: fl
                 tmp.unlink()
 
 
+def silence_opencv_log() -> None:
+    """Turn OpenCV's own log off (our errors say it in one line): ``cv2.utils.logging`` in OpenCV 5,
+    ``cv2.setLogLevel`` in 4.x (Ubuntu 24.04's 4.6 has no ``cv2.utils.logging``); level 0 is silent in both."""
+    log = getattr(cv2.utils, "logging", None)
+    if log is not None:
+        log.setLogLevel(log.LOG_LEVEL_SILENT)
+    elif hasattr(cv2, "setLogLevel"):
+        cv2.setLogLevel(0)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # our errors say it in one line
+    silence_opencv_log()
     with native_stderr_silenced():
         return _run(args)
 

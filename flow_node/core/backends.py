@@ -10,13 +10,31 @@ from .solver import LevelSolver, solve_numpy
 log = logging.getLogger("flow_node")
 
 
-def numba_available() -> bool:
-    """True when the numba backend can be imported."""
+def numba_import_error() -> str | None:
+    """Why the numba backend cannot be imported (the ImportError's text), or None when it can."""
     try:
         from . import numba_backend  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    except ImportError as exc:
+        return str(exc)
+    return None
+
+
+def numba_available() -> bool:
+    """True when the numba backend can be imported."""
+    return numba_import_error() is None
+
+
+def fallback_warning(requested: str, used: str) -> str | None:
+    """A one-line warning when ``auto`` had to fall back to the numpy reference, else None.
+
+    ``requested`` is the config's ``backend``, ``used`` the backend selected. Asking for numpy is no
+    reason to warn; running it because numba is missing is (3-5x slower: BENCHMARKS.md).
+    """
+    if requested != "auto" or used != "numpy":
+        return None
+    reason = numba_import_error() or "numba backend unavailable"
+    return (f"numba not importable ({reason}): running the numpy reference backend, 3-5x slower; "
+            "install numba (README, 'ROS 2 workspace')")
 
 
 def select_backend(name: str, threads: int = 0) -> tuple[str, LevelSolver]:

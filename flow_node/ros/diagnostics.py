@@ -123,9 +123,32 @@ class NodeStats:
         return w
 
 
-def level_of(w: Window, ready: bool) -> tuple[int, str]:
+def too_slow(w: Window) -> str | None:
+    """Why the solver cannot keep up with the input of this period, or None: its mean solve time is longer
+    than the mean interval between received frames (needs 3 received and 1 solved frame to judge)."""
+    if w.received < 3 or not w.solve_times:
+        return None
+    solve = sum(w.solve_times) / len(w.solve_times)
+    interval = w.seconds / w.received
+    if solve <= interval:
+        return None
+    return (f"solver too slow for the input: {1000.0 * solve:.0f} ms per pair, a frame every "
+            f"{1000.0 * interval:.0f} ms ({w.received / w.seconds:.1f} Hz); dropped {w.dropped} of {w.received} "
+            "(use preset realtime or fastest, or input_scale < 1)")
+
+
+def level_of(w: Window, ready: bool, backend_warning: str | None = None) -> tuple[int, str]:
     """Level and reason: ERROR if the engine failed or every frame of the period was rejected; WARN while
-    warming up, without input for 3 periods, with rejections, or dropping more than half the frames."""
+    warming up, without input for 3 periods, with rejections, when the solver is slower than the input
+    (:func:`too_slow`) or drops more than half the frames. ``backend_warning`` (the numpy fallback: numba
+    missing) makes any OK a WARN and is appended to every other reason: it lasts as long as the process."""
+    level, reason = _level_of(w, ready)
+    if not backend_warning:
+        return level, reason
+    return (WARN, backend_warning) if level == OK else (level, f"{reason}; {backend_warning}")
+
+
+def _level_of(w: Window, ready: bool) -> tuple[int, str]:
     if w.errors:
         return ERROR, f"engine failed on {w.errors} frame(s): {w.last_error}"
     if w.rejected and w.rejected >= w.received:
@@ -138,6 +161,8 @@ def level_of(w: Window, ready: bool) -> tuple[int, str]:
         return WARN, f"no image for {w.since_input:.1f} s"
     if w.rejected:
         return WARN, f"{w.rejected} frame(s) rejected: {w.last_rejection}"
+    if slow := too_slow(w):
+        return WARN, slow
     if w.received and w.dropped > w.received / 2:
         return WARN, f"solver too slow: dropped {w.dropped} of {w.received} frames"
     return OK, "computing flow"
@@ -151,9 +176,9 @@ def _ms(values: list[float], fn: str) -> str:
 
 
 def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str, model: str,
-           input_scale: float, resolution: str) -> DiagnosticStatus:
+           input_scale: float, resolution: str, backend_warning: str | None = None) -> DiagnosticStatus:
     """The DiagnosticStatus for one period (name is "<node name>: <task>", as diagnostic_updater does)."""
-    level, message = level_of(w, ready)
+    level, message = level_of(w, ready, backend_warning)
     period = max(w.seconds, 1e-9)
     s = w.summary
     pairs = [

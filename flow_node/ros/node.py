@@ -11,26 +11,30 @@ from __future__ import annotations
 
 import array
 import ctypes
+import sys
 import threading
 import time
 from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.exceptions import ParameterException
 from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rclpy.qos_overriding_options import QoSOverridingOptions
-from sensor_msgs.msg import CompressedImage, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, TimeReference
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+from ..core.backends import fallback_warning
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import array_to_image_fields, decode
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
-from . import diagnostics, security
+from ..pipeline.units import output_in_units
+from . import camera_info, diagnostics, security, startup
 from .params import ParamSpec, coerce, param_specs, preset_values, settings_from_values
 
 _TYPES = {bool: Parameter.Type.BOOL, int: Parameter.Type.INTEGER, float: Parameter.Type.DOUBLE,
@@ -139,11 +143,16 @@ class FlowNode(Node):
         self._resolution = "none yet"
         self._frame_id = ""
         self._executor_checked = False
+        self._units: str = self.get_parameter("flow_units").value
+        self._camera_info: CameraInfo | None = None
+        self._backend_warning = fallback_warning(settings.config.backend, self._stream.backend)
 
         overrides = QoSOverridingOptions.with_default_policies()
         self._pub_flow = self.create_publisher(Image, "~/flow", 1, qos_overriding_options=overrides)
         self._pub_mag = self.create_publisher(Image, "~/magnitude", 1, qos_overriding_options=overrides)
         self._pub_color = self.create_publisher(Image, "~/flow_color", 1, qos_overriding_options=overrides)
+        self._pub_pair = self.create_publisher(TimeReference, "~/flow_pair", 1, qos_overriding_options=overrides)
+        self._pub_info = self.create_publisher(CameraInfo, "~/camera_info", 1, qos_overriding_options=overrides)
         self._pub_diag = self.create_publisher(diagnostics.DiagnosticArray, "/diagnostics", 10)
         qos = QoSProfile(**{k: getattr(qos_profile_sensor_data, k) for k in ("reliability", "durability",
                                                                            "history")}, depth=1)
@@ -154,6 +163,8 @@ class FlowNode(Node):
         else:
             self._sub = self.create_subscription(Image, "image", self._on_image, qos,
                                                  qos_overriding_options=overrides)
+        self._sub_info = self.create_subscription(
+            CameraInfo, camera_info.camera_info_topic(self.resolve_topic_name("image")), self._on_camera_info, qos)
         self._srv_reset = self.create_service(Trigger, "~/reset", self._on_reset)
         self.add_pre_set_parameters_callback(self._expand_preset)
         self.add_on_set_parameters_callback(self._validate)
@@ -163,13 +174,16 @@ class FlowNode(Node):
         self._worker.start()
         self.get_logger().info(f"subscribed to {self._sub.topic_name}; model {settings.config.model}, "
                                f"backend {self._stream.backend}")
+        if self._backend_warning:
+            self.get_logger().warning(self._backend_warning)
         self._security = security.check_and_log(self)  # warns when SROS2 is asked for but not in effect
 
     # ------------------------------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> None:
         """Declare ``preset`` first; its values (if any) become the defaults of the other parameters, so a
         params file with ``preset: realtime`` and ``iterations: 20`` means realtime with 20 iterations."""
-        preset = self.declare_parameter("preset", "", descriptor(self._specs["preset"])).value
+        spec = self._specs["preset"]
+        preset = self.declare_parameter("preset", spec.default, descriptor(spec)).value
         try:
             base = preset_values(preset) if preset else {}
         except ConfigError as exc:
@@ -212,6 +226,7 @@ class FlowNode(Node):
         if any(p.name in self._specs for p in params):
             s = settings_from_values(self._values())
             self._stream.update(s.config, s.input_scale, s.color_max_flow)
+            self._units = self.get_parameter("flow_units").value
             self.get_logger().info("parameters changed: " + ", ".join(f"{p.name}={p.value!r}" for p in params))
 
     @property
@@ -227,6 +242,9 @@ class FlowNode(Node):
                 self.get_logger().warning(advice)
         self._stats.received(self._mailbox.put(msg))
 
+    def _on_camera_info(self, msg: CameraInfo) -> None:
+        self._camera_info = msg  # the latest; republished scaled with each flow (camera_info.py)
+
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         self._stream.reset()
         response.success, response.message = True, "previous frame dropped; the next frame starts a new pair"
@@ -238,7 +256,10 @@ class FlowNode(Node):
         s = self._stream.settings
         st = diagnostics.status(w, name=f"{self.get_name()}: optical flow", hardware_id=hw,
                                 ready=self._ready.is_set(), backend=self._stream.backend, model=s.config.model,
-                                input_scale=s.input_scale, resolution=self._resolution)
+                                input_scale=s.input_scale, resolution=self._resolution,
+                                backend_warning=self._backend_warning)
+        if st.message.startswith("solver too slow"):
+            self.get_logger().warning(st.message, throttle_duration_sec=10.0)
         sec = security.statuses(self._security, self.get_name(), hw)
         self._pub_diag.publish(diagnostics.array(self.get_clock().now().to_msg(), [st, *sec]))
 
@@ -268,6 +289,8 @@ class FlowNode(Node):
             frame, label = decode(msg)
             self._frame_id = msg.header.frame_id
             out = self._stream.process(frame, stamp_ns(msg.header), label)
+            if out is not None:
+                out = output_in_units(out, self._units)
         except InputError as exc:
             self._stats.rejected(str(exc))
             self.get_logger().warning(f"image rejected: {exc}", throttle_duration_sec=5.0)
@@ -293,7 +316,24 @@ class FlowNode(Node):
                 t0 = time.perf_counter()
                 pub.publish(msg)
                 publish_s += time.perf_counter() - t0
+        self._publish_companions(header, out)
         return publish_s
+
+    def _publish_companions(self, header: Header, out: FlowOutput) -> None:
+        """~/flow_pair (the pair's earlier stamp) and ~/camera_info (the input's, scaled to the output grid),
+        both with the flow's header, while subscribed."""
+        if self._pub_pair.get_subscription_count() > 0:
+            earlier = divmod(out.previous_stamp_ns, 1_000_000_000)
+            pair = TimeReference(header=header, source="earlier_frame")
+            pair.time_ref.sec, pair.time_ref.nanosec = earlier
+            self._pub_pair.publish(pair)
+        info = self._camera_info
+        if info is not None and self._pub_info.get_subscription_count() > 0:
+            if reason := camera_info.unscalable(info):
+                self.get_logger().warning(f"{reason}: ~/camera_info not published", throttle_duration_sec=30.0)
+                return
+            h, w = out.flow.shape[:2]
+            self._pub_info.publish(camera_info.scaled_camera_info(info, w, h, header))
 
     def destroy_node(self) -> None:
         """Stop the worker (after the frame it is solving) and destroy the node."""
@@ -324,7 +364,17 @@ def keep_freed_memory(limit_bytes: int = 256 << 20) -> bool:
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``ros2 run flow_node flow_node`` / ``python -m flow_node.ros.node``."""
     keep_freed_memory()
-    rclpy.init(args=args)
+    argv = sys.argv if args is None else args
+    log = rclpy.logging.get_logger("flow_node")
+    try:
+        startup.check_params_files(argv)
+        rclpy.init(args=argv)
+    except ConfigError as exc:
+        log.fatal(f"cannot start: {exc}")
+        return 1
+    except RCLError as exc:  # what rcl refuses beyond the checks above (a bad remap, log level, ...)
+        log.fatal(f"cannot start: {startup.rcl_error_line(exc)}")
+        return 1
     node: FlowNode | None = None
     code = 0
     try:
@@ -333,7 +383,7 @@ def main(args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (FlowError, ParameterException) as exc:
-        rclpy.logging.get_logger("flow_node").fatal(f"cannot start: {exc}")
+        log.fatal(f"cannot start: {exc}")
         code = 1
     finally:
         if node is not None:

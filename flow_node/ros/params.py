@@ -16,6 +16,7 @@ from typing import Any
 from ..core.config import PRESETS, FlowConfig, field_names, fields_info
 from ..core.errors import ConfigError
 from ..pipeline.stream import COLOR_MAX_FLOW_RANGE, INPUT_SCALE_RANGE, StreamSettings
+from ..pipeline.units import FLOW_UNITS
 
 
 @dataclass(frozen=True)
@@ -33,26 +34,36 @@ class ParamSpec:
 
 
 # Engine fields that cannot change while running: a backend/thread switch re-selects (and may JIT-compile)
-# the solver mid-stream, and numba's thread pool size is fixed once started.
+# the solver mid-stream, and numba's thread pool size is fixed once started. No preset sets them.
 READ_ONLY_FIELDS = frozenset({"backend", "threads"})
+
+# The node's default preset: started without a params file it keeps up with a 30 Hz VGA camera on 2 cores
+# (FlowConfig's plain defaults take ~0.3 s per VGA pair); docs/node.md, "Defaults".
+NODE_PRESET = "realtime"
 
 
 def param_specs() -> list[ParamSpec]:
-    """Every parameter of the node, engine fields first (in FlowConfig order), then node-only ones."""
+    """Every parameter of the node, engine fields first (in FlowConfig order), then node-only ones.
+
+    The engine fields' defaults are those of NODE_PRESET (``preset`` defaults to it)."""
     defaults = StreamSettings()
-    specs = [ParamSpec("preset", str, "", "named group of engine settings applied when set: "
-                       + ", ".join(PRESETS) + " ('' = none); explicit values set together with it win",
-                       choices=("",) + tuple(PRESETS))]
+    engine = FlowConfig.preset(NODE_PRESET)
+    specs = [ParamSpec("preset", str, NODE_PRESET, "named group of engine settings applied when set: "
+                       + ", ".join(PRESETS) + " ('' = none); it sets every engine setting but backend and "
+                       "threads (a setting the preset does not list takes FlowConfig's default); explicit "
+                       "values set together with it win", choices=("",) + tuple(PRESETS))]
     for f in fields_info():
-        specs.append(ParamSpec(f.name, f.type, f.default, f.help, f.lo, f.hi, f.choices,
+        specs.append(ParamSpec(f.name, f.type, getattr(engine, f.name), f.help, f.lo, f.hi, f.choices,
                                f.name in READ_ONLY_FIELDS))
     specs += [
         ParamSpec("input_scale", float, defaults.input_scale,
                   "process frames shrunk by this factor; flow is published at that resolution, in pixels of the "
                   "shrunk image (multiply by 1/input_scale for full-resolution pixels)", *INPUT_SCALE_RANGE),
         ParamSpec("color_max_flow", float, defaults.color_max_flow,
-                  "flow length (px/frame) drawn at full saturation in ~/flow_color; 0 = each frame's maximum",
-                  *COLOR_MAX_FLOW_RANGE),
+                  "flow length (in flow_units) drawn at full saturation in ~/flow_color; 0 = each frame's "
+                  "maximum", *COLOR_MAX_FLOW_RANGE),
+        ParamSpec("flow_units", str, FLOW_UNITS[0], "units of ~/flow and ~/magnitude: px/frame (displacement "
+                  "over the pair) or px/s (divided by the pair's interval, ~/flow_pair)", choices=FLOW_UNITS),
         ParamSpec("use_compressed", bool, False, "subscribe to <image>/compressed (sensor_msgs/CompressedImage, "
                   "decoded with OpenCV) instead of image", read_only=True),
         ParamSpec("diagnostics_period", float, 1.0, "seconds between /diagnostics messages", 0.05, 60.0,
@@ -85,17 +96,26 @@ def settings_from_values(values: Mapping[str, Any]) -> StreamSettings:
     preset = values.get("preset", "")
     if preset not in specs_by_name()["preset"].choices:
         raise ConfigError(f"preset: {preset!r} is not one of {', '.join(PRESETS)} (or '')")
+    units = values.get("flow_units", FLOW_UNITS[0])
+    if units not in FLOW_UNITS:
+        raise ConfigError(f"flow_units: {units!r} is not one of {', '.join(FLOW_UNITS)}")
     cfg = FlowConfig.from_mapping({k: values[k] for k in field_names() if k in values})
     return StreamSettings(cfg, input_scale=values.get("input_scale", StreamSettings().input_scale),
                           color_max_flow=values.get("color_max_flow", StreamSettings().color_max_flow))
 
 
 def preset_values(name: str) -> dict[str, Any]:
-    """The parameter values a preset sets (its group only), typed per parameter; ConfigError if unknown."""
+    """The parameter values a preset sets, typed per parameter; ConfigError if unknown.
+
+    Its whole group: every engine field but the read-only ones, with FlowConfig's default where the preset
+    does not list a field, so that switching presets never keeps a value of the one before (realtime's
+    ``finest_level: 1`` must not survive a switch to quality). Exactly ``FlowConfig.preset(name)``.
+    """
     if name not in PRESETS:
         raise ConfigError(f"preset: {name!r} is not one of {', '.join(PRESETS)} (or '')")
     specs = specs_by_name()
-    return {k: coerce(specs[k], v) for k, v in PRESETS[name].items()}
+    return {k: coerce(specs[k], v) for k, v in FlowConfig.preset(name).to_dict().items()
+            if k not in READ_ONLY_FIELDS}
 
 
 def _yaml_value(value: Any) -> str:
@@ -118,8 +138,9 @@ def render_yaml(preset: str | None = None) -> str:
              "/**:", "  ros__parameters:"]
     if preset:
         lines.append(f"    preset: {_yaml_value(preset)}")
-        for k, v in preset_values(preset).items():
-            lines.append(f"    {k}: {_yaml_value(v)}")
+        values = preset_values(preset)
+        for k in PRESETS[preset]:  # the values it stands for; the rest of its group are FlowConfig's defaults
+            lines.append(f"    {k}: {_yaml_value(values[k])}")
     else:
         for s in param_specs():
             lines.append(f"    # {s.description}" + (" (read-only)" if s.read_only else ""))

@@ -23,8 +23,11 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 from xml.sax.saxutils import escape
 
+from .names import camera_info_topic
+
 POLICY_VERSION = "0.2.0"  # the sros2 policy format (sros2/policy/schemas/policy.xsd)
 IMAGE = "{image}"  # placeholder for the (remapped) input topic in INTERFACES
+CAMERA_INFO = "{camera_info}"  # placeholder for the CameraInfo topic beside it (names.camera_info_topic)
 DEFAULT_IMAGE = "image"  # the node subscribes the relative name ``image`` (resolved in its namespace)
 
 # The access a participant needs, per kind of interface: topics are published or subscribed, services are
@@ -59,6 +62,9 @@ INTERFACES: tuple[Interface, ...] = (
     Interface("~/magnitude", "publish", "the flow length, sensor_msgs/Image 32FC1 px/frame"),
     Interface("~/flow_color", "publish", "the Middlebury colour coding, sensor_msgs/Image bgr8"),
     Interface("~/confidence", "publish", "the per-pixel confidence of the flow, sensor_msgs/Image 32FC1"),
+    Interface("~/flow_pair", "publish", "each flow's pair: the earlier frame's stamp (sensor_msgs/TimeReference)"),
+    Interface("~/camera_info", "publish", "the camera's CameraInfo scaled to the flow's grid"),
+    Interface(CAMERA_INFO, "subscribe", "the camera's CameraInfo beside the image topic (sensor_msgs/CameraInfo)"),
     Interface("/diagnostics", "publish", "the node's health, diagnostic_msgs/DiagnosticArray"),
     Interface("/rosout", "publish", "the node's log (rcl_interfaces/msg/Log); without it the node cannot start"),
     Interface("/parameter_events", "publish", "parameter changes (rcl_interfaces/msg/ParameterEvent)"),
@@ -107,7 +113,9 @@ def node_interfaces(image: str = DEFAULT_IMAGE, *, compressed: bool = False,
     """The rows of :data:`INTERFACES` that apply, with :data:`IMAGE` replaced by ``image`` (as given to
     ``-r image:=...``: absolute, or relative to the node's namespace)."""
     on = {"", "compressed" if compressed else "raw"} | ({"sim_time"} if sim_time else set())
-    return [replace(i, name=i.name.replace(IMAGE, image)) for i in INTERFACES if i.when in on]
+    info = camera_info_topic(image)
+    return [replace(i, name=i.name.replace(IMAGE, image).replace(CAMERA_INFO, info)) for i in INTERFACES
+            if i.when in on]
 
 
 def client_interfaces(interfaces: Iterable[Interface], namespace: str, node: str) -> list[Interface]:

@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# The installed package through the real ros2 CLI, from a colcon workspace root with install/setup.bash
+# sourced (called by .ci/colcon.sh). Each check fails the step with what it saw.
+set -uo pipefail
+export ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-77}
+share=$(ros2 pkg prefix flow_node)/share/flow_node
+bag=$(dirname "$(readlink -f "$0")")/../bags/rotation
+log=$(mktemp -d)
+fail() { echo "ros2 smoke: FAILED: $*"; exit 1; }
+groups=()
+cleanup() { for g in "${groups[@]}"; do kill -KILL -- "-$g" 2>/dev/null; done; ros2 daemon stop > /dev/null 2>&1; rm -rf "$log"; }
+trap cleanup EXIT
+start() {  # start NAME CMD...: in its own process group, output to $log/NAME
+  local name=$1; shift
+  setsid "$@" > "$log/$name" 2>&1 &
+  eval "pid_$name=$!"
+  groups+=("$!")
+}
+stop() {  # stop NAME: SIGINT to its process group (what Ctrl-C does), wait; its exit code in $rc
+  local pid; eval "pid=\$pid_$1"
+  kill -INT -- "-$pid" 2>/dev/null; rc=0; wait "$pid" || rc=$?
+}
+param() { ros2 param get "$1" "$2" 2>&1; }
+has() { grep -Eq -- "$2" <<< "$1"; }  # has TEXT PATTERN (no pipe: grep -q closing it early breaks pipefail)
+
+[ -f "$share/config/realtime.yaml" ] && [ -f "$share/launch/flow_node.launch.py" ] || fail "no config/launch in $share"
+ros2 run flow_node flow_bag --help > /dev/null || fail "flow_bag --help"
+
+# a relative params file that does not exist here: one line, exit 1 (no traceback)
+out=$(ros2 run flow_node flow_node --ros-args --params-file config/flow_node.yaml 2>&1)
+grep -q "cannot start: cannot read parameter file config/flow_node.yaml" <<< "$out" || fail "missing params file: $out"
+! grep -q Traceback <<< "$out" || fail "traceback for a missing params file: $out"
+echo "ok: missing params file -> $(grep 'cannot start' <<< "$out")"
+
+ros2 daemon start > /dev/null 2>&1; sleep 2
+start node ros2 run flow_node flow_node --ros-args -r image:=/smoke/image -r __node:=smoke_flow \
+  --params-file "$share/config/realtime.yaml"
+for _ in $(seq 60); do has "$(param /smoke_flow preset)" "String value is: realtime" && break; sleep 1; done
+has "$(param /smoke_flow preset)" "String value is: realtime" || fail "node not up: $(cat "$log/node")"
+has "$(ros2 param get /smoke_flow finest_level)" "Integer value is: 1" || fail "realtime finest_level"
+has "$(ros2 param set /smoke_flow preset quality)" "Set parameter successful" || fail "param set preset quality"
+has "$(param /smoke_flow finest_level)" "Integer value is: 0" || fail "quality kept finest_level: $(param /smoke_flow finest_level)"
+echo "ok: preset realtime -> quality sets finest_level 0"
+
+# flow_bag play into the node, stopped with Ctrl-C: exit 0 and the real count, no rcl remap warning
+start play ros2 run flow_node flow_bag play "$bag" --loop --topic-remap /camera/image_raw:=/smoke/image
+sleep 4
+has "$(ros2 topic list)" "^/smoke_flow/flow$" || fail "no /smoke_flow/flow topic"
+pair=$(timeout 20 ros2 topic echo --once /smoke_flow/flow_pair sensor_msgs/msg/TimeReference 2>&1)
+has "$pair" "source: earlier_frame" || fail "no flow from the played bag: $pair $(cat "$log/node")"
+echo "ok: the node publishes flow for the played bag (~/flow_pair received)"
+stop play
+grep -Eq "^flow_bag play: stopped by Ctrl-C after publishing [1-9][0-9]* messages$" "$log/play" || fail "play: $(cat "$log/play")"
+! grep -qi deprecated "$log/play" || fail "play printed a deprecation warning: $(cat "$log/play")"
+[ "$rc" = 0 ] || fail "play exit code $rc: $(cat "$log/play")"
+echo "ok: $(cat "$log/play") (exit $rc)"
+stop node
+[ "$rc" = 0 ] || fail "node exit code $rc: $(cat "$log/node")"
+! grep -q Traceback "$log/node" || fail "node traceback: $(cat "$log/node")"
+
+# the launch file with its arguments
+start launch ros2 launch flow_node flow_node.launch.py image:=/smoke/cam node_name:=smoke_launch \
+  namespace:=/smoke params_file:="$share/config/fastest.yaml" log_level:=info
+for _ in $(seq 60); do has "$(param /smoke/smoke_launch preset)" "String value is: fastest" && break; sleep 1; done
+has "$(param /smoke/smoke_launch preset)" "String value is: fastest" || fail "launch: $(cat "$log/launch")"
+has "$(ros2 node info /smoke/smoke_launch 2>&1)" "/smoke/cam: sensor_msgs/msg/Image" || fail "launch remap image"
+stop launch
+! grep -q Traceback "$log/launch" || fail "launch traceback: $(cat "$log/launch")"
+! grep -qi "XMLPARSER\|error" "$log/launch" || fail "launch (Fast DDS profile) errors: $(cat "$log/launch")"
+echo "ok: ros2 launch with image, node_name, namespace, params_file, log_level (exit $rc)"
