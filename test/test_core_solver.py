@@ -205,7 +205,8 @@ def test_interleaved_output_equals_resizing_each_component_then_interleaving() -
     """The engine's output step (scale the vectors at the solved size, interleave, resize once) gives the
     field that resizing each component, rescaling and interleaving gives, and the same size is a plain
     interleave."""
-    from flow_node.core.pyramid import interleaved_flow, resize_flow
+    from flow_node.core.layout import interleaved_flow
+    from flow_node.core.pyramid import resize_flow
 
     rng = np.random.default_rng(4)
     v = rng.normal(size=(2, 30, 41)).astype(np.float32)

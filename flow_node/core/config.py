@@ -20,6 +20,7 @@ MODELS = ("l2_l2", "l2_tv", "l1_tv", "l1_tv_l2", "l1_tv_tv")
 TV_NORMS = ("isotropic", "anisotropic")
 GRADIENT_SCHEMES = ("forward", "central", "interpolated")
 BACKENDS = ("auto", "numpy", "numba")
+INITIALISATIONS = ("none", "dis_ultrafast", "dis_fast", "dis_medium", "orb", "akaze", "sift")
 
 
 def _f(default: Any, help: str, *, lo: float | None = None, hi: float | None = None,
@@ -65,6 +66,13 @@ class FlowConfig:
                             choices=(0, 3, 5))
     level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
                                    "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
+    initialisation: str = _f("none", "flow the refinement starts from, fused per pixel with the pyramid's own: "
+                             "none, OpenCV DIS (dis_ultrafast/dis_fast/dis_medium) or sparse descriptor "
+                             "matches densified edge-aware (orb/akaze/sift)", choices=INITIALISATIONS)
+    init_scale: float = _f(0.25, "with an initialisation, refinement restarts on the coarsest pyramid level "
+                           "with at least this fraction of the input resolution", lo=0.0, hi=1.0, lo_open=True)
+    temporal_init: int = _f(0, "in a stream (node, flow_bag eval): 1 = the previous pair's flow, carried "
+                            "forward, is an initialisation of the next pair", choices=(0, 1))
     backend: str = _f("auto", "solver backend: numba kernels, numpy reference, or auto (numba if importable)",
                       choices=BACKENDS)
     threads: int = _f(0, "threads for the numba backend (0 = all cores)", lo=0, hi=1024)

@@ -28,7 +28,7 @@ from ..core.api import FlowEstimator, to_grey
 from ..core.config import FlowConfig
 from ..core.errors import ConfigError
 from ..core.flowio import flow_to_color
-from ..core.pyramid import SolveStats
+from ..core.refine import SolveStats
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
 COLOR_MAX_FLOW_RANGE = (0.0, 10000.0)

@@ -1,0 +1,84 @@
+"""The engine's stages, composed: photometric preprocessing -> initialisation -> coarse-to-fine refinement
+with the paper's models -> fusion -> output layout (DESIGN.md, "Engine stages").
+
+Each stage is one function with one interface, in the module named for it:
+
+=====================  =========================================================  ==========================
+stage                  interface                                                  module
+=====================  =========================================================  ==========================
+photometric            (i0, i1, cfg) -> (i0, i1), float32 (H, W)                  :func:`photometric`
+initialisation         (i0, i1, cfg, initial, previous) -> [Candidate]            ``core/initialise.py``
+refinement             (pyramid, cfg, solver, state, first, last, stats) -> state ``core/refine.py``
+fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice)                         ``core/fusion.py``
+output layout          (2, h, w) -> (H, W, 2) at the input size                   ``core/layout.py``
+=====================  =========================================================  ==========================
+
+Without a candidate the refinement runs over the whole pyramid from zero flow (the paper's scheme). With
+candidates it runs from the coarsest level down to just above the *start level* -- the coarsest level with
+at least ``cfg.init_scale`` of the input resolution, where the initialisation is trusted -- and there the
+pyramid's estimate and every candidate (resampled to that level) are fused per pixel by data cost; the
+refinement then continues from the fused flow to the finest solved level.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .config import FlowConfig
+from .fusion import fuse
+from .initialise import Candidate, initialise
+from .layout import interleaved_flow
+from .models import MODEL_SPECS
+from .pyramid import Pyramid, make_pyramid, resize_flow, resize_state
+from .refine import SolveStats, finest_level, refine_levels
+from .solver import LevelSolver, PDState
+
+
+def photometric(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Photometric preprocessing of a pair (grey float32 (H, W) in [0, 1]): the frames as the solver
+    sees them. Today the identity."""
+    return i0, i1
+
+
+def start_level(pyr: Pyramid, cfg: FlowConfig) -> int:
+    """The level the refinement restarts from with an initialisation: the coarsest one with at least
+    ``cfg.init_scale`` of the input resolution, never finer than the finest solved level."""
+    return max(pyr.level_at_scale(cfg.init_scale), finest_level(pyr, cfg))
+
+
+def refine_from(pyr: Pyramid, cfg: FlowConfig, solve: LevelSolver, candidates: list[Candidate],
+                stats: SolveStats) -> PDState:
+    """Refinement and fusion: the whole pyramid from zero flow, or (with candidates) down to the start
+    level, fusion there, then on to the finest solved level. Returns the state on the finest solved level."""
+    finest = finest_level(pyr, cfg)
+    state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[-1])
+    if not candidates:
+        return refine_levels(pyr, cfg, solve, state, pyr.coarsest, finest, stats)
+    start = start_level(pyr, cfg)
+    if start < pyr.coarsest:
+        state = refine_levels(pyr, cfg, solve, state, pyr.coarsest, start + 1, stats)
+        state = resize_state(state, pyr.shapes[start])
+    flows = [state.v] + [resize_flow(c.flow, pyr.shapes[start]) for c in candidates]
+    state.v, choice = fuse(pyr.i0[start], pyr.i1[start], flows)
+    stats.init = "+".join(c.name for c in candidates)
+    stats.start_level = start
+    stats.init_share = float(np.mean(choice > 0))
+    return refine_levels(pyr, cfg, solve, state, start, finest, stats)
+
+
+def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,
+                  initial_flow: np.ndarray | None = None,
+                  previous_flow: np.ndarray | None = None) -> tuple[np.ndarray, SolveStats]:
+    """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px.
+
+    ``initial_flow`` (2, H, W) is a caller's warm start; ``previous_flow`` (2, H, W) the previous pair's
+    flow in a stream (used when ``cfg.temporal_init``). Both only enter through the fusion, so a wrong one
+    costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
+    upsampled to (H, W) by the output layout stage.
+    """
+    i0, i1 = photometric(i0, i1, cfg)
+    candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
+    pyr = make_pyramid(i0, i1, cfg)
+    stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
+    state = refine_from(pyr, cfg, solve, candidates, stats)
+    return interleaved_flow(state.v, pyr.shapes[0]), stats

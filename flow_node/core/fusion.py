@@ -1,0 +1,86 @@
+"""The fusion and confidence stage: per-pixel choice between flow candidates by their data cost, and a
+per-pixel confidence of a flow in [0, 1].
+
+Images are float32 (h, w) grey; flows are channel-first (2, h, w) in pixels of that grid. The data cost of
+a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the brightness and gradient
+mismatch after warping frame 1 back along the flow; where x + flow(x) leaves the image the cost is
+infinite. Fusion takes, per pixel, the candidate of least cost (the first candidate -- the pyramid's own
+estimate -- wins ties and everything it is not clearly beaten on), so an initialisation that is wrong
+somewhere is not used there: it cannot make a pair much worse than the pyramid alone.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .operators import warp, warp_maps
+
+FUSION_WINDOW = 7  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
+FUSION_MARGIN = 0.9  # a candidate must cost < 0.9x the pyramid's flow to be taken
+CONFIDENCE_WINDOW = 5
+CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
+
+
+def _box(img: np.ndarray, window: int) -> np.ndarray:
+    return cv2.boxFilter(img, -1, (window, window), borderType=cv2.BORDER_REFLECT)
+
+
+def _grad(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Central differences (Sobel / 8), px^-1 in intensity units: (d/dx, d/dy), each (h, w)."""
+    return (cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE),
+            cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE))
+
+
+def warp_residual(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel mismatch |I1(x + f) - I0(x)| + |grad I1(x + f) - grad I0(x)|_1 (h, w) float32, and the
+    bool mask of pixels whose x + f stays inside the image. The gradient part keeps the cost meaningful
+    under a brightness change between the frames."""
+    map_x, map_y, inside = warp_maps(flow)
+    i1w = warp(i1, map_x, map_y)
+    gx0, gy0 = _grad(i0)
+    gx1, gy1 = _grad(i1w)
+    r = np.abs(i1w - i0) + np.abs(gx1 - gx0) + np.abs(gy1 - gy0)
+    return r.astype(np.float32, copy=False), inside
+
+
+def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int = FUSION_WINDOW) -> np.ndarray:
+    """Local mean of :func:`warp_residual` over ``window`` x ``window`` (h, w); inf where x + f leaves
+    the image."""
+    r, inside = warp_residual(i0, i1, flow)
+    cost = _box(r, window)
+    cost[~inside] = np.inf
+    return cost
+
+
+def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel fusion of flow candidates (each (2, h, w)); candidates[0] is the reference (the pyramid's
+    own flow), taken wherever no other candidate costs less than FUSION_MARGIN times it. Returns the fused
+    flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
+    costs = np.stack([data_cost(i0, i1, c) for c in candidates])
+    costs[0] *= FUSION_MARGIN
+    choice = np.argmin(costs, axis=0)
+    # where every candidate leaves the image argmin picks 0 (all inf): the reference, as wanted
+    stack = np.stack(candidates)
+    fused = np.take_along_axis(stack, choice[None, None], axis=0)[0]
+    return fused.astype(np.float32, copy=False), choice
+
+
+def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
+    """Confidence of ``flow`` (H, W, 2) between frames i0, i1 (H, W): float32 (H, W) in [0, 1].
+
+    The local data residual (:func:`warp_residual`, a CONFIDENCE_WINDOW box) divided by the local image
+    gradient magnitude is an endpoint-error estimate e in px (a residual of r where the image changes by g
+    per px is about r / g px of misalignment); confidence = 1 / (1 + (e / CONFIDENCE_SCALE_PX)^2), and 0
+    where x + f leaves the image. Occluded pixels (their content is not in frame 1) and wrong flow have a
+    large residual, hence low confidence; flat regions, where no flow is observable, have little gradient,
+    hence low confidence too.
+    """
+    f = np.moveaxis(flow, -1, 0)
+    r, inside = warp_residual(i0, i1, f)
+    gx, gy = _grad(i0)
+    g = _box(np.abs(gx) + np.abs(gy), CONFIDENCE_WINDOW)
+    err = _box(r, CONFIDENCE_WINDOW) / (g + 1e-3)
+    conf = 1.0 / (1.0 + (err / CONFIDENCE_SCALE_PX) ** 2)
+    conf[~inside] = 0.0
+    return conf.astype(np.float32, copy=False)

@@ -1,0 +1,137 @@
+"""The initialisation stage: flow candidates the variational refinement starts from.
+
+Sources (``FlowConfig.initialisation``; the temporal one is added by a stream, ``FlowConfig.temporal_init``):
+
+* ``none`` -- the pyramid alone (the paper's scheme);
+* ``dis_ultrafast`` / ``dis_fast`` / ``dis_medium`` -- OpenCV's DIS optical flow (Kroeger et al. 2016,
+  ``cv2.DISOpticalFlow``) with that preset: dense inverse search over patches on its own pyramid;
+* ``orb`` / ``akaze`` / ``sift`` -- sparse descriptor matches (OpenCV detectors, mutual nearest
+  neighbours with Lowe's ratio test, then a local-consistency filter), densified edge-aware
+  (:mod:`flow_node.core.densify`, the idea of EpicFlow);
+* a caller's ``initial_flow`` (API) and the previous pair's flow carried forward (``previous``, a stream).
+
+Every candidate is a dense flow (2, H, W) float32 at the input resolution in px. The engine does not trust
+any of them blindly: it fuses them per pixel with the pyramid's own estimate (:mod:`flow_node.core.fusion`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .config import FlowConfig
+from .densify import densify, forward_propagate, splat_points
+
+DIS_PRESETS = {"dis_ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, "dis_fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+               "dis_medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}
+MATCHERS = ("orb", "akaze", "sift")
+RATIO = 0.8  # Lowe's ratio test
+MAX_FEATURES = 3000
+CONSISTENCY_NEIGHBOURS = 8
+CONSISTENCY_PX = 4.0  # a match may deviate this much (plus 20 % of the flow) from its neighbours' median
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One initialisation: its source name and dense flow (2, H, W) float32, px at input resolution."""
+
+    name: str
+    flow: np.ndarray
+
+
+def to_u8(img: np.ndarray) -> np.ndarray:
+    """Grey float in [0, 1] (H, W) -> uint8 (rounded, clipped), the input OpenCV's matchers need."""
+    return np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
+
+
+def dis_flow(i0: np.ndarray, i1: np.ndarray, preset: str) -> np.ndarray:
+    """DIS optical flow (OpenCV, ``preset`` a key of DIS_PRESETS) from i0 to i1: (2, H, W) float32."""
+    algo = cv2.DISOpticalFlow_create(DIS_PRESETS[preset])
+    flow = algo.calc(to_u8(i0), to_u8(i1), None)
+    return np.ascontiguousarray(np.moveaxis(flow, -1, 0), dtype=np.float32)
+
+
+def _detector(kind: str) -> cv2.Feature2D:
+    if kind == "orb":
+        return cv2.ORB_create(nfeatures=MAX_FEATURES)
+    if kind == "akaze":
+        return cv2.AKAZE_create(threshold=1e-4)
+    return cv2.SIFT_create(nfeatures=MAX_FEATURES)
+
+
+def sparse_matches(i0: np.ndarray, i1: np.ndarray, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    """Descriptor matches from i0 to i1: points (N, 2) in i0 and their displacements (N, 2), px (x, y).
+
+    Mutual nearest neighbours that pass the ratio test, then :func:`consistent` (N may be 0)."""
+    det = _detector(kind)
+    a, b = to_u8(i0), to_u8(i1)
+    k0, d0 = det.detectAndCompute(a, None)
+    k1, d1 = det.detectAndCompute(b, None)
+    empty = np.zeros((0, 2), np.float32)
+    if d0 is None or d1 is None or len(k0) < 2 or len(k1) < 2:
+        return empty, empty
+    norm = cv2.NORM_L2 if kind == "sift" else cv2.NORM_HAMMING
+    matcher = cv2.BFMatcher(norm)
+    fwd = matcher.knnMatch(d0, d1, k=2)
+    back = {m[0].queryIdx: m[0].trainIdx for m in matcher.knnMatch(d1, d0, k=1) if m}
+    keep = [m[0] for m in fwd if len(m) == 2 and m[0].distance < RATIO * m[1].distance
+            and back.get(m[0].trainIdx) == m[0].queryIdx]
+    if not keep:
+        return empty, empty
+    p0 = np.array([k0[m.queryIdx].pt for m in keep], np.float32)
+    p1 = np.array([k1[m.trainIdx].pt for m in keep], np.float32)
+    d = p1 - p0
+    ok = consistent(p0, d)
+    return p0[ok], d[ok]
+
+
+def consistent(points: np.ndarray, flows: np.ndarray) -> np.ndarray:
+    """Bool (N,) mask of matches that agree with the median flow of their CONSISTENCY_NEIGHBOURS nearest
+    matches (within CONSISTENCY_PX + 20 % of that median's length): isolated wrong matches go."""
+    n = len(points)
+    if n <= CONSISTENCY_NEIGHBOURS:
+        return np.ones(n, bool)
+    d2 = np.sum((points[:, None, :] - points[None, :, :]) ** 2, axis=-1)
+    np.fill_diagonal(d2, np.inf)
+    nn = np.argpartition(d2, CONSISTENCY_NEIGHBOURS, axis=1)[:, :CONSISTENCY_NEIGHBOURS]
+    med = np.median(flows[nn], axis=1)
+    dev = np.linalg.norm(flows - med, axis=1)
+    return dev <= CONSISTENCY_PX + 0.2 * np.linalg.norm(med, axis=1)
+
+
+def matches_flow(i0: np.ndarray, i1: np.ndarray, kind: str) -> np.ndarray | None:
+    """Sparse ``kind`` matches densified edge-aware: (2, H, W) float32, or None when nothing matched."""
+    points, flows = sparse_matches(i0, i1, kind)
+    if len(points) < 3:
+        return None
+    values, weight = splat_points(i0.shape, points, flows)
+    return densify(i0, values, weight)
+
+
+def propagated_flow(i0: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """The previous pair's flow (2, H, W) on the grid of its first frame, carried forward to the grid of
+    its second frame (= this pair's i0) and densified edge-aware over the holes: (2, H, W) float32."""
+    values, weight = forward_propagate(previous)
+    return densify(i0, values, weight)
+
+
+def initialise(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, initial_flow: np.ndarray | None = None,
+               previous_flow: np.ndarray | None = None) -> list[Candidate]:
+    """Every candidate for this pair: the caller's ``initial_flow`` (2, H, W), the carried-forward
+    ``previous_flow`` (2, H, W, on the previous pair's first frame; used only with ``cfg.temporal_init``)
+    and the source ``cfg.initialisation`` computes. Empty: the pyramid alone."""
+    out = []
+    if initial_flow is not None:
+        out.append(Candidate("initial_flow", initial_flow.astype(np.float32, copy=False)))
+    if previous_flow is not None and cfg.temporal_init:
+        out.append(Candidate("previous", propagated_flow(i0, previous_flow)))
+    source = cfg.initialisation
+    if source in DIS_PRESETS:
+        out.append(Candidate(source, dis_flow(i0, i1, source)))
+    elif source in MATCHERS:
+        flow = matches_flow(i0, i1, source)
+        if flow is not None:
+            out.append(Candidate(source, flow))
+    return out

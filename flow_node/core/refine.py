@@ -1,0 +1,96 @@
+"""The refinement stage: coarse-to-fine warping with the paper's models (paper, "Large Displacements").
+
+A generic driver over a :class:`~flow_node.core.pyramid.Pyramid` with the per-warp solver passed in (a
+:data:`~flow_node.core.solver.LevelSolver`: numpy reference or numba kernels). :func:`refine_levels` walks
+a range of levels, coarse to fine, from a given state, so the engine can start it anywhere: on the coarsest
+level from zero flow, or on the level where an initialisation is trusted (:mod:`flow_node.core.engine`).
+Flow is channel-first (2, h, w) in pixels of its level.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .bregman import bregman
+from .config import FlowConfig
+from .models import MODEL_SPECS
+from .operators import image_gradient, linearise
+from .pyramid import Pyramid, resize_state
+from .solver import LevelSolver, PDState, Problem, SolveParams
+
+
+@dataclass
+class SolveStats:
+    """What a solve did: iterations per level (finest first) and the level shapes; the initialisation used
+    (``init``: the candidates' names, '' for none), the level the refinement restarted from with it
+    (``start_level``, -1 without one) and the share of pixels fusion took from it (``init_share``)."""
+
+    shapes: list[tuple[int, int]] = field(default_factory=list)
+    iterations: list[int] = field(default_factory=list)
+    bregman_iterations: int = 0
+    init: str = ""
+    start_level: int = -1
+    init_share: float = 0.0
+
+    @property
+    def total_iterations(self) -> int:
+        return sum(self.iterations)
+
+
+def median_filter(v: np.ndarray, size: int) -> np.ndarray:
+    """Median of each flow component over size x size windows (OpenCV; size 3 or 5)."""
+    out = np.empty_like(v)
+    for ch, dst in zip(v, out, strict=True):
+        cv2.medianBlur(np.ascontiguousarray(ch), size, dst=dst)
+    return out
+
+
+def level_params(cfg: FlowConfig, level: int) -> SolveParams:
+    """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``."""
+    return SolveParams(MODEL_SPECS[cfg.model], cfg.alpha * cfg.level_alpha_factor**level, cfg.alpha1,
+                       cfg.tv_norm, cfg.iterations, cfg.tolerance)
+
+
+def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, solve: LevelSolver, state: PDState,
+                bregman_steps: int = 0) -> tuple[int, int]:
+    """``cfg.warps`` times: linearise around the current flow (warp of frame 1 and its gradient, outside
+    pixels masked), run ``solve`` and median-filter the flow; then ``bregman_steps`` Bregman steps on the
+    last linearisation. ``state`` lives on ``level`` and is updated in place. Returns (iterations, Bregman
+    iterations)."""
+    params = level_params(cfg, level)
+    i0, i1 = pyr.i0[level], pyr.i1[level]
+    g1 = image_gradient(i1, cfg.gradient_scheme)
+    g0 = image_gradient(i0, cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
+    iterations = 0
+    for _ in range(cfg.warps):
+        a, c = linearise(i0, i1, g0, g1, state.v, cfg.gradient_scheme)
+        iterations += solve(Problem(a, c), state, params)
+        if cfg.median_filter:
+            state.v = median_filter(state.v, cfg.median_filter)
+    extra = bregman(Problem(a, c), state, params, solve, bregman_steps) if bregman_steps else 0
+    return iterations, extra
+
+
+def refine_levels(pyr: Pyramid, cfg: FlowConfig, solve: LevelSolver, state: PDState, first: int, last: int,
+                  stats: SolveStats) -> PDState:
+    """Solve levels ``first`` down to ``last`` (first >= last), carrying primal and dual variables to each
+    finer level (flow vectors rescaled). ``state`` may live on any level; it is resampled to ``first``.
+    Bregman steps (``cfg.bregman_iterations``) run on ``last`` when it is the finest solved level
+    (:func:`finest_level`). Iterations are added to ``stats``; returns the state on ``last``."""
+    finest = finest_level(pyr, cfg)
+    for lvl in range(first, last - 1, -1):
+        if state.v.shape[1:] != pyr.shapes[lvl]:
+            state = resize_state(state, pyr.shapes[lvl])
+        steps = cfg.bregman_iterations if lvl == finest else 0
+        its, extra = solve_level(pyr, lvl, cfg, solve, state, steps)
+        stats.iterations[lvl] += its
+        stats.bregman_iterations += extra
+    return state
+
+
+def finest_level(pyr: Pyramid, cfg: FlowConfig) -> int:
+    """The finest level solved: ``cfg.finest_level`` clamped to the coarsest level the pyramid has."""
+    return min(cfg.finest_level, pyr.coarsest)
