@@ -17,7 +17,9 @@ Without a candidate the refinement runs over the whole pyramid from zero flow (t
 candidates it runs from the coarsest level down to just above the *start level* -- the coarsest level with
 at least ``cfg.init_scale`` of the input resolution, where the initialisation is trusted -- and there the
 pyramid's estimate and every candidate (resampled to that level) are fused per pixel by data cost; the
-refinement then continues from the fused flow to the finest solved level.
+refinement then continues from the fused flow to the finest solved level, where its result and the
+candidates are fused once more (an initialisation the refinement drifted away from wrongly is recovered
+there, one it improved on is not taken back).
 """
 
 from __future__ import annotations
@@ -58,12 +60,21 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, solve: LevelSolver, candidates: l
     if start < pyr.coarsest:
         state = refine_levels(pyr, cfg, solve, state, pyr.coarsest, start + 1, stats)
         state = resize_state(state, pyr.shapes[start])
-    flows = [state.v] + [resize_flow(c.flow, pyr.shapes[start]) for c in candidates]
-    state.v, choice = fuse(pyr.i0[start], pyr.i1[start], flows)
+    state.v, _ = fuse_on_level(pyr, start, state.v, candidates)
+    state = refine_levels(pyr, cfg, solve, state, start, finest, stats)
+    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates)
     stats.init = "+".join(c.name for c in candidates)
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
-    return refine_levels(pyr, cfg, solve, state, start, finest, stats)
+    return state
+
+
+def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray,
+                  candidates: list[Candidate]) -> tuple[np.ndarray, np.ndarray]:
+    """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it; returns
+    the fused flow and the per-pixel choice (0 = ``flow``)."""
+    flows = [flow] + [resize_flow(c.flow, pyr.shapes[level]) for c in candidates]
+    return fuse(pyr.i0[level], pyr.i1[level], flows)
 
 
 def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,

@@ -5,7 +5,7 @@ Images are float32 (h, w) grey; flows are channel-first (2, h, w) in pixels of t
 a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the brightness and gradient
 mismatch after warping frame 1 back along the flow; where x + flow(x) leaves the image the cost is
 infinite. Fusion takes, per pixel, the candidate of least cost (the first candidate -- the pyramid's own
-estimate -- wins ties and everything it is not clearly beaten on), so an initialisation that is wrong
+estimate -- wins ties), so an initialisation that is wrong
 somewhere is not used there: it cannot make a pair much worse than the pyramid alone.
 """
 
@@ -16,8 +16,8 @@ import numpy as np
 
 from .operators import warp, warp_maps
 
-FUSION_WINDOW = 7  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
-FUSION_MARGIN = 0.9  # a candidate must cost < 0.9x the pyramid's flow to be taken
+FUSION_WINDOW = 15  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
+FUSION_MARGIN = 1.0  # a candidate must cost less than the pyramid's flow times this to be taken
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
 

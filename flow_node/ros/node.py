@@ -144,6 +144,7 @@ class FlowNode(Node):
         self._pub_flow = self.create_publisher(Image, "~/flow", 1, qos_overriding_options=overrides)
         self._pub_mag = self.create_publisher(Image, "~/magnitude", 1, qos_overriding_options=overrides)
         self._pub_color = self.create_publisher(Image, "~/flow_color", 1, qos_overriding_options=overrides)
+        self._pub_conf = self.create_publisher(Image, "~/confidence", 1, qos_overriding_options=overrides)
         self._pub_diag = self.create_publisher(diagnostics.DiagnosticArray, "/diagnostics", 10)
         qos = QoSProfile(**{k: getattr(qos_profile_sensor_data, k) for k in ("reliability", "durability",
                                                                            "history")}, depth=1)
@@ -279,13 +280,14 @@ class FlowNode(Node):
         self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, publish_s, out)
 
     def _publish(self, header: Header, out: FlowOutput) -> float:
-        """Flow, magnitude and colour with the new frame's header; each is built and published only while
-        its topic has subscribers (the colour image is not even computed otherwise). Returns the seconds
+        """Flow, magnitude, colour and confidence with the new frame's header; each is built and published only
+        while its topic has subscribers (colour and confidence are not even computed otherwise). Returns the seconds
         spent inside rclpy's ``publish`` (C conversion, serialisation and the middleware's send)."""
         publish_s = 0.0
         for pub, image, encoding in ((self._pub_flow, lambda: out.flow, "32FC2"),
                                      (self._pub_mag, lambda: out.magnitude, "32FC1"),
-                                     (self._pub_color, out.color, "bgr8")):
+                                     (self._pub_color, out.color, "bgr8"),
+                                     (self._pub_conf, out.confidence, "32FC1")):
             if pub.get_subscription_count() > 0:
                 msg = image_msg(header, array_to_image_fields(image(), encoding))
                 t0 = time.perf_counter()
