@@ -20,7 +20,7 @@ MODELS = ("l2_l2", "l2_tv", "l1_tv", "l1_tv_l2", "l1_tv_tv")
 TV_NORMS = ("isotropic", "anisotropic")
 GRADIENT_SCHEMES = ("forward", "central", "interpolated")
 BACKENDS = ("auto", "numpy", "numba")
-INITIALISATIONS = ("none", "dis_ultrafast", "dis_fast", "dis_medium", "orb", "akaze", "sift")
+INITIALISATIONS = ("none", "dis_ultrafast", "dis_fast", "dis_medium", "orb", "sift")
 
 
 def _f(default: Any, help: str, *, lo: float | None = None, hi: float | None = None,
@@ -68,7 +68,7 @@ class FlowConfig:
                                    "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
     initialisation: str = _f("none", "flow the refinement starts from, fused per pixel with the pyramid's own: "
                              "none, OpenCV DIS (dis_ultrafast/dis_fast/dis_medium) or sparse descriptor "
-                             "matches densified edge-aware (orb/akaze/sift)", choices=INITIALISATIONS)
+                             "matches densified edge-aware (orb/sift)", choices=INITIALISATIONS)
     init_scale: float = _f(0.25, "with an initialisation, refinement restarts on the coarsest pyramid level "
                            "with at least this fraction of the input resolution", lo=0.0, hi=1.0, lo_open=True)
     temporal_init: int = _f(0, "in a stream (node, flow_bag eval): 1 = the previous pair's flow, carried "

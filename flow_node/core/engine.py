@@ -60,12 +60,13 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, solve: LevelSolver, candidates: l
     if start < pyr.coarsest:
         state = refine_levels(pyr, cfg, solve, state, pyr.coarsest, start + 1, stats)
         state = resize_state(state, pyr.shapes[start])
-    state.v, _ = fuse_on_level(pyr, start, state.v, candidates)
-    state = refine_levels(pyr, cfg, solve, state, start, finest, stats)
-    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates)
+    state.v, choice = fuse_on_level(pyr, start, state.v, candidates)
     stats.init = "+".join(c.name for c in candidates)
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
+    state = refine_levels(pyr, cfg, solve, state, start, finest, stats)
+    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates)
+    stats.final_init_share = float(np.mean(choice > 0))
     return state
 
 

@@ -3,10 +3,11 @@ per-pixel confidence of a flow in [0, 1].
 
 Images are float32 (h, w) grey; flows are channel-first (2, h, w) in pixels of that grid. The data cost of
 a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the brightness and gradient
-mismatch after warping frame 1 back along the flow; where x + flow(x) leaves the image the cost is
-infinite. Fusion takes, per pixel, the candidate of least cost (the first candidate -- the pyramid's own
-estimate -- wins ties), so an initialisation that is wrong
-somewhere is not used there: it cannot make a pair much worse than the pyramid alone.
+mismatch after warping frame 1 back along the flow, over the pixels whose x + flow(x) stays inside the
+image. Fusion takes, per pixel, the candidate of least cost (the first candidate -- the pyramid's own
+estimate -- wins ties; where no candidate has data, the nearest decided pixel's choice), so an
+initialisation that is wrong somewhere is not used there: it cannot make a pair much worse than the
+pyramid alone.
 """
 
 from __future__ import annotations
@@ -45,11 +46,14 @@ def warp_residual(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> tuple[np.
 
 
 def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int = FUSION_WINDOW) -> np.ndarray:
-    """Local mean of :func:`warp_residual` over ``window`` x ``window`` (h, w); inf where x + f leaves
-    the image."""
+    """Local mean of :func:`warp_residual` over the pixels of a ``window`` x ``window`` box whose x + f
+    stays inside the image (h, w); inf where (almost) none does. Leaving the image is no evidence against a
+    flow (a camera moving forward carries the border out), so such pixels are judged by their neighbours."""
     r, inside = warp_residual(i0, i1, flow)
-    cost = _box(r, window)
-    cost[~inside] = np.inf
+    m = inside.astype(np.float32)
+    support = _box(m, window)
+    cost = _box(r * m, window) / np.maximum(support, 1e-6)
+    cost[support < 0.05] = np.inf
     return cost
 
 
@@ -60,10 +64,23 @@ def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray]) -> tuple[
     costs = np.stack([data_cost(i0, i1, c) for c in candidates])
     costs[0] *= FUSION_MARGIN
     choice = np.argmin(costs, axis=0)
-    # where every candidate leaves the image argmin picks 0 (all inf): the reference, as wanted
+    choice = fill_undecided(choice, ~np.isfinite(costs).any(axis=0))
     stack = np.stack(candidates)
     fused = np.take_along_axis(stack, choice[None, None], axis=0)[0]
     return fused.astype(np.float32, copy=False), choice
+
+
+def fill_undecided(choice: np.ndarray, undecided: np.ndarray) -> np.ndarray:
+    """Where every candidate leaves the image (``undecided`` (h, w) bool) no data decides: take the choice
+    (h, w) int of the nearest decided pixel, so the flow there continues its neighbours' instead of
+    defaulting to the reference (which the regulariser and the median filter would spread inwards)."""
+    if not undecided.any() or undecided.all():
+        return choice
+    _, labels = cv2.distanceTransformWithLabels(undecided.astype(np.uint8), cv2.DIST_L2, 5,
+                                                labelType=cv2.DIST_LABEL_PIXEL)
+    lut = np.zeros(labels.max() + 1, choice.dtype)
+    lut[labels[~undecided]] = choice[~undecided]
+    return lut[labels]
 
 
 def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:

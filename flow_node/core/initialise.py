@@ -5,7 +5,7 @@ Sources (``FlowConfig.initialisation``; the temporal one is added by a stream, `
 * ``none`` -- the pyramid alone (the paper's scheme);
 * ``dis_ultrafast`` / ``dis_fast`` / ``dis_medium`` -- OpenCV's DIS optical flow (Kroeger et al. 2016,
   ``cv2.DISOpticalFlow``) with that preset: dense inverse search over patches on its own pyramid;
-* ``orb`` / ``akaze`` / ``sift`` -- sparse descriptor matches (OpenCV detectors, mutual nearest
+* ``orb`` / ``sift`` -- sparse descriptor matches (OpenCV detectors, mutual nearest
   neighbours with Lowe's ratio test, then a local-consistency filter), densified edge-aware
   (:mod:`flow_node.core.densify`, the idea of EpicFlow);
 * a caller's ``initial_flow`` (API) and the previous pair's flow carried forward (``previous``, a stream).
@@ -26,7 +26,7 @@ from .densify import densify, forward_propagate, splat_points
 
 DIS_PRESETS = {"dis_ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, "dis_fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
                "dis_medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}
-MATCHERS = ("orb", "akaze", "sift")
+MATCHERS = ("orb", "sift")  # AKAZE is not in OpenCV 5's main modules (opencv-python-headless)
 RATIO = 0.8  # Lowe's ratio test
 MAX_FEATURES = 3000
 CONSISTENCY_NEIGHBOURS = 8
@@ -56,8 +56,6 @@ def dis_flow(i0: np.ndarray, i1: np.ndarray, preset: str) -> np.ndarray:
 def _detector(kind: str) -> cv2.Feature2D:
     if kind == "orb":
         return cv2.ORB_create(nfeatures=MAX_FEATURES)
-    if kind == "akaze":
-        return cv2.AKAZE_create(threshold=1e-4)
     return cv2.SIFT_create(nfeatures=MAX_FEATURES)
 
 

@@ -25,8 +25,10 @@ from .solver import LevelSolver, PDState, Problem, SolveParams
 @dataclass
 class SolveStats:
     """What a solve did: iterations per level (finest first) and the level shapes; the initialisation used
-    (``init``: the candidates' names, '' for none), the level the refinement restarted from with it
-    (``start_level``, -1 without one) and the share of pixels fusion took from it (``init_share``)."""
+    (``init``: the candidates' names joined by '+', '' for none), the level the refinement restarted from
+    with it (``start_level``, -1 without one), the share of pixels the fusion there took from a candidate
+    (``init_share``) and the share the fusion after the finest level took (``final_init_share``: where
+    the refinement did not improve on a candidate)."""
 
     shapes: list[tuple[int, int]] = field(default_factory=list)
     iterations: list[int] = field(default_factory=list)
@@ -34,6 +36,7 @@ class SolveStats:
     init: str = ""
     start_level: int = -1
     init_share: float = 0.0
+    final_init_share: float = 0.0
 
     @property
     def total_iterations(self) -> int:
