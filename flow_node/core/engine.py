@@ -24,6 +24,7 @@ there, one it improved on is not taken back).
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from .config import FlowConfig
@@ -74,8 +75,12 @@ def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray,
                   candidates: list[Candidate]) -> tuple[np.ndarray, np.ndarray]:
     """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it; returns
     the fused flow and the per-pixel choice (0 = ``flow``)."""
-    flows = [flow] + [resize_flow(c.flow, pyr.shapes[level]) for c in candidates]
-    return fuse(pyr.i0[level], pyr.i1[level], flows)
+    h, w = pyr.shapes[level]
+    flows = [flow] + [resize_flow(c.flow, (h, w)) for c in candidates]
+    trusted = [None] + [None if c.consistent is None else
+                        cv2.resize(c.consistent.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
+                        for c in candidates]
+    return fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
 
 
 def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,

@@ -17,8 +17,9 @@ import numpy as np
 
 from .operators import warp, warp_maps
 
-FUSION_WINDOW = 15  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
-FUSION_MARGIN = 1.0  # a candidate must cost less than the pyramid's flow times this to be taken
+FUSION_WINDOW = 31  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
+FUSION_MARGIN = 1.3  # a candidate must cost less than the pyramid's flow times this to be taken
+CONSISTENT_COST = 0.7  # cost factor of a forward-backward consistent candidate pixel
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
 
@@ -45,10 +46,11 @@ def warp_residual(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> tuple[np.
     return r.astype(np.float32, copy=False), inside
 
 
-def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int = FUSION_WINDOW) -> np.ndarray:
+def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | None = None) -> np.ndarray:
     """Local mean of :func:`warp_residual` over the pixels of a ``window`` x ``window`` box whose x + f
     stays inside the image (h, w); inf where (almost) none does. Leaving the image is no evidence against a
     flow (a camera moving forward carries the border out), so such pixels are judged by their neighbours."""
+    window = FUSION_WINDOW if window is None else window
     r, inside = warp_residual(i0, i1, flow)
     m = inside.astype(np.float32)
     support = _box(m, window)
@@ -57,12 +59,19 @@ def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int = FU
     return cost
 
 
-def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
+         consistent: list[np.ndarray | None] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel fusion of flow candidates (each (2, h, w)); candidates[0] is the reference (the pyramid's
-    own flow), taken wherever no other candidate costs less than FUSION_MARGIN times it. Returns the fused
+    own flow), taken wherever no other candidate costs less than FUSION_MARGIN times it. ``consistent``
+    (per candidate, (h, w) bool or None) marks pixels where a forward-backward check confirmed a candidate:
+    its cost counts CONSISTENT_COST times there (in flat or reflective areas a wrong flow can match the
+    grey values as well as the right one; a consistency check is independent evidence). Returns the fused
     flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
     costs = np.stack([data_cost(i0, i1, c) for c in candidates])
     costs[0] *= FUSION_MARGIN
+    for k, ok in enumerate(consistent or []):
+        if ok is not None:
+            costs[k][ok] *= CONSISTENT_COST
     choice = np.argmin(costs, axis=0)
     choice = fill_undecided(choice, ~np.isfinite(costs).any(axis=0))
     stack = np.stack(candidates)

@@ -33,12 +33,32 @@ CONSISTENCY_NEIGHBOURS = 8
 CONSISTENCY_PX = 4.0  # a match may deviate this much (plus 20 % of the flow) from its neighbours' median
 
 
+FB_TOLERANCE_PX = 1.0  # forward-backward mismatch (plus 5 % of the flow) below which a DIS vector is trusted
+
+
 @dataclass(frozen=True)
 class Candidate:
-    """One initialisation: its source name and dense flow (2, H, W) float32, px at input resolution."""
+    """One initialisation: its source name, dense flow (2, H, W) float32 (px at input resolution) and
+    optionally ``consistent`` (H, W) bool: where a forward-backward check confirmed it (fusion then trusts
+    it more, :data:`flow_node.core.fusion.CONSISTENT_COST`)."""
 
     name: str
     flow: np.ndarray
+    consistent: np.ndarray | None = None
+
+
+def forward_backward_consistent(forward: np.ndarray, backward: np.ndarray) -> np.ndarray:
+    """(H, W) bool: forward (2, H, W) i0 -> i1 and backward (2, H, W) i1 -> i0 flows agree at x, i.e.
+    |f(x) + b(x + f(x))| < FB_TOLERANCE_PX + 5 % of |f(x)|, and x + f(x) stays inside the image. Occluded
+    pixels (no correspondence) and wrong vectors fail it."""
+    h, w = forward.shape[1:]
+    xs = np.arange(w, dtype=np.float32)[None, :] + forward[0]
+    ys = np.arange(h, dtype=np.float32)[:, None] + forward[1]
+    back = [cv2.remap(np.ascontiguousarray(b), xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            for b in backward]
+    err = np.hypot(forward[0] + back[0], forward[1] + back[1])
+    inside = (xs >= 0) & (xs <= w - 1) & (ys >= 0) & (ys <= h - 1)
+    return inside & (err < FB_TOLERANCE_PX + 0.05 * np.hypot(forward[0], forward[1]))
 
 
 def to_u8(img: np.ndarray) -> np.ndarray:
@@ -127,7 +147,8 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, initial_flow: np
         out.append(Candidate("previous", propagated_flow(i0, previous_flow)))
     source = cfg.initialisation
     if source in DIS_PRESETS:
-        out.append(Candidate(source, dis_flow(i0, i1, source)))
+        fwd = dis_flow(i0, i1, source)
+        out.append(Candidate(source, fwd, forward_backward_consistent(fwd, dis_flow(i1, i0, source))))
     elif source in MATCHERS:
         flow = matches_flow(i0, i1, source)
         if flow is not None:
