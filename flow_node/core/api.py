@@ -11,6 +11,7 @@ import numpy as np
 from .backends import select_backend
 from .config import FlowConfig
 from .errors import InputError
+from .photometric import preprocess, reliability
 from .pyramid import SolveStats, coarse_to_fine
 
 log = logging.getLogger("flow_node")
@@ -54,12 +55,16 @@ def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") ->
 
 @dataclass
 class FlowResult:
-    """Flow (H, W, 2) float32 px/frame plus what the solve did."""
+    """Flow (H, W, 2) float32 px/frame plus what the solve did.
+
+    ``unexplained``: the fraction of (sampled) pixels whose photometric residual after the solve is large
+    (photometric.reliability): ~0.0-0.1 for a flow that matches the frames, near 1 for garbage."""
 
     flow: np.ndarray
     stats: SolveStats
     seconds: float
     backend: str
+    unexplained: float = 0.0
 
 
 class FlowEstimator:
@@ -70,7 +75,12 @@ class FlowEstimator:
 
     def __init__(self, config: FlowConfig | None = None) -> None:
         self._config = config if config is not None else FlowConfig()
-        self.backend, self._solve = select_backend(self._config.backend, self._config.threads)
+        self._backend = select_backend(self._config.backend, self._config.threads)
+
+    @property
+    def backend(self) -> str:
+        """Name of the resolved backend (``numpy`` or ``numba``)."""
+        return self._backend.name
 
     @property
     def config(self) -> FlowConfig:
@@ -79,7 +89,7 @@ class FlowEstimator:
     @config.setter
     def config(self, cfg: FlowConfig) -> None:
         if (cfg.backend, cfg.threads) != (self._config.backend, self._config.threads):
-            self.backend, self._solve = select_backend(cfg.backend, cfg.threads)
+            self._backend = select_backend(cfg.backend, cfg.threads)
         self._config = cfg
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
@@ -110,9 +120,11 @@ class FlowEstimator:
                 raise InputError(f"initial_flow: expected shape {i0.shape + (2,)}, got {initial_flow.shape}")
             init = np.moveaxis(initial_flow, -1, 0)  # coarse_to_fine casts it (once) as it resizes it
         start = time.perf_counter()
-        flow, stats = coarse_to_fine(i0, i1, self._config, self._solve, init)
-        seconds = time.perf_counter() - start  # the output layout included: it is part of the engine's work
-        return FlowResult(flow, stats, seconds, self.backend)
+        p0, p1 = preprocess(i0, i1, self._config.photometric)
+        flow, stats = coarse_to_fine(p0, p1, self._config, self._backend.solve, init, self._backend.warp)
+        unexplained = reliability(p0, p1, flow, self._backend.warp)
+        seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained)
 
 
 def estimate_flow(frame0: np.ndarray, frame1: np.ndarray, config: FlowConfig | None = None, *,

@@ -15,6 +15,7 @@ from .config import FlowConfig
 from .models import MODEL_SPECS, residual
 from .operators import div, image_gradient, linearise
 from .solver import LevelSolver, PDState, Problem, SolveParams
+from .warping import Warp, warp
 
 
 @dataclass
@@ -105,11 +106,12 @@ def median_filter(v: np.ndarray, size: int) -> np.ndarray:
 
 
 def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,
-                   initial_flow: np.ndarray | None = None) -> tuple[np.ndarray, SolveStats]:
+                   initial_flow: np.ndarray | None = None, sample: Warp = warp) -> tuple[np.ndarray, SolveStats]:
     """Estimate flow from i0 to i1 with warping on a Gaussian pyramid: float32 (H, W, 2), u then v, px.
 
-    On each level, coarsest first: ``cfg.warps`` times linearise around the current flow (bicubic warp of
-    frame 1 and its gradient, outside pixels masked), run ``solve`` and median-filter the flow; then carry
+    On each level, coarsest first: ``cfg.warps`` times linearise around the current flow (``sample``: the
+    backend's cubic warp of frame 1 and its gradient, outside pixels masked), run ``solve`` and
+    median-filter the flow; then carry
     primal and dual variables to the next level. After the finest solved level, ``cfg.bregman_iterations``
     Bregman steps on the last linearisation (see :func:`bregman`). The finest solved level is
     ``cfg.finest_level`` (clamped to the coarsest level the image has); when it is not 0 its flow is
@@ -133,7 +135,7 @@ def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: Level
         g1 = image_gradient(p1[lvl], cfg.gradient_scheme)
         g0 = image_gradient(p0[lvl], cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
         for _ in range(cfg.warps):
-            a, c = linearise(p0[lvl], p1[lvl], g0, g1, state.v, cfg.gradient_scheme)
+            a, c = linearise(p0[lvl], p1[lvl], g0, g1, state.v, cfg.gradient_scheme, sample, cfg.warp_kernel)
             stats.iterations[lvl] += solve(Problem(a, c), state, params)
             if cfg.median_filter:
                 state.v = median_filter(state.v, cfg.median_filter)
