@@ -9,7 +9,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba_cache
 
-.PHONY: all venv test lint demo bench bench-venv paper clean
+.PHONY: all venv test lint demo bench bench-quick bench-accuracy bench-venv paper clean
 
 all: test
 
@@ -44,7 +44,16 @@ $(BENCH_STAMP): bench/requirements.txt requirements.txt setup.py
 
 bench-venv: $(BENCH_STAMP)
 
+# The broad accuracy suite (issue 11): every preset and the peers on every regime, one run (~20-30 min);
+# writes bench/results/suite.{json,md,png} and the generated section of BENCHMARKS.md.
 bench: $(BENCH_STAMP)
+	nice $(BENCH_VENV)/bin/python -m bench.suite --update-benchmarks
+
+bench-quick: $(BENCH_STAMP)
+	$(BENCH_VENV)/bin/python -m bench.suite --quick
+
+# Middlebury only, every model and preset (issue 2).
+bench-accuracy: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.accuracy
 
 paper: $(BENCH_STAMP)

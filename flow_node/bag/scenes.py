@@ -223,3 +223,116 @@ def _objects(size: tuple[int, int], rng: np.random.Generator, count: int = 3) ->
         out.append(Layer(Texture.random(rng, fmax=1 / 6), AffineMotion((float(cx), float(cy)),
                                                                        (float(v[0]), float(v[1]))), shape))
     return tuple(out)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Band-limited textures, flat areas and general affine motion (the broad accuracy suite, bench/suite, and
+# exactly rendered test pairs). Frames are rendered the same way: I_t(x) = T(psi_t(x)), nothing resampled.
+
+FINE_MOTIONS = ("shift", "rotation", "zoom", "affine")
+
+
+@dataclass(frozen=True)
+class BandTexture(Texture):
+    """A band-limited texture: the sum of cosines of :class:`Texture`, mapped *linearly* to [lo, hi]
+    (Texture's tanh would add harmonics above the band, which alias near 0.5 cycles/px). ``clip`` standard
+    deviations of the sum map to lo and hi; values beyond are clipped (~5e-4 of the pixels at 3.5).
+
+    Optional flat areas: where the unit-variance field of ``flat`` (a low-frequency BandTexture) exceeds
+    ``flat_threshold``, the grey blends (C1 smoothstep over ``flat_ramp`` standard deviations) to the
+    constant ``flat_level``; the areas move with the texture, so their flow is the motion's.
+    """
+
+    clip: float = 3.5
+    flat: BandTexture | None = None
+    flat_threshold: float = 0.0
+    flat_ramp: float = 0.4
+    flat_level: float = 0.4
+
+    @classmethod
+    def band(cls, rng: np.random.Generator, fmin: float, fmax: float, n: int = 40, lo: float = 0.1,
+             hi: float = 0.72) -> BandTexture:
+        """K = n cosines of equal amplitude, radial frequency log-uniform in [fmin, fmax] cycles/px
+        (keep fmax < 0.5 for a texture the pixel grid samples without aliasing), random directions."""
+        radius = np.exp(rng.uniform(math.log(fmin), math.log(fmax), n))
+        angle = rng.uniform(0.0, 2 * math.pi, n)
+        freqs = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=-1)
+        amps = np.full(n, math.sqrt(2.0 / n))  # unit standard deviation of the sum
+        return cls(freqs, rng.uniform(0.0, 2 * math.pi, n), amps, np.ones(3), lo, hi)
+
+    def field(self, p: np.ndarray) -> np.ndarray:
+        """The unit-variance sum of cosines at texture coordinates p (..., 2) -> (...)."""
+        return np.cos(2 * math.pi * (p @ self.freqs.T) + self.phases) @ self.amps
+
+    def grey(self, p: np.ndarray) -> np.ndarray:
+        """Intensity in [lo, hi] at texture coordinates p (..., 2) -> (...)."""
+        g = self.lo + (self.hi - self.lo) * np.clip(0.5 + self.field(p) / (2 * self.clip), 0.0, 1.0)
+        if self.flat is None:
+            return g
+        w = np.clip((self.flat.field(p) - self.flat_threshold) / self.flat_ramp + 0.5, 0.0, 1.0)
+        w = w * w * (3.0 - 2.0 * w)
+        return (1.0 - w) * g + w * self.flat_level
+
+
+@dataclass(frozen=True)
+class LinearMotion:
+    """A general affine motion about ``center`` c: frame 1 maps p -> c + M (p - c) + b, and
+    phi_t(p) = p + t ((M - I)(p - c) + b) (the displacement grows linearly with t). Invertible for t in
+    [0, 1] because the largest singular value of M - I must be < 0.5."""
+
+    center: tuple[float, float]
+    matrix: tuple[tuple[float, float], tuple[float, float]] = ((1.0, 0.0), (0.0, 1.0))
+    offset: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if np.linalg.norm(np.asarray(self.matrix) - np.eye(2), 2) >= 0.5:
+            raise ConfigError("affine motion too strong: need the largest singular value of M - I < 0.5")
+
+    def _linear(self, t: float) -> np.ndarray:
+        return np.eye(2) + t * (np.asarray(self.matrix) - np.eye(2))
+
+    def forward(self, p: np.ndarray, t: float) -> np.ndarray:
+        c, b = np.asarray(self.center), np.asarray(self.offset)
+        return c + (p - c) @ self._linear(t).T + b * t
+
+    def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
+        c, b = np.asarray(self.center), np.asarray(self.offset)
+        return c + (x - c - b * t) @ np.linalg.inv(self._linear(t)).T
+
+
+def fine_motion(kind: str, size: tuple[int, int], rng: np.random.Generator, max_disp: float = 3.0,
+                min_disp: float = 0.3) -> LinearMotion:
+    """A random motion of ``kind`` (one of FINE_MOTIONS) about the image centre whose largest displacement
+    over the image of ``size`` (width, height) is uniform in [min_disp, max_disp] px: a shift, a rotation or
+    a zoom whose corners move that far, or a general affine map (shear and anisotropic scale) plus shift."""
+    w, h = size
+    c = ((w - 1) / 2.0, (h - 1) / 2.0)
+    corners = np.array([[0.0, 0.0], [w - 1.0, 0.0], [0.0, h - 1.0], [w - 1.0, h - 1.0]]) - np.asarray(c)
+    d = float(rng.uniform(min_disp, max_disp))
+    radius = float(np.hypot(*corners[0]))
+    sign = float(rng.choice([-1.0, 1.0]))
+    if kind == "shift":
+        a = rng.uniform(0.0, 2 * math.pi)
+        return LinearMotion(c, offset=(d * math.cos(a), d * math.sin(a)))
+    if kind == "rotation":
+        theta = sign * 2.0 * math.asin(d / (2.0 * radius))  # a corner moves by the chord d
+        m = ((math.cos(theta), -math.sin(theta)), (math.sin(theta), math.cos(theta)))
+        return LinearMotion(c, m)
+    if kind == "zoom":
+        s = 1.0 + sign * d / radius
+        return LinearMotion(c, ((s, 0.0), (0.0, s)))
+    if kind == "affine":
+        e, b = rng.normal(size=(2, 2)), rng.normal(size=2) * radius * 0.01
+        peak = float(np.max(np.linalg.norm(corners @ e.T + b, axis=-1)))
+        e, b = e * (d / peak), b * (d / peak)
+        m = np.eye(2) + e
+        return LinearMotion(c, ((float(m[0, 0]), float(m[0, 1])), (float(m[1, 0]), float(m[1, 1]))),
+                            (float(b[0]), float(b[1])))
+    raise ConfigError(f"unknown motion {kind!r}; choose one of {', '.join(FINE_MOTIONS)}")
+
+
+def render_grey_pair(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frames 0 and 1 of ``scene`` as float64 grey (H, W) in [0, 1] (BT.601 luma of the rendered RGB) and
+    the exact flow 0 -> 1, float64 (H, W, 2): I1(x + gt(x)) = I0(x) wherever the point stays visible."""
+    luma = np.array([0.299, 0.587, 0.114])
+    return scene.render(0) @ luma, scene.render(1) @ luma, scene.ground_truth(1)

@@ -1,0 +1,92 @@
+"""``python -m bench.suite``: run the broad accuracy suite and write its JSON, Markdown and plot.
+
+    python -m bench.suite                       # full, report seeds -> bench/results/suite.{json,md,png}
+    python -m bench.suite --quick               # 1-3 min loop -> bench/results/suite_quick.{json,md,png}
+    python -m bench.suite --regimes fine_320,exposure --split tune --quick
+    python -m bench.suite --update-benchmarks   # also rewrite the generated part of BENCHMARKS.md
+    python -m bench.suite --from-json bench/results/suite.json --update-benchmarks   # re-render only
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import shlex
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from ..common import REPO, machine, write_json
+from . import report, targets
+from .methods import PEERS
+from .regimes import REGIMES
+from .runner import run_suite
+
+RESULTS = REPO / "bench" / "results"
+
+
+def versions() -> dict[str, Any]:
+    """Library versions and the git commit the run measured."""
+    import cv2
+    import numba
+    import numpy
+    import skimage
+
+    try:
+        commit = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"], capture_output=True,
+                                text=True, check=False).stdout.strip()
+    except OSError:
+        commit = "unknown"
+    return {"numpy": numpy.__version__, "opencv": cv2.__version__, "scikit-image": skimage.__version__,
+            "numba": numba.__version__, "python": platform.python_version(), "commit": commit}
+
+
+def parse(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="python -m bench.suite", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--quick", action="store_true", help="fewer pairs and repeats, DIS peers only (1-3 min)")
+    ap.add_argument("--split", choices=("tune", "report", "all"), default="report")
+    ap.add_argument("--regimes", default="", help=f"comma-separated subset of {', '.join(REGIMES)}")
+    ap.add_argument("--peers", default="", help=f"comma-separated subset of {', '.join(PEERS)} "
+                    "(default: DIS when quick, all otherwise); 'none' for no peers")
+    ap.add_argument("--repeats", type=int, default=None, help="timed runs per pair (default 5; quick 3)")
+    ap.add_argument("--slow-repeats", type=int, default=None,
+                    help="timed runs per pair of a method slower than 0.25 s per pair (default 2; quick 1)")
+    ap.add_argument("--out", type=Path, default=None, help="JSON path (default bench/results/suite[_quick].json;"
+                    " the .md and .png go beside it)")
+    ap.add_argument("--update-benchmarks", action="store_true", help="rewrite the generated suite section "
+                    "of BENCHMARKS.md")
+    ap.add_argument("--from-json", type=Path, default=None, help="re-render a saved result instead of running")
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
+    if args.from_json is not None:
+        res = json.loads(args.from_json.read_text())
+        out = args.from_json
+    else:
+        regimes = [r for r in args.regimes.split(",") if r] or None
+        peers = None if not args.peers else ([] if args.peers == "none" else args.peers.split(","))
+        started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+        res = run_suite(None, regimes, args.split, args.quick, peers, args.repeats, args.slow_repeats,
+                        log=lambda s: print(s, flush=True))
+        res = {"command": "python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv),
+               "started": started, "machine": machine(), "versions": versions(), **res}
+        out = args.out or RESULTS / ("suite_quick.json" if args.quick else "suite.json")
+    res["targets"] = targets.all_checks(res)
+    write_json(out, res)
+    md = report.markdown(res)
+    out.with_suffix(".md").write_text(md)
+    report.plot(res, out.with_suffix(".png"))
+    print(md)
+    if args.update_benchmarks:
+        report.update_benchmarks(REPO / "BENCHMARKS.md", md)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,106 @@
+"""What the suite evaluates: one :class:`Sample` per frame pair, and the loaders of the recorded data
+(Middlebury, ../shared/data/large, the bundled bags). The synthetic regimes are in :mod:`.synthetic`.
+
+A sample carries its frames *as delivered* (uint8, uint16 or float32 grey/RGB; 10-bit content as uint16
+with values up to 1023), because delivering them is part of what is being tested: flow_node gets exactly
+these arrays. ``bits`` is the content's bit depth, which a peer that needs 8-bit input is told (see
+:func:`bench.suite.methods.unit_grey`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from flow_node.core.api import to_grey
+from flow_node.core.flowio import read_flo, read_image
+
+from ..common import DEFAULT_DATA, REPO, SEQUENCES
+
+LARGE_DATA = REPO.parent / "shared" / "data" / "large"
+BAGS = REPO / "bags"
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One pair: frames f0, f1 ((H, W) or (H, W, 3); uint8, uint16 or float32 in [0, 1]), ground truth
+    (H, W, 2) float32 px (>= 1e9 or non-finite = unknown), content bit depth, and a variant label that the
+    report groups by (e.g. '10 bit', 'gain 1.25 -0.02'; '' = none)."""
+
+    name: str
+    f0: np.ndarray
+    f1: np.ndarray
+    gt: np.ndarray
+    bits: int = 8
+    variant: str = ""
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(width, height) in px."""
+        return int(self.f0.shape[1]), int(self.f0.shape[0])
+
+
+def _grey_file(path: Path) -> np.ndarray:
+    return to_grey(read_image(path), path.name)
+
+
+def middlebury(quick: bool, data: Path = DEFAULT_DATA) -> list[Sample]:
+    """The 8 Middlebury training pairs frame10 -> frame11 (quick: 3 of them), grey float32 [0, 1] (BT.601
+    luma, as bench/common.py hands them to every method)."""
+    if not data.is_dir():
+        raise FileNotFoundError(f"Middlebury data not found at {data}")
+    names = ("Dimetrodon", "Grove3", "RubberWhale") if quick else SEQUENCES
+    return [Sample(n, _grey_file(data / n / "frame10.png"), _grey_file(data / n / "frame11.png"),
+                   read_flo(data / n / "flow10.flo")) for n in names]
+
+
+def large(quick: bool, data: Path = LARGE_DATA) -> list[Sample]:
+    """The large-motion pairs frame0 -> frame1 with flow.flo (quick: the two 640x480 TartanAir a/c)."""
+    if not data.is_dir():
+        raise FileNotFoundError(f"large-motion data not found at {data}")
+    dirs = sorted(p for p in data.iterdir() if (p / "flow.flo").is_file())
+    if quick:
+        dirs = [p for p in dirs if p.name.startswith(("tartanair_a", "tartanair_c"))]
+    return [Sample(p.name, _grey_file(p / "frame0.png"), _grey_file(p / "frame1.png"), read_flo(p / "flow.flo"))
+            for p in dirs]
+
+
+def bags(quick: bool, folder: Path = BAGS) -> list[Sample]:
+    """Every consecutive image pair of every bundled bag with its ground-truth topic (quick: the first
+    pair of each), frames decoded as the node would see them (mono8, mono16, rgb8, png)."""
+    out = []
+    for bag in sorted(p for p in folder.iterdir() if (p / "metadata.yaml").is_file()):
+        pairs = _bag_pairs(bag)
+        out.extend(pairs[:1] if quick else pairs)
+    return out
+
+
+def _bag_pairs(bag: Path) -> list[Sample]:
+    """(previous image, image, ground truth stamped like the image) for every image with a ground truth."""
+    from flow_node.bag.bagio import IMAGE, IMAGE_TYPES, deserialize, find_connections, open_bag, read_messages
+    from flow_node.bag.evaluate import DEFAULT_GT_TOPIC, read_ground_truth
+    from flow_node.pipeline.codec import decode
+
+    frames: dict[int, np.ndarray] = {}
+    order: list[int] = []
+    gts: dict[int, object] = {}
+    with open_bag(bag) as reader:
+        gt_conns = find_connections(reader, DEFAULT_GT_TOPIC, (IMAGE,), "gt")
+        img_conns = find_connections(reader, None, IMAGE_TYPES, "image", exclude=(DEFAULT_GT_TOPIC,))
+        for conn, _, raw in read_messages(reader, list(img_conns) + list(gt_conns)):
+            msg = deserialize(raw, conn.msgtype)
+            stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+            if conn.topic == DEFAULT_GT_TOPIC:
+                gts[stamp] = msg
+            else:
+                frames[stamp] = decode(msg)[0]
+                order.append(stamp)
+    bits = 16 if frames[order[0]].dtype == np.uint16 else 8
+    out = []
+    for k, (prev, cur) in enumerate(zip(order, order[1:], strict=False)):
+        if cur in gts:
+            gt = read_ground_truth(gts[cur], frames[cur].shape[:2], cur)
+            out.append(Sample(f"{bag.name}_{k + 1:02d}", frames[prev], frames[cur], gt, bits, bag.name))
+    return out

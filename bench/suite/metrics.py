@@ -1,0 +1,91 @@
+"""Scores: per pair (AEE, AE, and for a method that returns a confidence, its sparsification AUSE), per
+regime (means, per-variant means, time ratios against DIS in the same run), and the issue-11 target checks.
+
+Confidence metric: the *area under the sparsification error curve* (AUSE; Ilg et al., "Uncertainty
+Estimates and Multi-Hypotheses Networks for Optical Flow", ECCV 2018). Remove the fraction f of the known
+pixels with the lowest confidence, for f = 0, 0.05, ..., 0.95, and take the mean endpoint error of the
+rest: the sparsification curve. The oracle curve removes the pixels with the largest true error first.
+AUSE = mean over f of (curve - oracle), in px; 0 = the confidence ranks pixels exactly as their error
+does; a confidence unrelated to the error gives about AEE - mean(oracle). ``ause_rel`` = AUSE / AEE.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from flow_node.core.metrics import aee, angular_error, endpoint_error_map, valid_mask
+
+from .methods import DIS_MEDIUM, DIS_ULTRAFAST
+
+FRACTIONS = np.arange(20) / 20.0
+
+
+def _curve(err: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Mean of err over the pixels left after removing the first f * n of ``order``, for each f."""
+    n = err.size
+    tail = np.cumsum(err[order][::-1])[::-1]  # tail[i] = sum of err[order[i:]]
+    starts = (FRACTIONS * n).astype(int)
+    return tail[starts] / (n - starts)
+
+
+def ause(flow: np.ndarray, gt: np.ndarray, confidence: np.ndarray) -> float:
+    """Area under the sparsification error curve (px) of ``confidence`` (H, W) for flow against gt."""
+    m = valid_mask(gt)
+    err = endpoint_error_map(flow, gt)[m]
+    conf = np.asarray(confidence, np.float64)[m]
+    by_conf = np.argsort(conf, kind="stable")  # least confident removed first
+    oracle = np.argsort(-err, kind="stable")
+    return float(np.mean(_curve(err, by_conf) - _curve(err, oracle)))
+
+
+def score_pair(out: Any, gt: np.ndarray) -> dict[str, float]:
+    """AEE (px), AE (deg), and AUSE if ``out`` = (flow, confidence) has a confidence."""
+    flow, conf = (out if isinstance(out, tuple) else (out, None))
+    flow = np.asarray(flow, np.float32)
+    res = {"aee": aee(flow, gt), "ae": angular_error(flow, gt)}
+    if conf is not None:
+        res["ause"] = ause(flow, gt, conf)
+    return res
+
+
+def _mean(rows: list[dict[str, Any]], key: str) -> float | None:
+    vals = [r[key] for r in rows if key in r]
+    return float(np.mean(vals)) if vals else None
+
+
+def summarise(per_pair: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """Means over the pairs (and per variant) of aee, ae, seconds (the per-pair medians), ause."""
+    rows = list(per_pair.values())
+    out: dict[str, Any] = {k: _mean(rows, k) for k in ("aee", "ae", "seconds", "ause")}
+    if out["ause"] is not None and out["aee"]:
+        out["ause_rel"] = out["ause"] / out["aee"]
+    variants = list(dict.fromkeys(r["variant"] for r in rows if r["variant"]))  # in order of appearance
+    if variants:
+        out["per_variant"] = {v: {k: _mean([r for r in rows if r["variant"] == v], k)
+                                  for k in ("aee", "seconds")} for v in variants}
+    return out
+
+
+def add_ratios(methods: dict[str, dict[str, Any]]) -> None:
+    """Time (and AEE) ratios of every method against DIS medium and ultrafast of the same run, in place."""
+    for ref in (DIS_MEDIUM, DIS_ULTRAFAST):
+        if ref not in methods:
+            continue
+        r = methods[ref]
+        for m in methods.values():
+            m[f"time_vs_{ref}"] = m["seconds"] / r["seconds"]
+            m[f"aee_vs_{ref}"] = m["aee"] / r["aee"]
+
+
+def similar_time_flags(methods: dict[str, dict[str, Any]], ours: list[str], peers: list[str],
+                       factor: float = 1.5) -> dict[str, list[str]]:
+    """For each of ``ours``: the peers at most ``factor`` x its time that have a lower mean AEE ("a peer
+    of similar time, or faster, beats it"); empty = not beaten."""
+    out = {}
+    for name in ours:
+        me = methods[name]
+        out[name] = [p for p in peers if p in methods and methods[p]["seconds"] <= factor * me["seconds"]
+                     and methods[p]["aee"] < me["aee"]]
+    return out

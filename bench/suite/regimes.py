@@ -1,0 +1,44 @@
+"""The suite's regimes: a name, a one-line title, and how to build its samples for a split.
+
+Recorded data (Middlebury, large motions, bags) is the same in every split; the synthetic regimes draw
+their seeds from the split (see :mod:`.synthetic`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+from . import data, synthetic
+from .data import Sample
+
+
+@dataclass(frozen=True)
+class Regime:
+    """``build(split, quick)`` returns the samples; ``seeded`` regimes depend on the split."""
+
+    name: str
+    title: str
+    build: Callable[[str, bool], Iterable[Sample]]
+    seeded: bool = True
+    report_only: bool = False
+
+
+REGIMES: dict[str, Regime] = {r.name: r for r in (
+    Regime("middlebury", "Middlebury training set (real; frame10 -> frame11)", lambda split, q: data.middlebury(q),
+           seeded=False),
+    Regime("large", "Large motions (../shared/data/large, 20-250 px; report only)",
+           lambda split, q: data.large(q), seeded=False, report_only=True),
+    Regime("fine_320", "Fine band-limited textures, 320x240, 8 bit, shifts/rotations/zooms/affine 0.3-3 px",
+           lambda split, q: synthetic.fine(split, q, (320, 240))),
+    Regime("fine_640", "Fine band-limited textures, 640x480, 8 bit, shifts/rotations/zooms/affine 0.3-3 px",
+           lambda split, q: synthetic.fine(split, q, (640, 480))),
+    Regime("bit_depth", "Fine textures 320x240 delivered at 8, 10, 12, 16 bit (mono16 up to 2^bits - 1)",
+           synthetic.bit_depth),
+    Regime("noise", "Fine textures 320x240 with sensor noise sigma 1-3 grey levels", synthetic.noise),
+    Regime("exposure", "Fine textures 320x240, frame 2 with gain 0.75-1.33 and an offset", synthetic.exposure),
+    Regime("low_contrast", "Fine textures 320x240 spanning 24 or 10 grey levels", synthetic.low_contrast),
+    Regime("flat", "Fine textures 320x240 with ~half the area flat", synthetic.flat_areas),
+    Regime("bags", "The bundled bags (128x96; mono8, mono16, rgb8, png; noise and brightness in 'objects')",
+           lambda split, q: data.bags(q), seeded=False),
+)}

@@ -1,0 +1,111 @@
+"""The suite's report: a Markdown table per regime, the target checks, and a plot of AEE against time.
+
+Tables: one row per method with mean AEE (px), mean AE (deg), ms per pair, and time / AEE ratios against
+DIS medium and ultrafast of the same run; per-variant mean AEE columns where the regime has variants; the
+"beaten by" column names the peers at <= 1.5x the method's time with a lower mean AEE.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from .methods import DIS_MEDIUM, DIS_ULTRAFAST, PEER_NAMES
+
+
+def _num(v: float | None, fmt: str) -> str:
+    return "-" if v is None else format(v, fmt)
+
+
+def regime_table(name: str, r: dict[str, Any]) -> str:
+    """Markdown table of one regime."""
+    methods = r["methods"]
+    variants = list(next(iter(methods.values())).get("per_variant", {}))
+    has_ause = any(m.get("ause") is not None for m in methods.values())
+    head = ["method", "mean AEE", "AE (deg)", "ms/pair", "time / DIS med", "time / DIS uf", "AEE / DIS med"]
+    head += [f"AEE {v}" for v in variants] + (["AUSE (rel)"] if has_ause else []) + ["beaten by (<= 1.5x time)"]
+    lines = [f"**{name}**: {r['title']} ({len(r['pairs'])} pairs)", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for n, m in methods.items():
+        row = [n if n not in PEER_NAMES else f"peer: {n}", f"**{m['aee']:.4f}**", _num(m["ae"], ".2f"),
+               _num(1e3 * m["seconds"], ".1f"), _num(m.get(f"time_vs_{DIS_MEDIUM}"), ".2f"),
+               _num(m.get(f"time_vs_{DIS_ULTRAFAST}"), ".2f"), _num(m.get(f"aee_vs_{DIS_MEDIUM}"), ".2f")]
+        row += [_num(m["per_variant"][v]["aee"], ".4f") for v in variants]
+        if has_ause:
+            row.append("-" if m.get("ause") is None else f"{m['ause']:.3f} ({m['ause_rel']:.2f})")
+        if n not in PEER_NAMES:
+            row.append(", ".join(r["beaten_by"].get(n, [])) or "no")
+        else:
+            row.append("")
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
+def targets_table(checks: list[dict[str, Any]]) -> str:
+    """Markdown table of the target checks: met / missed / not run, with the numbers."""
+    lines = ["| target | regime | method | result | numbers |", "|---|---|---|---|---|"]
+    for c in checks:
+        verdict = "not run" if c["met"] is None else ("met" if c["met"] else "**missed**")
+        lines.append(f"| {c['target']} | {c['regime']} | {c['method']} | {verdict} | {c['detail']} |")
+    return "\n".join(lines)
+
+
+def markdown(res: dict[str, Any]) -> str:
+    """The whole report: how it was run, every regime's table, then the target checks."""
+    v = res.get("versions", {})
+    head = (f"Command: `{res.get('command', 'run_suite(...)')}`; split `{res['split']}`"
+            f"{' (QUICK: fewer pairs, indicative only)' if res['quick'] else ''}; started {res.get('started', '?')}, "
+            f"wall {res.get('wall_seconds', 0) / 60:.0f} min; commit {v.get('commit', '?')}; "
+            f"numpy {v.get('numpy', '?')}, "
+            f"OpenCV {v.get('opencv', '?')}, scikit-image {v.get('scikit-image', '?')}, numba {v.get('numba', '?')}; "
+            f"per pair the median of {res['repeats']} interleaved timed runs ({res['slow_repeats']} for a method "
+            f"slower than {res['slow_seconds']} s per pair). Times in ms, ratios against DIS in the same run.")
+    parts = [head] + [regime_table(n, r) for n, r in res["regimes"].items()]
+    parts += ["**Targets (issue 11)**", "", targets_table(res.get("targets", []))]
+    return "\n\n".join(parts) + "\n"
+
+
+def plot(res: dict[str, Any], path: Path) -> None:
+    """AEE (log) against ms per pair (log), one panel per regime, presets as dots, peers as squares."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import FormatStrFormatter
+
+    names = list(res["regimes"])
+    cols = 3
+    rows = (len(names) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.9 * rows), squeeze=False)
+    for ax, name in zip(axes.flat, names, strict=False):
+        for n, m in res["regimes"][name]["methods"].items():
+            peer = n in PEER_NAMES
+            ax.scatter(1e3 * m["seconds"], m["aee"], marker="s" if peer else "o", c="tab:grey" if peer else "tab:blue")
+            ax.annotate(n, (1e3 * m["seconds"], m["aee"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
+        ax.set(xscale="log", yscale="log", title=name, xlabel="ms per pair (same run)", ylabel="mean AEE (px)")
+        ax.grid(True, which="both", alpha=0.3)
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_formatter(FormatStrFormatter("%g"))
+            axis.set_minor_formatter(FormatStrFormatter(""))
+    for ax in list(axes.flat)[len(names):]:
+        ax.axis("off")
+    fig.suptitle("flow_node presets (dots) and peers (squares): AEE against time per regime")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+BEGIN, END = "<!-- suite:begin (generated by python -m bench.suite) -->", "<!-- suite:end -->"
+
+
+def update_benchmarks(path: Path, body: str) -> None:
+    """Replace the text between the suite markers in BENCHMARKS.md (appending the markers if missing)."""
+    text = path.read_text()
+    block = f"{BEGIN}\n{body}{END}"
+    if BEGIN in text and END in text:
+        head, rest = text.split(BEGIN, 1)
+        text = head + block + rest.split(END, 1)[1]
+    else:
+        text = text.rstrip("\n") + "\n\n" + block + "\n"
+    path.write_text(text)
