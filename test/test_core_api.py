@@ -130,7 +130,7 @@ def test_bad_frames_give_clear_errors(frame0, frame1, message: str) -> None:
 
 
 def test_every_input_encoding_maps_to_the_same_grey_range() -> None:
-    t = texture(24, 32, 0)
+    t = texture(24, 32, 0).image
     as8 = (t * 255).round().astype(np.uint8)
     as16 = (t * 65535).round().astype(np.uint16)
     rgb = np.repeat(t[..., None], 3, axis=2)

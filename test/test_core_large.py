@@ -16,13 +16,13 @@ import small_frames
 
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowEstimator
+from flow_node.core.backends import NUMPY
 from flow_node.core.densify import densify, forward_propagate, push_pull
 from flow_node.core.engine import estimate_pair, start_level
 from flow_node.core.fusion import confidence, data_cost, fuse
 from flow_node.core.initialise import initialise
 from flow_node.core.metrics import confidence_auc
 from flow_node.core.pyramid import make_pyramid
-from flow_node.core.solver import solve_numpy
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 
 SIZE = (160, 120)  # width, height
@@ -71,7 +71,7 @@ def test_the_stages_compose_to_the_api(pair) -> None:
     """estimate_pair (photometric -> initialisation -> refinement -> fusion -> layout) is exactly what
     FlowEstimator returns, and without a candidate the refinement runs over every level from zero."""
     i0, i1, _ = pair
-    flow, stats = estimate_pair(i0, i1, SHORT, solve_numpy)
+    flow, stats, _ = estimate_pair(i0, i1, SHORT, NUMPY)
     api = FlowEstimator(SHORT).estimate_grey(i0, i1)
     assert np.array_equal(flow, api.flow) and flow.shape == i0.shape + (2,) and flow.dtype == np.float32
     assert stats.start_level == -1 and stats.init == "" and all(n > 0 for n in stats.iterations)

@@ -12,9 +12,10 @@ from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 
 H, W = 64, 80
 # weights that suit each model on these textures (the L2 data term needs a smaller alpha than L1)
-ALPHA = {"l2_l2": 0.01, "l2_tv": 0.002, "l1_tv": 0.025, "l1_tv_l2": 0.025, "l1_tv_tv": 0.025}
-# stated accuracy: AEE bound (px) for translations and rotation, per model
-BOUND = {"l2_l2": 0.01, "l2_tv": 0.015, "l1_tv": 0.01, "l1_tv_l2": 0.01, "l1_tv_tv": 0.04}
+ALPHA = {"l2_l2": 0.005, "l2_tv": 0.0005, "l1_tv": 0.025, "l1_tv_l2": 0.025, "l1_tv_tv": 0.025}
+# stated accuracy: AEE bound (px) for translations and rotation, per model, on exactly rendered pairs
+# (measured 0.001-0.005, l1_tv_tv 0.015-0.018; the former OpenCV warp gave 0.03-0.07 here)
+BOUND = {"l2_l2": 0.008, "l2_tv": 0.015, "l1_tv": 0.005, "l1_tv_l2": 0.005, "l1_tv_tv": 0.03}
 
 
 def small_config(model: str, **kw) -> FlowConfig:
@@ -54,10 +55,10 @@ def test_energy_decreases_and_gap_to_optimum_shrinks(model: str) -> None:
 
 @pytest.mark.parametrize("model", MODELS)
 def test_identical_frames_give_zero_flow(model: str) -> None:
-    t = texture(H, W, 5)
+    t = texture(H, W, 5).image
     flow = estimate_flow(t, t.copy(), small_config(model))
     assert flow.shape == (H, W, 2) and flow.dtype == np.float32
-    assert np.abs(flow).max() < 1e-6
+    assert np.abs(flow).max() < 5e-3  # float32 round-off of the B-spline warp (1e-6 grey) is the only signal
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -116,7 +117,8 @@ def test_isotropic_suits_circles_anisotropic_suits_axis_aligned_squares() -> Non
 def test_large_displacement_needs_the_pyramid() -> None:
     gt = constant_flow(96, 128, 9.0, -8.0)
     i0, i1 = pair_from_flow(texture(96, 128, 4, cell=8, blur=2.0), gt)
-    with_pyramid = estimate_flow(i0, i1, small_config("l1_tv", levels=5, warps=5, median_filter=5))
+    # min_size 8: four levels, the coarsest sees a 1.1 px shift (with 16 only three, and 2.2 px)
+    with_pyramid = estimate_flow(i0, i1, small_config("l1_tv", levels=5, warps=5, median_filter=5, min_size=8))
     without = estimate_flow(i0, i1, small_config("l1_tv", levels=1, warps=5, median_filter=5))
     assert aee(interior(with_pyramid, 16), interior(gt, 16)) < 0.1
     assert aee(interior(without, 16), interior(gt, 16)) > 3.0
@@ -153,7 +155,7 @@ def test_tolerance_stops_easy_frames_early() -> None:
 
     t = texture(H, W, 6)
     est = FlowEstimator(small_config("l1_tv", iterations=200, tolerance=1e-3, levels=1, warps=1))
-    res = est.estimate(t, t.copy())
+    res = est.estimate(t.image, t.image)
     assert res.stats.total_iterations == 10  # stopped at the first check
     i0, i1 = pair_from_flow(t, constant_flow(H, W, 0.5, 0.2))
     res = est.estimate(i0, i1)

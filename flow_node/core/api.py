@@ -12,6 +12,7 @@ from .backends import select_backend
 from .config import FlowConfig
 from .engine import estimate_pair
 from .errors import InputError
+from .photometric import reliability
 from .refine import SolveStats
 
 log = logging.getLogger("flow_node")
@@ -55,12 +56,16 @@ def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") ->
 
 @dataclass
 class FlowResult:
-    """Flow (H, W, 2) float32 px/frame plus what the solve did."""
+    """Flow (H, W, 2) float32 px/frame plus what the solve did.
+
+    ``unexplained``: the fraction of (sampled) pixels whose photometric residual after the solve is large
+    (photometric.reliability): ~0.0-0.1 for a flow that matches the frames, near 1 for garbage."""
 
     flow: np.ndarray
     stats: SolveStats
     seconds: float
     backend: str
+    unexplained: float = 0.0
 
 
 class FlowEstimator:
@@ -71,7 +76,12 @@ class FlowEstimator:
 
     def __init__(self, config: FlowConfig | None = None) -> None:
         self._config = config if config is not None else FlowConfig()
-        self.backend, self._solve = select_backend(self._config.backend, self._config.threads)
+        self._backend = select_backend(self._config.backend, self._config.threads)
+
+    @property
+    def backend(self) -> str:
+        """Name of the resolved backend (``numpy`` or ``numba``)."""
+        return self._backend.name
 
     @property
     def config(self) -> FlowConfig:
@@ -80,7 +90,7 @@ class FlowEstimator:
     @config.setter
     def config(self, cfg: FlowConfig) -> None:
         if (cfg.backend, cfg.threads) != (self._config.backend, self._config.threads):
-            self.backend, self._solve = select_backend(cfg.backend, cfg.threads)
+            self._backend = select_backend(cfg.backend, cfg.threads)
         self._config = cfg
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
@@ -113,9 +123,10 @@ class FlowEstimator:
         init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
-        flow, stats = estimate_pair(i0, i1, self._config, self._solve, init, prev)
-        seconds = time.perf_counter() - start  # the output layout included: it is part of the engine's work
-        return FlowResult(flow, stats, seconds, self.backend)
+        flow, stats, frames = estimate_pair(i0, i1, self._config, self._backend, init, prev)
+        unexplained = reliability(frames[0], frames[1], flow, self._backend.warp)
+        seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained)
 
 
 def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -> np.ndarray | None:

@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError, FileFormatError
+from .photometric import PHOTOMETRIC
+from .warping import KERNELS as WARP_KERNELS
 
 MODELS = ("l2_l2", "l2_tv", "l1_tv", "l1_tv_l2", "l1_tv_tv")
 TV_NORMS = ("isotropic", "anisotropic")
@@ -40,6 +42,10 @@ class FlowConfig:
     ``alpha1`` its alpha_1, both absolute.
     """
 
+    photometric: str = _f("normalise", "photometric preprocessing of each pair: normalise (each frame's 2nd-98th "
+                          "percentile range to [0, 1]: bit depth, contrast and exposure invariant), "
+                          "structure_texture (normalise, then Wedel's texture part), none (grey / max)",
+                          choices=PHOTOMETRIC)
     model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1)",
                     choices=MODELS)
     alpha: float = _f(0.025, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv)",
@@ -66,6 +72,8 @@ class FlowConfig:
                             choices=(0, 3, 5))
     level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
                                    "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
+    warp_kernel: str = _f("bspline", "cubic kernel of the warp: bspline (prefiltered cubic B-spline) or keys "
+                          "(Keys a = -1/2, Catmull-Rom); both reproduce linear ramps", choices=WARP_KERNELS)
     initialisation: str = _f("none", "flow the refinement starts from, fused per pixel with the pyramid's own: "
                              "none, OpenCV DIS (dis_ultrafast/dis_fast/dis_medium) or sparse descriptor "
                              "matches densified edge-aware (orb/sift)", choices=INITIALISATIONS)

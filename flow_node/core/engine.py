@@ -6,9 +6,9 @@ Each stage is one function with one interface, in the module named for it:
 =====================  =========================================================  ==========================
 stage                  interface                                                  module
 =====================  =========================================================  ==========================
-photometric            (i0, i1, cfg) -> (i0, i1), float32 (H, W)                  :func:`photometric`
+photometric            (i0, i1, mode) -> (i0, i1), float32 (H, W)                 ``core/photometric.py``
 initialisation         (i0, i1, cfg, initial, previous) -> [Candidate]            ``core/initialise.py``
-refinement             (pyramid, cfg, solver, state, first, last, stats) -> state ``core/refine.py``
+refinement             (pyramid, cfg, backend, state, first, last, stats) -> state ``core/refine.py``
 fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice)                         ``core/fusion.py``
 output layout          (2, h, w) -> (H, W, 2) at the input size                   ``core/layout.py``
 =====================  =========================================================  ==========================
@@ -27,20 +27,16 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .backends import Backend
 from .config import FlowConfig
 from .fusion import fuse
 from .initialise import Candidate, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
+from .photometric import preprocess
 from .pyramid import Pyramid, make_pyramid, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
-from .solver import LevelSolver, PDState
-
-
-def photometric(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Photometric preprocessing of a pair (grey float32 (H, W) in [0, 1]): the frames as the solver
-    sees them. Today the identity."""
-    return i0, i1
+from .solver import PDState
 
 
 def start_level(pyr: Pyramid, cfg: FlowConfig) -> int:
@@ -49,23 +45,23 @@ def start_level(pyr: Pyramid, cfg: FlowConfig) -> int:
     return max(pyr.level_at_scale(cfg.init_scale), finest_level(pyr, cfg))
 
 
-def refine_from(pyr: Pyramid, cfg: FlowConfig, solve: LevelSolver, candidates: list[Candidate],
+def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: list[Candidate],
                 stats: SolveStats) -> PDState:
     """Refinement and fusion: the whole pyramid from zero flow, or (with candidates) down to the start
     level, fusion there, then on to the finest solved level. Returns the state on the finest solved level."""
     finest = finest_level(pyr, cfg)
     state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[-1])
     if not candidates:
-        return refine_levels(pyr, cfg, solve, state, pyr.coarsest, finest, stats)
+        return refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest, stats)
     start = start_level(pyr, cfg)
     if start < pyr.coarsest:
-        state = refine_levels(pyr, cfg, solve, state, pyr.coarsest, start + 1, stats)
+        state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, start + 1, stats)
         state = resize_state(state, pyr.shapes[start])
     state.v, choice = fuse_on_level(pyr, start, state.v, candidates)
     stats.init = "+".join(c.name for c in candidates)
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
-    state = refine_levels(pyr, cfg, solve, state, start, finest, stats)
+    state = refine_levels(pyr, cfg, backend, state, start, finest, stats)
     state.v, choice = fuse_on_level(pyr, finest, state.v, candidates)
     stats.final_init_share = float(np.mean(choice > 0))
     return state
@@ -83,19 +79,20 @@ def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray,
     return fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
 
 
-def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,
-                  initial_flow: np.ndarray | None = None,
-                  previous_flow: np.ndarray | None = None) -> tuple[np.ndarray, SolveStats]:
-    """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px.
+def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
+                  initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, SolveStats, tuple[np.ndarray, np.ndarray]]:
+    """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px;
+    the stats; and the pair as the photometric stage handed it on (what the flow explains).
 
     ``initial_flow`` (2, H, W) is a caller's warm start; ``previous_flow`` (2, H, W) the previous pair's
     flow in a stream (used when ``cfg.temporal_init``). Both only enter through the fusion, so a wrong one
     costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
     upsampled to (H, W) by the output layout stage.
     """
-    i0, i1 = photometric(i0, i1, cfg)
+    i0, i1 = preprocess(i0, i1, cfg.photometric)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
     pyr = make_pyramid(i0, i1, cfg)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
-    state = refine_from(pyr, cfg, solve, candidates, stats)
-    return interleaved_flow(state.v, pyr.shapes[0]), stats
+    state = refine_from(pyr, cfg, backend, candidates, stats)
+    return interleaved_flow(state.v, pyr.shapes[0]), stats, (i0, i1)

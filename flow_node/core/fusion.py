@@ -15,13 +15,19 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .operators import warp, warp_maps
+from .operators import warp_maps
 
 FUSION_WINDOW = 31  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
 FUSION_MARGIN = 1.3  # a candidate must cost less than the pyramid's flow times this to be taken
 CONSISTENT_COST = 0.7  # cost factor of a forward-backward consistent candidate pixel
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
+
+
+def _sample(img: np.ndarray, map_x: np.ndarray, map_y: np.ndarray) -> np.ndarray:
+    """OpenCV bicubic sample of img (H, W) at the maps, border replicated: enough for judging a flow (a
+    cost, not the data term; the solver warps with warping.py)."""
+    return cv2.remap(img, map_x, map_y, interpolation=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _box(img: np.ndarray, window: int) -> np.ndarray:
@@ -39,7 +45,7 @@ def warp_residual(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> tuple[np.
     bool mask of pixels whose x + f stays inside the image. The gradient part keeps the cost meaningful
     under a brightness change between the frames."""
     map_x, map_y, inside = warp_maps(flow)
-    i1w = warp(i1, map_x, map_y)
+    i1w = _sample(i1, map_x, map_y)
     gx0, gy0 = _grad(i0)
     gx1, gy1 = _grad(i1w)
     r = np.abs(i1w - i0) + np.abs(gx1 - gx0) + np.abs(gy1 - gy0)

@@ -1,7 +1,7 @@
 """The refinement stage: coarse-to-fine warping with the paper's models (paper, "Large Displacements").
 
-A generic driver over a :class:`~flow_node.core.pyramid.Pyramid` with the per-warp solver passed in (a
-:data:`~flow_node.core.solver.LevelSolver`: numpy reference or numba kernels). :func:`refine_levels` walks
+A generic driver over a :class:`~flow_node.core.pyramid.Pyramid` with the per-warp solver and the warp passed
+in (a :class:`~flow_node.core.backends.Backend`: numpy reference or numba kernels). :func:`refine_levels` walks
 a range of levels, coarse to fine, from a given state, so the engine can start it anywhere: on the coarsest
 level from zero flow, or on the level where an initialisation is trusted (:mod:`flow_node.core.engine`).
 Flow is channel-first (2, h, w) in pixels of its level.
@@ -14,12 +14,14 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from .backends import Backend
 from .bregman import bregman
 from .config import FlowConfig
+from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .operators import image_gradient, linearise
-from .pyramid import Pyramid, resize_state
-from .solver import LevelSolver, PDState, Problem, SolveParams
+from .pyramid import Pyramid, make_pyramid, resize_state
+from .solver import PDState, Problem, SolveParams
 
 
 @dataclass
@@ -57,10 +59,11 @@ def level_params(cfg: FlowConfig, level: int) -> SolveParams:
                        cfg.tv_norm, cfg.iterations, cfg.tolerance)
 
 
-def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, solve: LevelSolver, state: PDState,
+def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState,
                 bregman_steps: int = 0) -> tuple[int, int]:
-    """``cfg.warps`` times: linearise around the current flow (warp of frame 1 and its gradient, outside
-    pixels masked), run ``solve`` and median-filter the flow; then ``bregman_steps`` Bregman steps on the
+    """``cfg.warps`` times: linearise around the current flow (the backend's warp of frame 1 and its
+    gradient with ``cfg.warp_kernel``, outside pixels masked), run the backend's solver and median-filter
+    the flow; then ``bregman_steps`` Bregman steps on the
     last linearisation. ``state`` lives on ``level`` and is updated in place. Returns (iterations, Bregman
     iterations)."""
     params = level_params(cfg, level)
@@ -69,15 +72,15 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, solve: LevelSolver, s
     g0 = image_gradient(i0, cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
     iterations = 0
     for _ in range(cfg.warps):
-        a, c = linearise(i0, i1, g0, g1, state.v, cfg.gradient_scheme)
-        iterations += solve(Problem(a, c), state, params)
+        a, c = linearise(i0, i1, g0, g1, state.v, cfg.gradient_scheme, backend.warp, cfg.warp_kernel)
+        iterations += backend.solve(Problem(a, c), state, params)
         if cfg.median_filter:
             state.v = median_filter(state.v, cfg.median_filter)
-    extra = bregman(Problem(a, c), state, params, solve, bregman_steps) if bregman_steps else 0
+    extra = bregman(Problem(a, c), state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 
 
-def refine_levels(pyr: Pyramid, cfg: FlowConfig, solve: LevelSolver, state: PDState, first: int, last: int,
+def refine_levels(pyr: Pyramid, cfg: FlowConfig, backend: Backend, state: PDState, first: int, last: int,
                   stats: SolveStats) -> PDState:
     """Solve levels ``first`` down to ``last`` (first >= last), carrying primal and dual variables to each
     finer level (flow vectors rescaled). ``state`` may live on any level; it is resampled to ``first``.
@@ -88,7 +91,7 @@ def refine_levels(pyr: Pyramid, cfg: FlowConfig, solve: LevelSolver, state: PDSt
         if state.v.shape[1:] != pyr.shapes[lvl]:
             state = resize_state(state, pyr.shapes[lvl])
         steps = cfg.bregman_iterations if lvl == finest else 0
-        its, extra = solve_level(pyr, lvl, cfg, solve, state, steps)
+        its, extra = solve_level(pyr, lvl, cfg, backend, state, steps)
         stats.iterations[lvl] += its
         stats.bregman_iterations += extra
     return state
@@ -97,3 +100,13 @@ def refine_levels(pyr: Pyramid, cfg: FlowConfig, solve: LevelSolver, state: PDSt
 def finest_level(pyr: Pyramid, cfg: FlowConfig) -> int:
     """The finest level solved: ``cfg.finest_level`` clamped to the coarsest level the pyramid has."""
     return min(cfg.finest_level, pyr.coarsest)
+
+
+def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend) -> tuple[np.ndarray, SolveStats]:
+    """The refinement stage alone on a pair, from zero flow over the whole pyramid (no photometric stage,
+    no initialisation, no fusion: the paper's scheme as it stands): flow float32 (H, W, 2) px and stats."""
+    pyr = make_pyramid(i0, i1, cfg)
+    stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
+    state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[-1])
+    state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest_level(pyr, cfg), stats)
+    return interleaved_flow(state.v, pyr.shapes[0]), stats

@@ -1,0 +1,121 @@
+"""The photometric stage of the engine: what the solver sees of a pair's intensities, and how well the
+result explains them.
+
+``preprocess`` runs once per pair, before the pyramid (DESIGN.md, "Engine stages"). Its modes
+(``PHOTOMETRIC``, the FlowConfig field ``photometric``):
+
+* ``none``: the grey images as they come ([0, 1] by the encoding's maximum).
+* ``normalise``: a global exposure change (gain and offset of frame 1 against frame 0, from matched
+  percentiles, see :func:`exposure_change`) is undone, then one affine map for the pair takes its robust
+  range -- the 2nd to the 98th percentile of both frames' intensities -- to [0, 1]. The weights then mean
+  the same thing for 8-, 10-, 12- and 16-bit and low-contrast input (they act on contrast, not on
+  encoding units). Percentiles, not min/max, so a few hot pixels or a saturated highlight do not set the
+  scale; they are taken on a strided subsample (every ``STRIDE``-th pixel in each direction). One map for
+  both frames, not one per frame: the frames' content differs (motion at the border), and a per-frame map
+  would turn that into a brightness difference, i.e. flow error.
+* ``structure_texture``: ``normalise``, then the texture part of Wedel et al.'s structure-texture
+  decomposition (TV-L1, DAGM 2009): I - STRUCTURE_WEIGHT * S(I), with S the ROF (TV-L2) denoising of I
+  (Chambolle's projection, ``ROF_ITERATIONS`` steps, weight ``ROF_THETA``), renormalised. It also removes smooth
+  illumination changes (shading, vignetting), at the price of some signal on smooth image regions.
+
+``reliability`` is computed after the solve: the fraction of pixels the flow does not explain, i.e.
+whose residual |I1(x + flow(x)) - I0(x)| on the preprocessed pair exceeds RESIDUAL_OUTLIER (in units of
+the frame's robust contrast), sampled on every second pixel. A flow that matches the frames leaves only
+occlusions, noise and the image border (typically < 0.1 on Middlebury); garbage leaves most pixels
+unexplained. The node warns above its documented threshold (docs/node.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .operators import div, grad
+from .warping import Warp, warp
+
+PHOTOMETRIC = ("normalise", "structure_texture", "none")
+PERCENTILES = (2.0, 98.0)
+STRIDE = 3
+MIN_SPAN = 1e-6  # a pair whose robust range is below this (flat) is only shifted, not scaled
+EXPOSURE_QUANTILES = np.arange(5.0, 96.0, 5.0)
+EXPOSURE_DEAD_ZONE = (0.04, 0.02)  # |gain - 1|, |offset| (of the span) below which frame 1 is left alone
+CLIP_MARGIN = 0.01  # quantiles this close to the encoding's 0 or 1 may be clipped: not used for the fit
+STRUCTURE_WEIGHT = 0.95
+ROF_THETA = 0.125
+ROF_ITERATIONS = 30
+RESIDUAL_OUTLIER = 0.1
+RELIABILITY_STRIDE = 2
+
+
+def subsample(img: np.ndarray) -> np.ndarray:
+    """Every STRIDE-th pixel of img (H, W) in each direction, flattened (all of a small image)."""
+    return img[::STRIDE, ::STRIDE].ravel() if min(img.shape) > 4 * STRIDE else img.ravel()
+
+
+def exposure_change(i0: np.ndarray, i1: np.ndarray) -> tuple[float, float]:
+    """(gain, offset) with gain * i1 + offset ~ i0 in distribution: a least-squares line through the
+    matched 5th..95th percentiles of the two frames, leaving out quantiles that may be clipped. Returns
+    (1, 0) inside the dead zone EXPOSURE_DEAD_ZONE: a pair without an exposure change differs in content
+    only (motion at the border), which moves percentiles by a little and must not read as a gain."""
+    q0 = np.percentile(subsample(i0), EXPOSURE_QUANTILES)
+    q1 = np.percentile(subsample(i1), EXPOSURE_QUANTILES)
+    ok = (np.minimum(q0, q1) > CLIP_MARGIN) & (np.maximum(q0, q1) < 1.0 - CLIP_MARGIN)
+    if ok.sum() < 3 or np.ptp(q1[ok]) <= MIN_SPAN:
+        return 1.0, 0.0
+    gain, offset = np.polyfit(q1[ok], q0[ok], 1)
+    span = float(q0[-1] - q0[0]) or 1.0
+    if abs(gain - 1.0) < EXPOSURE_DEAD_ZONE[0] and abs(offset) < EXPOSURE_DEAD_ZONE[1] * span:
+        return 1.0, 0.0
+    return float(gain), float(offset)
+
+
+def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Both frames (H, W) float32 with frame 1's exposure matched to frame 0 (:func:`exposure_change`) and
+    one affine map for the pair taking its pooled 2nd-98th percentile range to [0, 1]."""
+    gain, offset = exposure_change(i0, i1)
+    if (gain, offset) != (1.0, 0.0):
+        i1 = i1 * np.float32(gain) + np.float32(offset)
+    lo, hi = np.percentile(np.concatenate([subsample(i0), subsample(i1)]), PERCENTILES)
+    scale = np.float32(1.0 / (hi - lo) if hi - lo > MIN_SPAN else 1.0)
+    return (i0 - np.float32(lo)) * scale, (i1 - np.float32(lo)) * scale
+
+
+def rof_structure(img: np.ndarray, theta: float = ROF_THETA, iterations: int = ROF_ITERATIONS) -> np.ndarray:
+    """ROF denoising argmin_S |grad S|_1 + |S - img|^2 / (2 theta) by Chambolle's dual projection
+    (step 1/4, isotropic), the structure part of the decomposition. img (H, W) -> (H, W) float32."""
+    p = np.zeros((2,) + img.shape, np.float32)
+    step = np.float32(0.25)
+    for _ in range(iterations):
+        g = grad(div(p) - img / np.float32(theta))
+        p = (p + step * g) / (1.0 + step * np.sqrt(g[0] ** 2 + g[1] ** 2))
+    return (img - theta * div(p)).astype(np.float32)
+
+
+def texture_part(img: np.ndarray) -> np.ndarray:
+    """The texture part I - STRUCTURE_WEIGHT * rof_structure(I) of a frame, (H, W) float32."""
+    return (img - STRUCTURE_WEIGHT * rof_structure(img)).astype(np.float32)
+
+
+def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """The photometric stage: both frames (H, W) float32 as the solver should see them (see module doc)."""
+    if mode == "none":
+        return i0, i1
+    n0, n1 = normalise(i0, i1)
+    if mode == "structure_texture":
+        return normalise(texture_part(n0), texture_part(n1))
+    return n0, n1
+
+
+def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Warp = warp) -> float:
+    """Fraction of pixels the flow does not explain: |I1(x + flow) - I0(x)| > RESIDUAL_OUTLIER on every
+    RELIABILITY_STRIDE-th pixel whose target stays inside the frame (i0, i1 preprocessed (H, W); flow
+    (H, W, 2) px). 0 = every sampled pixel explained, 1 = none. Uses the Keys kernel (no prefilter)."""
+    h, w = i0.shape
+    s = RELIABILITY_STRIDE
+    ys, xs = np.mgrid[0:h:s, 0:w:s].astype(np.float32)
+    map_x = xs + flow[::s, ::s, 0]
+    map_y = ys + flow[::s, ::s, 1]
+    inside = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
+    if not inside.any():
+        return 1.0
+    res = np.abs(sample(i1, map_x, map_y, "keys") - i0[::s, ::s])
+    return float(np.mean(res[inside] > RESIDUAL_OUTLIER))
