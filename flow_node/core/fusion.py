@@ -4,10 +4,10 @@ per-pixel confidence of a flow in [0, 1].
 Images are float32 (h, w) grey; flows are channel-first (2, h, w) in pixels of that grid. The data cost of
 a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the brightness and gradient
 mismatch after warping frame 1 back along the flow, over the pixels whose x + flow(x) stays inside the
-image. Fusion takes, per pixel, the candidate of least cost (the first candidate -- the pyramid's own
-estimate -- wins ties; where no candidate has data, the nearest decided pixel's choice), so an
-initialisation that is wrong somewhere is not used there: it cannot make a pair much worse than the
-pyramid alone.
+image. Fusion takes, per pixel, the candidate of least cost, with the pyramid's own estimate (the first
+candidate) weighted by FUSION_MARGIN and forward-backward confirmed candidate pixels by CONSISTENT_COST;
+where no candidate has data, the nearest decided pixel's choice. An initialisation that is wrong somewhere
+costs clearly more there and is not used there: it cannot make a pair much worse than the pyramid alone.
 """
 
 from __future__ import annotations
@@ -18,16 +18,10 @@ import numpy as np
 from .operators import warp_maps
 
 FUSION_WINDOW = 31  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
-FUSION_MARGIN = 1.3  # a candidate must cost less than the pyramid's flow times this to be taken
+FUSION_MARGIN = 1.3  # a candidate is taken where it costs less than this times the pyramid's flow
 CONSISTENT_COST = 0.7  # cost factor of a forward-backward consistent candidate pixel
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
-
-
-def _sample(img: np.ndarray, map_x: np.ndarray, map_y: np.ndarray) -> np.ndarray:
-    """OpenCV bicubic sample of img (H, W) at the maps, border replicated: enough for judging a flow (a
-    cost, not the data term; the solver warps with warping.py)."""
-    return cv2.remap(img, map_x, map_y, interpolation=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _box(img: np.ndarray, window: int) -> np.ndarray:
@@ -40,24 +34,32 @@ def _grad(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE))
 
 
-def warp_residual(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def planes(img: np.ndarray) -> np.ndarray:
+    """An image with its gradient, interleaved (h, w, 3) float32: I, dI/dx, dI/dy -- what a cost compares."""
+    return cv2.merge([img.astype(np.float32, copy=False), *_grad(img)])
+
+
+def warp_residual(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray,
+                  stacks: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel mismatch |I1(x + f) - I0(x)| + |grad I1(x + f) - grad I0(x)|_1 (h, w) float32, and the
     bool mask of pixels whose x + f stays inside the image. The gradient part keeps the cost meaningful
-    under a brightness change between the frames."""
+    under a brightness change between the frames. Frame 1 and its gradient are sampled bilinearly (one
+    OpenCV remap): enough for judging a flow -- a cost, not the data term. ``stacks`` = (:func:`planes` of
+    i0, of i1), computed once when several flows are judged on one pair."""
+    s0, s1 = stacks if stacks is not None else (planes(i0), planes(i1))
     map_x, map_y, inside = warp_maps(flow)
-    i1w = _sample(i1, map_x, map_y)
-    gx0, gy0 = _grad(i0)
-    gx1, gy1 = _grad(i1w)
-    r = np.abs(i1w - i0) + np.abs(gx1 - gx0) + np.abs(gy1 - gy0)
-    return r.astype(np.float32, copy=False), inside
+    w1 = cv2.remap(s1, map_x, map_y, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    r = np.abs(w1 - s0).sum(axis=-1, dtype=np.float32)
+    return r, inside
 
 
-def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | None = None) -> np.ndarray:
+def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | None = None,
+              stacks: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Local mean of :func:`warp_residual` over the pixels of a ``window`` x ``window`` box whose x + f
     stays inside the image (h, w); inf where (almost) none does. Leaving the image is no evidence against a
     flow (a camera moving forward carries the border out), so such pixels are judged by their neighbours."""
     window = FUSION_WINDOW if window is None else window
-    r, inside = warp_residual(i0, i1, flow)
+    r, inside = warp_residual(i0, i1, flow, stacks)
     m = inside.astype(np.float32)
     support = _box(m, window)
     cost = _box(r * m, window) / np.maximum(support, 1e-6)
@@ -68,12 +70,13 @@ def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | No
 def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
          consistent: list[np.ndarray | None] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel fusion of flow candidates (each (2, h, w)); candidates[0] is the reference (the pyramid's
-    own flow), taken wherever no other candidate costs less than FUSION_MARGIN times it. ``consistent``
-    (per candidate, (h, w) bool or None) marks pixels where a forward-backward check confirmed a candidate:
-    its cost counts CONSISTENT_COST times there (in flat or reflective areas a wrong flow can match the
-    grey values as well as the right one; a consistency check is independent evidence). Returns the fused
-    flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
-    costs = np.stack([data_cost(i0, i1, c) for c in candidates])
+    own flow); another candidate is taken where it costs less than FUSION_MARGIN times the reference.
+    ``consistent`` (per candidate, (h, w) bool or None) marks pixels where a forward-backward check
+    confirmed a candidate: its cost counts CONSISTENT_COST times there (in flat or reflective areas a wrong
+    flow can match the grey values as well as the right one; a consistency check is independent evidence).
+    Returns the fused flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
+    stacks = (planes(i0), planes(i1))
+    costs = np.stack([data_cost(i0, i1, c, stacks=stacks) for c in candidates])
     costs[0] *= FUSION_MARGIN
     for k, ok in enumerate(consistent or []):
         if ok is not None:
