@@ -24,13 +24,12 @@ there, one it improved on is not taken back).
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 
 from .backends import Backend
 from .config import FlowConfig
 from .fusion import fuse
-from .initialise import Candidate, initialise
+from .initialise import Candidate, forward_backward_consistent, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .photometric import preprocess
@@ -69,13 +68,13 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: lis
 
 def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray,
                   candidates: list[Candidate]) -> tuple[np.ndarray, np.ndarray]:
-    """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it; returns
-    the fused flow and the per-pixel choice (0 = ``flow``)."""
-    h, w = pyr.shapes[level]
-    flows = [flow] + [resize_flow(c.flow, (h, w)) for c in candidates]
-    trusted = [None] + [None if c.consistent is None else
-                        cv2.resize(c.consistent.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
-                        for c in candidates]
+    """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it (and its
+    forward-backward consistency checked there, where it has a backward flow); returns the fused flow and
+    the per-pixel choice (0 = ``flow``)."""
+    shape = pyr.shapes[level]
+    flows = [flow] + [resize_flow(c.flow, shape) for c in candidates]
+    trusted = [None] + [None if c.backward is None else forward_backward_consistent(f, resize_flow(c.backward, shape))
+                        for f, c in zip(flows[1:], candidates, strict=True)]
     return fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
 
 

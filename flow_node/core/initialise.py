@@ -39,26 +39,28 @@ FB_TOLERANCE_PX = 1.0  # forward-backward mismatch (plus 5 % of the flow) below 
 @dataclass(frozen=True)
 class Candidate:
     """One initialisation: its source name, dense flow (2, H, W) float32 (px at input resolution) and
-    optionally ``consistent`` (H, W) bool: where a forward-backward check confirmed it (fusion then trusts
-    it more, :data:`flow_node.core.fusion.CONSISTENT_COST`)."""
+    optionally the same source's ``backward`` flow (2, H, W), frame 1 -> frame 0: where the two agree
+    (:func:`forward_backward_consistent`, checked on each fusion level) fusion trusts the candidate more
+    (:data:`flow_node.core.fusion.CONSISTENT_COST`)."""
 
     name: str
     flow: np.ndarray
-    consistent: np.ndarray | None = None
+    backward: np.ndarray | None = None
 
 
 def forward_backward_consistent(forward: np.ndarray, backward: np.ndarray) -> np.ndarray:
-    """(H, W) bool: forward (2, H, W) i0 -> i1 and backward (2, H, W) i1 -> i0 flows agree at x, i.e.
-    |f(x) + b(x + f(x))| < FB_TOLERANCE_PX + 5 % of |f(x)|, and x + f(x) stays inside the image. Occluded
-    pixels (no correspondence) and wrong vectors fail it."""
+    """(h, w) bool: forward (2, h, w) i0 -> i1 and backward (2, h, w) i1 -> i0 flows agree at x, i.e.
+    |f(x) + b(x + f(x))| < FB_TOLERANCE_PX + 5 % of |f(x)| (px of that grid), and x + f(x) stays inside
+    the image. Occluded pixels (no correspondence) and wrong vectors fail it."""
     h, w = forward.shape[1:]
     xs = np.arange(w, dtype=np.float32)[None, :] + forward[0]
     ys = np.arange(h, dtype=np.float32)[:, None] + forward[1]
-    back = [cv2.remap(np.ascontiguousarray(b), xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            for b in backward]
-    err = np.hypot(forward[0] + back[0], forward[1] + back[1])
+    bu, bv = (cv2.remap(np.ascontiguousarray(b), xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+              for b in backward)
+    err2 = (forward[0] + bu) ** 2 + (forward[1] + bv) ** 2
+    tol = FB_TOLERANCE_PX + 0.05 * np.sqrt(forward[0] ** 2 + forward[1] ** 2)
     inside = (xs >= 0) & (xs <= w - 1) & (ys >= 0) & (ys <= h - 1)
-    return inside & (err < FB_TOLERANCE_PX + 0.05 * np.hypot(forward[0], forward[1]))
+    return inside & (err2 < tol * tol)
 
 
 def to_u8(img: np.ndarray) -> np.ndarray:
@@ -68,9 +70,21 @@ def to_u8(img: np.ndarray) -> np.ndarray:
 
 def dis_flow(i0: np.ndarray, i1: np.ndarray, preset: str) -> np.ndarray:
     """DIS optical flow (OpenCV, ``preset`` a key of DIS_PRESETS) from i0 to i1: (2, H, W) float32."""
+    return np.moveaxis(dis_pair(to_u8(i0), to_u8(i1), preset, backward=False)[0], -1, 0)
+
+
+def dis_pair(u0: np.ndarray, u1: np.ndarray, preset: str,
+             backward: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """DIS from uint8 u0 to u1 and (if ``backward``) from u1 to u0: interleaved (H, W, 2) float32 each."""
     algo = cv2.DISOpticalFlow_create(DIS_PRESETS[preset])
-    flow = algo.calc(to_u8(i0), to_u8(i1), None)
-    return np.ascontiguousarray(np.moveaxis(flow, -1, 0), dtype=np.float32)
+    fwd = algo.calc(u0, u1, None)
+    return fwd, (algo.calc(u1, u0, None) if backward else None)
+
+
+def dis_candidate(i0: np.ndarray, i1: np.ndarray, preset: str) -> Candidate:
+    """DIS both ways: the forward flow as a candidate, with the backward flow for the consistency check."""
+    fwd, bwd = dis_pair(to_u8(i0), to_u8(i1), preset)
+    return Candidate(preset, np.moveaxis(fwd, -1, 0), np.moveaxis(bwd, -1, 0))
 
 
 def _detector(kind: str) -> cv2.Feature2D:
@@ -147,8 +161,7 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, initial_flow: np
         out.append(Candidate("previous", propagated_flow(i0, previous_flow)))
     source = cfg.initialisation
     if source in DIS_PRESETS:
-        fwd = dis_flow(i0, i1, source)
-        out.append(Candidate(source, fwd, forward_backward_consistent(fwd, dis_flow(i1, i0, source))))
+        out.append(dis_candidate(i0, i1, source))
     elif source in MATCHERS:
         flow = matches_flow(i0, i1, source)
         if flow is not None:
