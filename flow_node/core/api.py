@@ -11,7 +11,7 @@ import numpy as np
 from .backends import select_backend
 from .config import FlowConfig
 from .errors import InputError
-from .photometric import preprocess, reliability
+from .photometric import reliability, stage
 from .pyramid import SolveStats, coarse_to_fine
 
 log = logging.getLogger("flow_node")
@@ -120,9 +120,9 @@ class FlowEstimator:
                 raise InputError(f"initial_flow: expected shape {i0.shape + (2,)}, got {initial_flow.shape}")
             init = np.moveaxis(initial_flow, -1, 0)  # coarse_to_fine casts it (once) as it resizes it
         start = time.perf_counter()
-        p0, p1 = preprocess(i0, i1, self._config.photometric)
-        flow, stats = coarse_to_fine(p0, p1, self._config, self._backend.solve, init, self._backend.warp)
-        unexplained = reliability(p0, p1, flow, self._backend.warp)
+        (p0, p1), normalised = stage(i0, i1, self._config.photometric)
+        flow, stats = coarse_to_fine(p0, p1, self._config, self._backend.solve, init, self._backend.warper)
+        unexplained = reliability(*normalised, flow, self._backend.warper.sample)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained)
 

@@ -13,9 +13,9 @@ import numpy as np
 
 from .config import FlowConfig
 from .models import MODEL_SPECS, residual
-from .operators import div, image_gradient, linearise
+from .operators import div, image_gradient, linearise, warp_source
 from .solver import LevelSolver, PDState, Problem, SolveParams
-from .warping import Warp, warp
+from .warping import NUMPY_WARPER, Warper
 
 
 @dataclass
@@ -106,10 +106,11 @@ def median_filter(v: np.ndarray, size: int) -> np.ndarray:
 
 
 def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,
-                   initial_flow: np.ndarray | None = None, sample: Warp = warp) -> tuple[np.ndarray, SolveStats]:
+                   initial_flow: np.ndarray | None = None,
+                   warper: Warper = NUMPY_WARPER) -> tuple[np.ndarray, SolveStats]:
     """Estimate flow from i0 to i1 with warping on a Gaussian pyramid: float32 (H, W, 2), u then v, px.
 
-    On each level, coarsest first: ``cfg.warps`` times linearise around the current flow (``sample``: the
+    On each level, coarsest first: ``cfg.warps`` times linearise around the current flow (``warper``: the
     backend's cubic warp of frame 1 and its gradient, outside pixels masked), run ``solve`` and
     median-filter the flow; then carry
     primal and dual variables to the next level. After the finest solved level, ``cfg.bregman_iterations``
@@ -132,10 +133,10 @@ def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: Level
             state = resize_state(state, shapes[lvl])
         params = SolveParams(spec, cfg.alpha * cfg.level_alpha_factor**lvl, cfg.alpha1, cfg.tv_norm,
                              cfg.iterations, cfg.tolerance)
-        g1 = image_gradient(p1[lvl], cfg.gradient_scheme)
+        src1 = warp_source(p1[lvl], cfg.gradient_scheme, cfg.warp_kernel, warper)
         g0 = image_gradient(p0[lvl], cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
         for _ in range(cfg.warps):
-            a, c = linearise(p0[lvl], p1[lvl], g0, g1, state.v, cfg.gradient_scheme, sample, cfg.warp_kernel)
+            a, c = linearise(p0[lvl], src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, warper)
             stats.iterations[lvl] += solve(Problem(a, c), state, params)
             if cfg.median_filter:
                 state.v = median_filter(state.v, cfg.median_filter)

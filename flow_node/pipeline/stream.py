@@ -98,6 +98,7 @@ class FlowOutput:
     model: str
     scale: float
     color_max_flow: float
+    unexplained: float = 0.0  # FlowResult.unexplained: fraction of pixels the flow does not explain
     _magnitude: np.ndarray | None = field(default=None, repr=False)
     _color: np.ndarray | None = field(default=None, repr=False)
     _summary: FlowSummary | None = field(default=None, repr=False)
@@ -220,4 +221,4 @@ class FlowStream:
         self._prev, self._prev_stamp = grey, stamp_ns
         s = self._settings
         return FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
-                          result.backend, s.config.model, s.input_scale, s.color_max_flow)
+                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained)
