@@ -42,6 +42,8 @@ STRIDE = 3
 MIN_SPAN = 1e-6  # a pair whose robust range is below this (flat) is only shifted, not scaled
 EXPOSURE_QUANTILES = np.arange(5.0, 96.0, 5.0)
 EXPOSURE_DEAD_ZONE = 0.1  # |gain - 1| below which frame 1 is left alone (see exposure_change)
+STEP_REF = 0.01  # quantisation step (of the pair's range) up to which the data term is left as it is
+QUANT_SIGMA = 1.0  # px: presmoothing of coarsely quantised pairs (turns their staircases back into ramps)
 CLIP_MARGIN = 0.01  # quantiles this close to the encoding's 0 or 1 may be clipped: not used for the fit
 LOCAL_SIGMA = 4.0  # px: the window of the local contrast normalisation
 LOCAL_EPS = 0.02  # of the pair's range: local contrast below this is not amplified (noise in flat areas)
@@ -54,20 +56,27 @@ RELIABILITY_STRIDE = 2
 UNRELIABLE = 0.35  # unexplained fraction above which the node WARNs: Middlebury 0.02-0.19, garbage 0.48-0.81
 
 
-def subsample(img: np.ndarray) -> np.ndarray:
-    """Every STRIDE-th pixel of img (H, W) in each direction, flattened (all of a small image)."""
-    return img[::STRIDE, ::STRIDE].ravel() if min(img.shape) > 4 * STRIDE else img.ravel()
+def sorted_sample(img: np.ndarray) -> np.ndarray:
+    """Every STRIDE-th pixel of img (H, W) in each direction (all of a small image), sorted, flattened."""
+    sample = img[::STRIDE, ::STRIDE] if min(img.shape) > 4 * STRIDE else img
+    return np.sort(sample, axis=None)
 
 
-def exposure_change(i0: np.ndarray, i1: np.ndarray) -> tuple[float, float]:
-    """(gain, offset) with gain * i1 + offset ~ i0 in distribution: a least-squares line through the
-    matched 5th..95th percentiles of the two frames, leaving out quantiles that may be clipped. Returns
-    (1, 0) when |gain - 1| < EXPOSURE_DEAD_ZONE: a pair without an exposure change differs in content
-    (motion at the border, small images), which moves the percentiles -- measured: gains 0.95-1.05 with
-    offsets of a few grey levels on unchanged pairs -- and must not read as an exposure change (a false
-    correction is a brightness difference, i.e. flow error). Auto-exposure steps are larger (0.75-1.33)."""
-    q0 = np.percentile(subsample(i0), EXPOSURE_QUANTILES)
-    q1 = np.percentile(subsample(i1), EXPOSURE_QUANTILES)
+def quantiles(ordered: np.ndarray, percents: np.ndarray | tuple[float, ...]) -> np.ndarray:
+    """Nearest-rank percentiles (in %) of a sorted sample, float64."""
+    idx = np.rint(np.asarray(percents) / 100.0 * (ordered.size - 1)).astype(np.int64)
+    return ordered[idx].astype(np.float64)
+
+
+def exposure_change(s0: np.ndarray, s1: np.ndarray) -> tuple[float, float]:
+    """(gain, offset) with gain * I1 + offset ~ I0 in distribution, from the sorted samples s0, s1 of the
+    frames (:func:`sorted_sample`): a least-squares line through their matched 5th..95th percentiles,
+    leaving out quantiles that may be clipped. Returns (1, 0) when |gain - 1| < EXPOSURE_DEAD_ZONE: a pair
+    without an exposure change differs in content (motion at the border, small images), which moves the
+    percentiles -- measured: gains 0.95-1.05 with offsets of a few grey levels on unchanged pairs -- and
+    must not read as an exposure change (a false correction is a brightness difference, i.e. flow error).
+    Auto-exposure steps are larger (0.75-1.33)."""
+    q0, q1 = quantiles(s0, EXPOSURE_QUANTILES), quantiles(s1, EXPOSURE_QUANTILES)
     ok = (np.minimum(q0, q1) > CLIP_MARGIN) & (np.maximum(q0, q1) < 1.0 - CLIP_MARGIN)
     if ok.sum() < 3 or np.ptp(q1[ok]) <= MIN_SPAN:
         return 1.0, 0.0
@@ -77,15 +86,37 @@ def exposure_change(i0: np.ndarray, i1: np.ndarray) -> tuple[float, float]:
     return float(gain), float(offset)
 
 
+def quantisation_step(ordered: np.ndarray) -> float:
+    """The smallest positive difference between the grey values of a sorted sample: the encoding's step for
+    integer input (1/255 for 8 bit, 1/65535 for 10-bit content in mono16), ~0 for continuous values."""
+    gaps = np.diff(ordered)
+    gaps = gaps[gaps > 0]
+    return float(gaps.min()) if gaps.size else 0.0
+
+
 def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Both frames (H, W) float32 with frame 1's exposure matched to frame 0 (:func:`exposure_change`) and
-    one affine map for the pair taking its pooled 2nd-98th percentile range to [0, 1]."""
-    gain, offset = exposure_change(i0, i1)
+    one affine map for the pair taking its robust range -- the frames' mean 2nd and 98th percentiles -- to
+    [0, 1].
+
+    A pair whose quantisation step is coarse against that range (rel = step / range > STEP_REF: content
+    spanning fewer than ~100 grey levels) is presmoothed (QUANT_SIGMA) and mapped to [0, STEP_REF / rel]
+    instead: its data term carries quantisation noise of relative size rel, and shrinking the contrast by
+    the same factor keeps the balance of data term and weights (exactly for the L1 data term)."""
+    s0, s1 = sorted_sample(i0), sorted_sample(i1)
+    gain, offset = exposure_change(s0, s1)
     if (gain, offset) != (1.0, 0.0):
         i1 = i1 * np.float32(gain) + np.float32(offset)
-    lo, hi = np.percentile(np.concatenate([subsample(i0), subsample(i1)]), PERCENTILES)
-    scale = np.float32(1.0 / (hi - lo) if hi - lo > MIN_SPAN else 1.0)
-    return (i0 - np.float32(lo)) * scale, (i1 - np.float32(lo)) * scale
+        s1 = s1 * gain + offset
+    lo, hi = 0.5 * (quantiles(s0, PERCENTILES) + quantiles(s1, PERCENTILES))
+    span = hi - lo if hi - lo > MIN_SPAN else 1.0
+    rel = quantisation_step(s0) / span
+    scale = np.float32(min(1.0, STEP_REF / rel) / span if rel > 0 else 1.0 / span)
+    n0, n1 = (i0 - np.float32(lo)) * scale, (i1 - np.float32(lo)) * scale
+    if rel > STEP_REF:
+        blur = lambda x: cv2.GaussianBlur(x, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)  # noqa: E731
+        n0, n1 = blur(n0), blur(n1)
+    return n0, n1
 
 
 def rof_structure(img: np.ndarray, theta: float = ROF_THETA, iterations: int = ROF_ITERATIONS) -> np.ndarray:
