@@ -7,7 +7,7 @@ from synth import block_flow, constant_flow, interior, pair_from_flow, rotation_
 from flow_node import FlowConfig, aee, estimate_flow
 from flow_node.core.config import MODELS
 from flow_node.core.models import MODEL_SPECS, energy
-from flow_node.core.operators import image_gradient, linearise
+from flow_node.core.operators import linearise, warp_source
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 
 H, W = 64, 80
@@ -28,8 +28,7 @@ def small_config(model: str, **kw) -> FlowConfig:
 def linearised_problem(seed: int = 0) -> Problem:
     t = texture(40, 48, seed)
     i0, i1 = pair_from_flow(t, constant_flow(40, 48, 0.4, -0.3))
-    g = image_gradient(i1, "central")
-    a, c = linearise(i0, i1, None, g, np.zeros((2, 40, 48), np.float32), "central")
+    a, c = linearise(i0, warp_source(i1, "central", "bspline"), None, np.zeros((2, 40, 48), np.float32), "central")
     return Problem(a, c)
 
 

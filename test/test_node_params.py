@@ -125,7 +125,8 @@ def test_yaml_files_are_in_sync_and_load_as_configs() -> None:
         assert path.read_text() == render_yaml(name)
         assert FlowConfig.from_yaml(path) == FlowConfig.preset(name)
     text = (ROOT / "config/flow_node.yaml").read_text()
-    assert "    alpha: 0.025\n" in text and "    tolerance: 0.0\n" in text and "    level_alpha_factor: 1.0\n" in text
+    assert f"    alpha: {FlowConfig().alpha!r}\n" in text and "    tolerance: 0.0\n" in text
+    assert "    level_alpha_factor: 1.0\n" in text
 
 
 def test_settings_from_values_rejects_bad_combinations() -> None:

@@ -21,9 +21,9 @@ from flow_node.core.backends import select_backend
 from flow_node.core.config import MODELS, FlowConfig
 from flow_node.core.errors import ConfigError
 from flow_node.core.models import MODEL_SPECS
-from flow_node.core.numba_backend import solve_numba, warp_numba
+from flow_node.core.numba_backend import WARPER, solve_numba
 from flow_node.core.solver import CHECK_EVERY, PDState, Problem, SolveParams, solve_numpy
-from flow_node.core.warping import warp
+from flow_node.core.warping import NUMPY_WARPER
 
 H, W = 40, 56
 ITERATIONS = 40
@@ -168,9 +168,9 @@ def test_threads_cap() -> None:
 
 def test_backend_selection_and_log(caplog: pytest.LogCaptureFixture) -> None:
     with caplog.at_level(logging.INFO, logger="flow_node"):
-        assert select_backend("numpy") == ("numpy", solve_numpy, warp)
-        assert select_backend("auto") == ("numba", solve_numba, warp_numba)
-        assert select_backend("numba") == ("numba", solve_numba, warp_numba)
+        assert select_backend("numpy") == ("numpy", solve_numpy, NUMPY_WARPER)
+        assert select_backend("auto") == ("numba", solve_numba, WARPER)
+        assert select_backend("numba") == ("numba", solve_numba, WARPER)
     lines = [r.getMessage() for r in caplog.records]
     assert lines[0].startswith("flow_node backend: numpy")
     assert lines[1].startswith("flow_node backend: numba") and lines[2].startswith("flow_node backend: numba")
@@ -184,7 +184,7 @@ def test_fallback_when_numba_is_missing(monkeypatch: pytest.MonkeyPatch,
     monkeypatch.setitem(sys.modules, "flow_node.core.numba_backend", None)  # import now raises ImportError
     monkeypatch.delattr(core, "numba_backend")
     with caplog.at_level(logging.WARNING, logger="flow_node"):
-        assert select_backend("auto") == ("numpy", solve_numpy, warp)
+        assert select_backend("auto") == ("numpy", solve_numpy, NUMPY_WARPER)
     assert "numba not importable" in caplog.text
     with pytest.raises(ConfigError, match="numba"):
         select_backend("numba")

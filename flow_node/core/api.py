@@ -59,13 +59,16 @@ class FlowResult:
     """Flow (H, W, 2) float32 px/frame plus what the solve did.
 
     ``unexplained``: the fraction of (sampled) pixels whose photometric residual after the solve is large
-    (photometric.reliability): ~0.0-0.1 for a flow that matches the frames, near 1 for garbage."""
+    (photometric.reliability): ~0.0-0.1 for a flow that matches the frames, near 1 for garbage.
+    ``frames``: the normalised pair that figure judges (photometric.stage), which the confidence
+    (fusion.confidence) is computed on when asked for."""
 
     flow: np.ndarray
     stats: SolveStats
     seconds: float
     backend: str
     unexplained: float = 0.0
+    frames: tuple[np.ndarray, np.ndarray] | None = None
 
 
 class FlowEstimator:
@@ -123,10 +126,10 @@ class FlowEstimator:
         init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
-        flow, stats, frames = estimate_pair(i0, i1, self._config, self._backend, init, prev)
-        unexplained = reliability(frames[0], frames[1], flow, self._backend.warp)
+        flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
+        unexplained = reliability(*normalised, flow, self._backend.warper.sample)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
-        return FlowResult(flow, stats, seconds, self._backend.name, unexplained)
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
 
 
 def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -> np.ndarray | None:

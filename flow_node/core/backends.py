@@ -8,20 +8,20 @@ from typing import NamedTuple
 
 from .errors import ConfigError
 from .solver import LevelSolver, solve_numpy
-from .warping import Warp, warp
+from .warping import NUMPY_WARPER, Warper
 
 log = logging.getLogger("flow_node")
 
 
 class Backend(NamedTuple):
-    """A resolved backend: its name, the level solver and the warp (same semantics in every backend)."""
+    """A resolved backend: its name, the level solver and the warper (same semantics in every backend)."""
 
     name: str
     solve: LevelSolver
-    warp: Warp
+    warper: Warper
 
 
-NUMPY = Backend("numpy", solve_numpy, warp)
+NUMPY = Backend("numpy", solve_numpy, NUMPY_WARPER)
 
 
 def numba_available() -> bool:
@@ -52,4 +52,4 @@ def select_backend(name: str, threads: int = 0) -> Backend:
     used = numba_backend.set_threads(threads)
     log.info("flow_node backend: numba (%d thread%s, kernel cache %s)", used, "" if used == 1 else "s",
              numba_backend.cache_dir())
-    return Backend("numba", numba_backend.solve_numba, numba_backend.warp_numba)
+    return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER)

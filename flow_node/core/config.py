@@ -25,6 +25,14 @@ BACKENDS = ("auto", "numpy", "numba")
 INITIALISATIONS = ("none", "dis_ultrafast", "dis_fast", "dis_medium", "orb", "sift")
 
 
+class _Calibrated(float):
+    """The default of alpha/alpha1: a marker (not a value a user can pass) replaced on construction by the
+    model's calibrated weight (MODEL_WEIGHTS)."""
+
+
+CALIBRATED = _Calibrated("nan")
+
+
 def _f(default: Any, help: str, *, lo: float | None = None, hi: float | None = None,
        choices: tuple[Any, ...] | None = None, lo_open: bool = False) -> Any:
     """A dataclass field carrying its description and its valid range or choices."""
@@ -46,12 +54,12 @@ class FlowConfig:
                           "percentile range to [0, 1]: bit depth, contrast and exposure invariant), "
                           "structure_texture (normalise, then Wedel's texture part), none (grey / max)",
                           choices=PHOTOMETRIC)
-    model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1)",
-                    choices=MODELS)
-    alpha: float = _f(0.025, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv)",
-                      lo=0.0, hi=1000.0, lo_open=True)
-    alpha1: float = _f(0.5, "second weight alpha_1: of (1/2)|w|^2 in l1_tv_l2, of |grad w|_1 in l1_tv_tv",
-                       lo=0.0, hi=10000.0)
+    model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1); choosing a "
+                    "model without alpha/alpha1 also selects its calibrated weights", choices=MODELS)
+    alpha: float = _f(CALIBRATED, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv); default: the "
+                      "model's calibrated weight", lo=0.0, hi=1000.0, lo_open=True)
+    alpha1: float = _f(CALIBRATED, "second weight alpha_1: of (1/2)|w|^2 in l1_tv_l2, of |grad w|_1 in l1_tv_tv; "
+                       "default: the model's calibrated weight", lo=0.0, hi=10000.0)
     tv_norm: str = _f("isotropic", "vector norm of the TV terms: isotropic (joint Euclidean) or "
                       "anisotropic (sum of absolute values)", choices=TV_NORMS)
     gradient_scheme: str = _f("central", "image gradient: forward, central, or interpolated "
@@ -86,6 +94,10 @@ class FlowConfig:
     threads: int = _f(0, "threads for the numba backend (0 = all cores)", lo=0, hi=1024)
 
     def __post_init__(self) -> None:
+        if self.model in MODEL_WEIGHTS:  # an unknown model is reported by the field check below
+            for name, value in MODEL_WEIGHTS[self.model].items():
+                if getattr(self, name) is CALIBRATED:
+                    object.__setattr__(self, name, value)
         for f in dataclasses.fields(self):
             object.__setattr__(self, f.name, _check_field(f, getattr(self, f.name)))
         if self.model in ("l1_tv_l2", "l1_tv_tv") and self.alpha1 <= 0.0:
@@ -146,11 +158,12 @@ class FlowConfig:
         return cls.from_mapping(data, base)
 
     def replace(self, **changes: Any) -> FlowConfig:
-        """A validated copy with ``changes`` applied."""
+        """A validated copy with ``changes`` applied; a change of ``model`` without ``alpha``/``alpha1``
+        also sets them to the new model's calibrated weights (:func:`implied_weights`)."""
         unknown = sorted(set(changes) - set(field_names()))
         if unknown:
             raise ConfigError(f"unknown parameter(s) {', '.join(unknown)}")
-        return dataclasses.replace(self, **changes)
+        return dataclasses.replace(self, **implied_weights(self.model, changes), **changes)
 
     def with_overrides(self, assignments: Iterable[str]) -> FlowConfig:
         """Apply ``key=value`` strings (CLI ``--set``), parsed by each field's type."""
@@ -168,6 +181,30 @@ class FlowConfig:
     def to_dict(self) -> dict[str, Any]:
         """Plain dict of every field, in declaration order."""
         return dataclasses.asdict(self)
+
+
+# The calibrated weights of each model: the defaults of alpha/alpha1 when a model is chosen without them.
+# On normalised pairs (photometric="normalise") with the default pyramid; from the sweep in BENCHMARKS.md
+# ("Model-aware weights"): Middlebury plus the tune split of the suite's fine-texture regime.
+MODEL_WEIGHTS: dict[str, dict[str, float]] = {
+    "l2_l2": dict(alpha=0.02, alpha1=0.5),
+    "l2_tv": dict(alpha=0.005, alpha1=0.5),
+    "l1_tv": dict(alpha=0.08, alpha1=0.5),
+    "l1_tv_l2": dict(alpha=0.08, alpha1=0.5),
+    "l1_tv_tv": dict(alpha=0.08, alpha1=0.5),
+}
+
+
+def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str, float]:
+    """The weights a change implies: when ``changes`` switches the model away from ``current_model`` and does
+    not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS); else {}.
+
+    The one rule for every entry point (API ``replace``, CLI ``--model``, the node's ``model`` parameter):
+    re-selecting the current model, or giving a weight with it, keeps what was given."""
+    model = changes.get("model", current_model)
+    if model == current_model or model not in MODEL_WEIGHTS:
+        return {}
+    return {k: v for k, v in MODEL_WEIGHTS[model].items() if k not in changes}
 
 
 PRESETS: dict[str, dict[str, Any]] = {
@@ -210,10 +247,11 @@ def field_names() -> tuple[str, ...]:
 def fields_info() -> list[FieldInfo]:
     """Name, type, default, description and range of every field."""
     types = {"int": int, "float": float, "str": str}
+    defaults = FlowConfig()  # resolved defaults (alpha/alpha1: the default model's calibrated weights)
     out = []
     for f in dataclasses.fields(FlowConfig):
         m = f.metadata
-        out.append(FieldInfo(f.name, types[str(f.type)], f.default, m["help"], m["lo"], m["hi"],
+        out.append(FieldInfo(f.name, types[str(f.type)], getattr(defaults, f.name), m["help"], m["lo"], m["hi"],
                              m["choices"]))
     return out
 

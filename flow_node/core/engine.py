@@ -6,7 +6,7 @@ Each stage is one function with one interface, in the module named for it:
 =====================  =========================================================  ==========================
 stage                  interface                                                  module
 =====================  =========================================================  ==========================
-photometric            (i0, i1, mode) -> (i0, i1), float32 (H, W)                 ``core/photometric.py``
+photometric            (i0, i1, mode) -> (solver pair, normalised pair)           ``core/photometric.py``
 initialisation         (i0, i1, cfg, initial, previous) -> [Candidate]            ``core/initialise.py``
 refinement             (pyramid, cfg, backend, state, first, last, stats) -> state ``core/refine.py``
 fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice)                         ``core/fusion.py``
@@ -32,7 +32,7 @@ from .fusion import fuse
 from .initialise import Candidate, forward_backward_consistent, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
-from .photometric import preprocess
+from .photometric import stage
 from .pyramid import Pyramid, make_pyramid, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
@@ -82,16 +82,17 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
                   initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None
                   ) -> tuple[np.ndarray, SolveStats, tuple[np.ndarray, np.ndarray]]:
     """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px;
-    the stats; and the pair as the photometric stage handed it on (what the flow explains).
+    the stats; and the normalised pair of the photometric stage (what the flow's reliability and
+    confidence are judged on).
 
     ``initial_flow`` (2, H, W) is a caller's warm start; ``previous_flow`` (2, H, W) the previous pair's
     flow in a stream (used when ``cfg.temporal_init``). Both only enter through the fusion, so a wrong one
     costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
     upsampled to (H, W) by the output layout stage.
     """
-    i0, i1 = preprocess(i0, i1, cfg.photometric)
+    (i0, i1), normalised = stage(i0, i1, cfg.photometric)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
     pyr = make_pyramid(i0, i1, cfg)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     state = refine_from(pyr, cfg, backend, candidates, stats)
-    return interleaved_flow(state.v, pyr.shapes[0]), stats, (i0, i1)
+    return interleaved_flow(state.v, pyr.shapes[0]), stats, normalised

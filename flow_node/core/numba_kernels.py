@@ -278,8 +278,14 @@ def _warp_rows(img, map_x, map_y, kernel, out, i):  # noqa: ANN001, ANN201
         xi, yi = _floor(mx), _floor(my)
         wx0, wx1, wx2, wx3 = cubic_weights4(mx - np.float32(xi), kernel)
         wy0, wy1, wy2, wy3 = cubic_weights4(my - np.float32(yi), kernel)
-        c0, c1, c2, c3 = _mirror(xi - 1, w), _mirror(xi, w), _mirror(xi + 1, w), _mirror(xi + 2, w)
-        r0, r1, r2, r3 = _mirror(yi - 1, h), _mirror(yi, h), _mirror(yi + 1, h), _mirror(yi + 2, h)
+        if xi >= 1 and xi + 2 < w:  # interior: no reflection (the common, predictable case)
+            c0, c1, c2, c3 = xi - 1, xi, xi + 1, xi + 2
+        else:
+            c0, c1, c2, c3 = _mirror(xi - 1, w), _mirror(xi, w), _mirror(xi + 1, w), _mirror(xi + 2, w)
+        if yi >= 1 and yi + 2 < h:
+            r0, r1, r2, r3 = yi - 1, yi, yi + 1, yi + 2
+        else:
+            r0, r1, r2, r3 = _mirror(yi - 1, h), _mirror(yi, h), _mirror(yi + 1, h), _mirror(yi + 2, h)
         for ch in range(nc):
             out[ch, i, j] = (
                 wy0 * (wx0 * img[ch, r0, c0] + wx1 * img[ch, r0, c1] + wx2 * img[ch, r0, c2] + wx3 * img[ch, r0, c3])
@@ -300,29 +306,42 @@ def warp_kernel(img, map_x, map_y, kernel, out, parallel):  # noqa: ANN001, ANN2
             _warp_rows(img, map_x, map_y, kernel, out, i)
 
 
+@njit(**_JIT)
+def _bspline_line(flat, base, step, length, pole, horizon):  # noqa: ANN001, ANN201
+    """In place: the direct transform of one line (``length`` elements ``step`` apart from ``base``)."""
+    z = pole
+    acc = 0.0
+    zk = 1.0
+    for k in range(horizon):  # mirrored causal start: sum z^k s[k]
+        acc += zk * 6.0 * flat[base + k * step]
+        zk *= z
+    prev = acc
+    flat[base] = prev
+    for k in range(1, length):
+        prev = 6.0 * flat[base + k * step] + z * prev
+        flat[base + k * step] = prev
+    last = base + (length - 1) * step
+    prev = (z / (z * z - 1.0)) * (flat[last] + z * flat[last - step])
+    flat[last] = prev
+    for k in range(length - 2, -1, -1):
+        prev = z * (prev - flat[base + k * step])
+        flat[base + k * step] = prev
+
+
 @njit(parallel=True, **_JIT)
-def bspline_lines(flat, per_plane, plane, line_step, step, length, pole, horizon):  # noqa: ANN001, ANN201
+def bspline_lines(flat, per_plane, plane, line_step, step, length, pole, horizon, parallel):  # noqa: ANN001, ANN201
     """In place: the cubic B-spline direct transform (warping.bspline_prefilter) of every line of a
     flattened (N, H, W) array; line l starts at (l // per_plane) * plane + (l % per_plane) * line_step and
-    has ``length`` elements ``step`` apart (rows: step 1; columns: step W). Accumulates in float64."""
-    z = pole
-    for line in prange(flat.shape[0] // plane * per_plane):
-        base = (line // per_plane) * plane + (line % per_plane) * line_step
-        if length == 1:
-            continue
-        acc = 0.0
-        zk = 1.0
-        for k in range(horizon):  # mirrored causal start: sum z^k s[k]
-            acc += zk * 6.0 * flat[base + k * step]
-            zk *= z
-        prev = acc
-        flat[base] = prev
-        for k in range(1, length):
-            prev = 6.0 * flat[base + k * step] + z * prev
-            flat[base + k * step] = prev
-        last = base + (length - 1) * step
-        prev = (z / (z * z - 1.0)) * (flat[last] + z * flat[last - step])
-        flat[last] = prev
-        for k in range(length - 2, -1, -1):
-            prev = z * (prev - flat[base + k * step])
-            flat[base + k * step] = prev
+    has ``length`` elements ``step`` apart (rows: step 1; columns: step W). Accumulates in float64; lines in
+    parallel when ``parallel``."""
+    if length == 1:
+        return
+    lines = flat.shape[0] // plane * per_plane
+    if parallel:
+        for line in prange(lines):
+            _bspline_line(flat, (line // per_plane) * plane + (line % per_plane) * line_step, step, length, pole,
+                          horizon)
+    else:
+        for line in range(lines):
+            _bspline_line(flat, (line // per_plane) * plane + (line % per_plane) * line_step, step, length, pole,
+                          horizon)

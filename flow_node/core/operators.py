@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .warping import Warp, warp
+from .warping import NUMPY_WARPER, Warper
 
 
 def grad(f: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -70,19 +70,27 @@ def warp_maps(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return map_x, map_y, inside
 
 
-def linearise(i0: np.ndarray, i1: np.ndarray, grad_i0: np.ndarray | None, grad_i1: np.ndarray,
-              flow0: np.ndarray, scheme: str, sample: Warp = warp,
-              kernel: str = "bspline") -> tuple[np.ndarray, np.ndarray]:
+def warp_source(i1: np.ndarray, scheme: str, kernel: str, warper: Warper = NUMPY_WARPER) -> np.ndarray:
+    """What each warp of one level samples: (3, H, W) float32 = [I1, its image gradient (scheme)] as the
+    kernel's coefficients. Built once per level. For the B-spline only I1 is prefiltered and the gradient
+    taken of its coefficients: both filters are linear and shift-invariant, so that is the prefiltered
+    gradient (away from the one-pixel border) at a third of the prefilter's cost."""
+    coef = warper.coefficients(i1, kernel)
+    return np.concatenate([coef[None], image_gradient(coef, scheme)])
+
+
+def linearise(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | None, flow0: np.ndarray, scheme: str,
+              kernel: str = "bspline", warper: Warper = NUMPY_WARPER) -> tuple[np.ndarray, np.ndarray]:
     """Linearised brightness constancy around flow0 (paper, "Large Displacements").
 
     rho(v) = I1(x + v0) + grad I1(x + v0) . (v - v0) - I0(x) = a . v + c, with a the image gradient of the
-    chosen scheme. I1 and its gradient are sampled at x + v0 by ``sample`` (the backend's warp) with one
+    chosen scheme. I1 and its gradient (``source1``, :func:`warp_source`) are sampled at x + v0 with one
     cubic ``kernel`` (warping.py), so the warped gradient is that of the same interpolant family. Returns
     a (2, H, W) and c (H, W); both are zero where x + v0 leaves the image, which removes those pixels from
     the data term. Without warping (v0 = 0) c is the paper's u_t = I1 - I0.
     """
     map_x, map_y, inside = warp_maps(flow0)
-    warped = sample(np.concatenate([i1[None], grad_i1]), map_x, map_y, kernel)
+    warped = warper.sample(source1, map_x, map_y, kernel)
     i1w, a = warped[0], warped[1:]
     if scheme == "interpolated":
         a = 0.5 * (grad_i0 + a)

@@ -19,7 +19,7 @@ from .bregman import bregman
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
-from .operators import image_gradient, linearise
+from .operators import image_gradient, linearise, warp_source
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
 
@@ -68,11 +68,11 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     iterations)."""
     params = level_params(cfg, level)
     i0, i1 = pyr.i0[level], pyr.i1[level]
-    g1 = image_gradient(i1, cfg.gradient_scheme)
+    src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
     g0 = image_gradient(i0, cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
     iterations = 0
     for _ in range(cfg.warps):
-        a, c = linearise(i0, i1, g0, g1, state.v, cfg.gradient_scheme, backend.warp, cfg.warp_kernel)
+        a, c = linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
         iterations += backend.solve(Problem(a, c), state, params)
         if cfg.median_filter:
             state.v = median_filter(state.v, cfg.median_filter)

@@ -24,6 +24,7 @@ same arithmetic and matches this reference to ~1e-6 (test_warping.py).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,8 +34,9 @@ KEYS_A = -0.5
 BSPLINE_POLE = float(np.sqrt(3.0) - 2.0)  # z of the cubic B-spline's direct transform (Unser 1999)
 HORIZON = 30  # terms of the mirrored causal start sum: |z|**30 ~ 1e-17
 
-# warp(img, map_x, map_y, kernel) -> sampled image: the numpy reference below or the numba kernel
-Warp = Callable[[np.ndarray, np.ndarray, np.ndarray, str], np.ndarray]
+# sample(coef, map_x, map_y, kernel) -> sampled image; prefilter(img) -> B-spline coefficients
+Sample = Callable[[np.ndarray, np.ndarray, np.ndarray, str], np.ndarray]
+Prefilter = Callable[[np.ndarray], np.ndarray]
 
 
 def cubic_weights(t: np.ndarray, kernel: str) -> np.ndarray:
@@ -79,11 +81,21 @@ def _prefilter_last_axis(s: np.ndarray) -> np.ndarray:
     return c
 
 
-def warp(img: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel: str = "bspline") -> np.ndarray:
-    """The ``kernel``'s interpolant of img (H, W) or (C, H, W) sampled at (map_x, map_y) (each (h, w), px),
-    border mirrored; for ``bspline`` the prefilter runs first. float32, shape (h, w) or (C, h, w)."""
-    src = bspline_prefilter(img) if kernel == "bspline" else img
-    return sample_coefficients(src, map_x, map_y, kernel)
+class Warper(NamedTuple):
+    """A backend's two warp functions: ``sample`` (:func:`sample_coefficients`) and ``prefilter``
+    (:func:`bspline_prefilter`). :meth:`coefficients` once per image, then ``sample`` per warp."""
+
+    sample: Sample
+    prefilter: Prefilter
+
+    def coefficients(self, img: np.ndarray, kernel: str) -> np.ndarray:
+        """What ``sample`` interpolates for ``kernel``: the B-spline coefficients of img, or img (Keys)."""
+        return self.prefilter(img) if kernel == "bspline" else np.asarray(img, dtype=np.float32)
+
+    def warp(self, img: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel: str = "bspline") -> np.ndarray:
+        """The ``kernel``'s interpolant of img (H, W) or (C, H, W) sampled at (map_x, map_y) (each (h, w), px),
+        border mirrored. float32, shape (h, w) or (C, h, w)."""
+        return self.sample(self.coefficients(img, kernel), map_x, map_y, kernel)
 
 
 def mirror_index(i: np.ndarray, n: int) -> np.ndarray:
@@ -95,7 +107,8 @@ def mirror_index(i: np.ndarray, n: int) -> np.ndarray:
 
 
 def sample_coefficients(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel: str) -> np.ndarray:
-    """sum over the 4 x 4 taps around each position of weight * coef (coef (..., H, W)), mirrored taps."""
+    """sum over the 4 x 4 taps around each position of weight * coef (coef (..., H, W)), mirrored taps:
+    coef sampled at (map_x, map_y) (each (h, w), px) -> float32 (..., h, w)."""
     h, w = coef.shape[-2:]
     mx = map_x.astype(np.float32)
     my = map_y.astype(np.float32)
@@ -109,3 +122,7 @@ def sample_coefficients(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, 
             cols = mirror_index(xi + kx - 1, w)
             out += (wy[ky] * wx[kx]) * coef[..., rows, cols]
     return out
+
+
+NUMPY_WARPER = Warper(sample_coefficients, bspline_prefilter)
+warp = NUMPY_WARPER.warp

@@ -103,6 +103,7 @@ class FlowOutput:
     model: str
     scale: float
     color_max_flow: float
+    unexplained: float = 0.0  # FlowResult.unexplained: fraction of pixels the flow does not explain
     frames: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     _confidence: np.ndarray | None = field(default=None, repr=False)
     _magnitude: np.ndarray | None = field(default=None, repr=False)
@@ -241,4 +242,5 @@ class FlowStream:
         self._prev, self._prev_stamp = grey, stamp_ns
         self._prev_flow = result.flow if s.config.temporal_init else None
         return FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
-                          result.backend, s.config.model, s.input_scale, s.color_max_flow, (prev, grey))
+                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
+                          result.frames)

@@ -27,6 +27,7 @@ from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+from ..core.config import implied_weights
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import array_to_image_fields, decode
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
@@ -187,7 +188,8 @@ class FlowNode(Node):
         return values
 
     def _expand_preset(self, params: list[Parameter]) -> list[Parameter]:
-        """Pre-set callback: setting ``preset`` also sets its group (values given in the same call win)."""
+        """Pre-set callback: setting ``preset`` also sets its group, setting ``model`` its calibrated weights
+        (config.implied_weights); values given in the same call win."""
         names = {p.name for p in params}
         out = list(params)
         for p in params:
@@ -197,6 +199,8 @@ class FlowNode(Node):
                 except ConfigError:
                     continue  # _validate rejects it with the reason
                 out += [Parameter(k, value=coerce(self._specs[k], v)) for k, v in group.items() if k not in names]
+        given = {p.name: p.value for p in out}  # a new model without weights brings its calibrated ones
+        out += [Parameter(k, value=v) for k, v in implied_weights(self.get_parameter("model").value, given).items()]
         return out
 
     def _validate(self, params: list[Parameter]) -> SetParametersResult:
