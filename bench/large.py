@@ -33,7 +33,8 @@ DEFAULT_LARGE = REPO.parent / "shared" / "data" / "large"
 DEFAULT_MIDDLEBURY = REPO.parent / "shared" / "data" / "middlebury"
 RESULTS = REPO / "bench" / "results"
 DEFAULT_VARIANTS = ("quality:none", "quality:dis_medium", "quality:dis_fast", "quality:sift", "quality:orb",
-                    "realtime:none", "realtime:dis_ultrafast", "realtime:dis_fast")
+                    "balanced:none", "balanced:dis_fast", "realtime:none", "realtime:dis_ultrafast",
+                    "realtime:dis_fast", "fastest:none", "fastest:dis_ultrafast")
 
 # (i0, i1) -> (flow (H, W, 2), confidence (H, W) or None)
 Method = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray | None]]

@@ -27,7 +27,7 @@ from flow_node.pipeline.stream import FlowStream, StreamSettings
 
 SIZE = (160, 120)  # width, height
 SHIFT = (40.0, 12.0)  # px per frame
-SHORT = small_frames.CONFIG.replace(levels=3, scale_factor=0.5, min_size=8)
+SHORT = small_frames.CONFIG.replace(levels=3, scale_factor=0.5, min_size=8, initialisation="none")
 
 
 def grey(rgb: np.ndarray) -> np.ndarray:
@@ -226,3 +226,15 @@ def test_confidence_auc_is_one_for_a_perfect_ranking_and_half_for_noise() -> Non
     noise = np.random.default_rng(0).random((20, 30)).astype(np.float32)
     assert abs(confidence_auc(noise, flow, gt) - 0.5) < 0.1
     assert confidence_auc(conf, gt, gt) is None  # every pixel right: no ranking to judge
+
+
+def test_a_computed_initialisation_is_fused_only_for_large_motions() -> None:
+    """A 2 px shift is below init_min_motion (24 px): DIS is computed but not fused (the result is the
+    pyramid's own, bit for bit); a 40 px shift is above it and DIS is fused."""
+    i0, i1, _ = shifted_pair(seed=3, shift=(2.3, -1.4), size=(240, 180))
+    cfg = SHORT.replace(initialisation="dis_medium")
+    small = FlowEstimator(cfg).estimate_grey(i0, i1)
+    assert small.stats.init_offered == "dis_medium" and small.stats.init == "" and small.stats.start_level == -1
+    assert np.array_equal(small.flow, FlowEstimator(SHORT).estimate_grey(i0, i1).flow)
+    j0, j1, _ = shifted_pair(0, SHIFT, (240, 180))
+    assert FlowEstimator(cfg).estimate_grey(j0, j1).stats.init == "dis_medium"

@@ -13,13 +13,14 @@ fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice)                       
 output layout          (2, h, w) -> (H, W, 2) at the input size                   ``core/layout.py``
 =====================  =========================================================  ==========================
 
-Without a candidate the refinement runs over the whole pyramid from zero flow (the paper's scheme). With
-candidates it runs from the coarsest level down to just above the *start level* -- the coarsest level with
-at least ``cfg.init_scale`` of the input resolution, where the initialisation is trusted -- and there the
-pyramid's estimate and every candidate (resampled to that level) are fused per pixel by data cost; the
-refinement then continues from the fused flow to the finest solved level, where its result and the
-candidates are fused once more (an initialisation the refinement drifted away from wrongly is recovered
-there, one it improved on is not taken back).
+Without a candidate -- or when no computed candidate says the pair moves further than ``cfg.init_min_motion``
+(:func:`~flow_node.core.initialise.beyond_reach`) -- the refinement runs over the whole pyramid from zero
+flow (the paper's scheme). With candidates it runs from the coarsest level down to just above the *start
+level* -- the coarsest level with at least ``cfg.init_scale`` of the input resolution, where the
+initialisation is trusted -- and there the pyramid's estimate and every candidate (resampled to that level)
+are fused per pixel by data cost; the refinement then continues from the fused flow to the finest solved
+level, where its result and the candidates are fused once more (an initialisation the refinement drifted
+away from wrongly is recovered there).
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ import numpy as np
 
 from .backends import Backend
 from .config import FlowConfig
-from .fusion import fuse
-from .initialise import Candidate, forward_backward_consistent, initialise
+from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT, fuse
+from .initialise import Candidate, beyond_reach, forward_backward_consistent, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .photometric import stage
@@ -50,6 +51,8 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: lis
     level, fusion there, then on to the finest solved level. Returns the state on the finest solved level."""
     finest = finest_level(pyr, cfg)
     state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[-1])
+    stats.init_offered = "+".join(c.name for c in candidates)
+    candidates = beyond_reach(candidates, cfg.init_min_motion)
     if not candidates:
         return refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest, stats)
     start = start_level(pyr, cfg)
@@ -61,20 +64,25 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: lis
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
     state = refine_levels(pyr, cfg, backend, state, start, finest, stats)
-    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates)
+    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates, final=True)
     stats.final_init_share = float(np.mean(choice > 0))
     return state
 
 
-def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray,
-                  candidates: list[Candidate]) -> tuple[np.ndarray, np.ndarray]:
-    """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it (and its
-    forward-backward consistency checked there, where it has a backward flow); returns the fused flow and
-    the per-pixel choice (0 = ``flow``)."""
+def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, candidates: list[Candidate],
+                  final: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it; returns
+    the fused flow and the per-pixel choice (0 = ``flow``). On the start level (``final`` False) candidates
+    are preferred (FUSION_MARGIN) and forward-backward consistent pixels trusted more (checked there, where
+    a candidate has a backward flow); after the refinement (``final``) a candidate must be clearly better
+    than the refined flow (FINAL_MARGIN), which is then usually the more accurate one, and consistent where
+    it can be checked."""
     shape = pyr.shapes[level]
     flows = [flow] + [resize_flow(c.flow, shape) for c in candidates]
     trusted = [None] + [None if c.backward is None else forward_backward_consistent(f, resize_flow(c.backward, shape))
                         for f, c in zip(flows[1:], candidates, strict=True)]
+    if final:
+        return fuse(pyr.i0[level], pyr.i1[level], flows, trusted, FINAL_MARGIN, only_consistent=FINAL_ONLY_CONSISTENT)
     return fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
 
 

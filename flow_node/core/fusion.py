@@ -19,6 +19,8 @@ from .operators import warp_maps
 
 FUSION_WINDOW = 31  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
 FUSION_MARGIN = 1.3  # a candidate is taken where it costs less than this times the pyramid's flow
+FINAL_MARGIN = 1.3  # after the refinement: a candidate is taken where it costs less than this times the refined flow
+FINAL_ONLY_CONSISTENT = False  # True: ... and only where forward-backward consistent
 CONSISTENT_COST = 0.7  # cost factor of a forward-backward consistent candidate pixel
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
@@ -68,18 +70,22 @@ def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | No
 
 
 def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
-         consistent: list[np.ndarray | None] | None = None) -> tuple[np.ndarray, np.ndarray]:
+         consistent: list[np.ndarray | None] | None = None,
+         margin: float = FUSION_MARGIN, only_consistent: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel fusion of flow candidates (each (2, h, w)); candidates[0] is the reference (the pyramid's
-    own flow); another candidate is taken where it costs less than FUSION_MARGIN times the reference.
+    own flow); another candidate is taken where it costs less than ``margin`` times the reference.
     ``consistent`` (per candidate, (h, w) bool or None) marks pixels where a forward-backward check
     confirmed a candidate: its cost counts CONSISTENT_COST times there (in flat or reflective areas a wrong
-    flow can match the grey values as well as the right one; a consistency check is independent evidence).
+    flow can match the grey values as well as the right one; a consistency check is independent evidence),
+    or, with ``only_consistent``, the candidate is considered nowhere else.
     Returns the fused flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
     stacks = (planes(i0), planes(i1))
     costs = np.stack([data_cost(i0, i1, c, stacks=stacks) for c in candidates])
-    costs[0] *= FUSION_MARGIN
+    costs[0] *= margin
     for k, ok in enumerate(consistent or []):
-        if ok is not None:
+        if ok is not None and only_consistent:
+            costs[k][~ok] = np.inf
+        elif ok is not None:
             costs[k][ok] *= CONSISTENT_COST
     choice = np.argmin(costs, axis=0)
     choice = fill_undecided(choice, ~np.isfinite(costs).any(axis=0))

@@ -167,3 +167,18 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, initial_flow: np
         if flow is not None:
             out.append(Candidate(source, flow))
     return out
+
+
+def beyond_reach(candidates: list[Candidate], min_motion: float) -> list[Candidate]:
+    """The candidates worth fusing: a caller's ``initial_flow`` always; a computed one only when it says
+    the pair moves far -- the 95th percentile of its |flow| (px, on every 4th pixel) above ``min_motion``
+    (``FlowConfig.init_min_motion``). Below that the pyramid's own estimate is the more accurate one (on
+    Middlebury, whose largest motions are ~21 px, fusing DIS anyway costs quality 0.32 -> 0.51 mean AEE:
+    DIS is less precise, and a data cost cannot always tell), so only the candidate's computation is
+    spent, not accuracy."""
+    out = []
+    for c in candidates:
+        mag = np.hypot(c.flow[0, ::4, ::4], c.flow[1, ::4, ::4])
+        if c.name == "initial_flow" or float(np.percentile(mag, 95)) > min_motion:
+            out.append(c)
+    return out

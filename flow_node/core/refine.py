@@ -27,7 +27,8 @@ from .solver import PDState, Problem, SolveParams
 @dataclass
 class SolveStats:
     """What a solve did: iterations per level (finest first) and the level shapes; the initialisation used
-    (``init``: the candidates' names joined by '+', '' for none), the level the refinement restarted from
+    (``init``: the candidates' names joined by '+', '' for none; ``init_offered``: those the initialisation
+    stage computed, before the ones within the pyramid's reach were dropped), the level the refinement restarted from
     with it (``start_level``, -1 without one), the share of pixels the fusion there took from a candidate
     (``init_share``) and the share the fusion after the finest level took (``final_init_share``: where
     the refinement did not improve on a candidate)."""
@@ -36,6 +37,7 @@ class SolveStats:
     iterations: list[int] = field(default_factory=list)
     bregman_iterations: int = 0
     init: str = ""
+    init_offered: str = ""
     start_level: int = -1
     init_share: float = 0.0
     final_init_share: float = 0.0
