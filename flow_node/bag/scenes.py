@@ -243,13 +243,21 @@ def _fast_objects(size: tuple[int, int], rng: np.random.Generator, speeds: tuple
         cx, cy = float(mx - centre_frame * v[0]), float(my - centre_frame * v[1])  # texture coords at t = 0
         r = float(rng.uniform(0.12, 0.2) * min(w, h))
         shape = (cx, cy, r * float(rng.uniform(0.8, 1.3)), r, "box" if i % 2 else "ellipse")
-        out.append(Layer(Texture.random(rng, fmax=1 / 6), AffineMotion((cx, cy), v), shape))
+        out.append(Layer(Texture.random(rng, fmin=1 / 100, fmax=1 / 6), AffineMotion((cx, cy), v), shape))
     return tuple(out)
+
+
+def _coarse_texture(rng: np.random.Generator, bg: Texture) -> Texture:
+    """A texture with structure from 1/160 to 1/5 cycles/px for a fast scene: a motion of tens of pixels
+    is ambiguous on a texture without periods that long (the given ``bg``'s tint is kept)."""
+    t = Texture.random(rng, n=36, fmin=1 / 160)
+    return Texture(t.freqs, t.phases, t.amps, bg.tint)
 
 
 def fast_pan(size: tuple[int, int], rng: np.random.Generator, bg: Texture) -> tuple[Layer, ...]:
     """A camera panning 20-40 px/frame (scaled to a 320 px wide image, at most 150 px) over a textured
     background, with three objects crossing at 40-110 px/frame."""
+    bg = _coarse_texture(rng, bg)
     w, h = size
     k = w / 320.0
     pan = min(150.0, float(rng.uniform(20.0, 40.0)) * k)
@@ -262,6 +270,7 @@ def fast_pan(size: tuple[int, int], rng: np.random.Generator, bg: Texture) -> tu
 def fast_objects(size: tuple[int, int], rng: np.random.Generator, bg: Texture) -> tuple[Layer, ...]:
     """A nearly still background (a 1-3 px/frame drift) and four objects at 60-150 px/frame (scaled to a
     320 px wide image, at most 150 px): the motion a pyramid loses, with large occluded areas."""
+    bg = _coarse_texture(rng, bg)
     w, h = size
     k = w / 320.0
     drift = rng.uniform(1.0, 3.0, 2) * rng.choice([-1.0, 1.0], 2)
