@@ -81,10 +81,19 @@ def dis_pair(u0: np.ndarray, u1: np.ndarray, preset: str,
     return fwd, (algo.calc(u1, u0, None) if backward else None)
 
 
-def dis_candidate(i0: np.ndarray, i1: np.ndarray, preset: str) -> Candidate:
-    """DIS both ways: the forward flow as a candidate, with the backward flow for the consistency check."""
-    fwd, bwd = dis_pair(to_u8(i0), to_u8(i1), preset)
-    return Candidate(preset, np.moveaxis(fwd, -1, 0), np.moveaxis(bwd, -1, 0))
+def dis_candidate(i0: np.ndarray, i1: np.ndarray, preset: str, min_motion: float) -> Candidate:
+    """DIS as a candidate; when its motion will get it fused (:func:`moves_far`), also the backward flow
+    for the consistency check (otherwise that second DIS run is saved)."""
+    u0, u1 = to_u8(i0), to_u8(i1)
+    fwd = np.moveaxis(dis_pair(u0, u1, preset, backward=False)[0], -1, 0)
+    bwd = np.moveaxis(dis_pair(u1, u0, preset, backward=False)[0], -1, 0) if moves_far(fwd, min_motion) else None
+    return Candidate(preset, fwd, bwd)
+
+
+def moves_far(flow: np.ndarray, min_motion: float) -> bool:
+    """Whether the 95th percentile of |flow| ((2, H, W), px; on every 4th pixel) exceeds ``min_motion``."""
+    mag = np.hypot(flow[0, ::4, ::4], flow[1, ::4, ::4])
+    return float(np.percentile(mag, 95)) > min_motion
 
 
 def _detector(kind: str) -> cv2.Feature2D:
@@ -161,7 +170,7 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, initial_flow: np
         out.append(Candidate("previous", propagated_flow(i0, previous_flow)))
     source = cfg.initialisation
     if source in DIS_PRESETS:
-        out.append(dis_candidate(i0, i1, source))
+        out.append(dis_candidate(i0, i1, source, cfg.init_min_motion))
     elif source in MATCHERS:
         flow = matches_flow(i0, i1, source)
         if flow is not None:
@@ -176,9 +185,4 @@ def beyond_reach(candidates: list[Candidate], min_motion: float) -> list[Candida
     Middlebury, whose largest motions are ~21 px, fusing DIS anyway costs quality 0.32 -> 0.51 mean AEE:
     DIS is less precise, and a data cost cannot always tell), so only the candidate's computation is
     spent, not accuracy."""
-    out = []
-    for c in candidates:
-        mag = np.hypot(c.flow[0, ::4, ::4], c.flow[1, ::4, ::4])
-        if c.name == "initial_flow" or float(np.percentile(mag, 95)) > min_motion:
-            out.append(c)
-    return out
+    return [c for c in candidates if c.name == "initial_flow" or moves_far(c.flow, min_motion)]
