@@ -9,7 +9,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba_cache
 
-.PHONY: all venv test lint demo bench bench-quick bench-accuracy bench-venv paper clean
+.PHONY: all venv test lint demo fuzz bench bench-quick bench-accuracy bench-venv paper clean
 
 all: test
 
@@ -30,6 +30,12 @@ test: lint
 
 demo: $(STAMP)
 	$(PY) -m flow_node.demo
+
+# The property-based fuzz tests at 20x their make-test example count, then the live-node campaign over DDS
+# (bench/fuzz_node.py; results in bench/results/fuzz_node.json, BENCHMARKS.md).
+fuzz: $(STAMP)
+	FLOW_FUZZ_SCALE=20 $(PY) -m pytest -q test/test_fuzz.py
+	$(PY) -m bench.fuzz_node
 
 # Benchmarks need peers (opencv-contrib DualTVL1, scikit-image) that conflict with the runtime's
 # opencv-python-headless, so they get their own venv.

@@ -13,6 +13,7 @@ setup(
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
         (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/config", ["config/flow_node.policy.xml"]),  # SROS2 policy (docs/security.md)
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
     ],
     install_requires=["setuptools", "numpy", "opencv-python-headless", "PyYAML"],
@@ -28,6 +29,7 @@ setup(
             "flow_node = flow_node.ros.node:main",
             "flow_estimate = flow_node.cli.estimate:main",
             "flow_bag = flow_node.bag.cli:main",
+            "flow_node_policy = flow_node.ros.security_policy:main",
         ],
     },
 )

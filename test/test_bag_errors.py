@@ -67,7 +67,8 @@ def test_not_a_bag(tmp_path, capsys):
     assert "cannot open bag" in run_cli(tmp_path, capsys, tmp_path / "empty")
 
 
-@pytest.mark.parametrize("name,cut", [("objects", 0.5), ("rotation", 0.3)])
+# (an MCAP cut short is a crashed recording: read as far as intact, test_harden_bags.py)
+@pytest.mark.parametrize("name,cut", [("deformation", 0.5), ("rotation", 0.3)])
 def test_truncated_bag(tmp_path, capsys, name, cut):
     bag = copy_bag(name, tmp_path / "bag")
     store = next(p for p in bag.iterdir() if p.suffix in (".mcap", ".db3"))

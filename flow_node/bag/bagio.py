@@ -1,7 +1,9 @@
 """rosbag2 reading and writing on the ``rosbags`` library: clean one-line errors, typed messages.
 
 Every failure a user can cause (missing path, not a bag, truncated or corrupt storage, missing topic) is
-raised as :class:`BagError`, a :class:`~flow_node.core.errors.FileFormatError`.
+raised as :class:`BagError`, a :class:`~flow_node.core.errors.FileFormatError`. MCAP bags are written with
+CRCs and checked against them on open (:mod:`flow_node.bag.mcapfile`); an MCAP without its summary (a
+recorder that crashed) is read as far as it is intact by :class:`RecoveredReader`, which says how much.
 """
 
 from __future__ import annotations
@@ -12,13 +14,14 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from rosbags.interfaces import Connection
+from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinition, MessageDefinitionFormat
 from rosbags.rosbag2 import Reader, Writer
 from rosbags.rosbag2.enums import StoragePlugin
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
 from ..core.errors import FileFormatError
+from . import mcapfile
 
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED = "sensor_msgs/msg/CompressedImage"
@@ -48,19 +51,91 @@ def _reason(exc: BaseException) -> str:
 _READ_ERRORS = (Exception,)
 
 
+class RecoveredReader:
+    """The readable part of MCAP storage files that have no summary, with the part of rosbags' Reader
+    interface flow_bag uses (``path``, ``connections``, ``messages``, ``close``). Messages come in log-time
+    order. ``recovery`` says, in one line, what was found and how much was lost."""
+
+    def __init__(self, path: Path, files: Sequence[Path]) -> None:
+        self.path = path
+        scans = [(f, mcapfile.scan(f)) for f in files]
+        ids: dict[tuple[str, str], int] = {}
+        defs: dict[tuple[str, str], str] = {}
+        self._messages: list[tuple[int, int, bytes]] = []
+        for _, sc in scans:
+            local = {}
+            for cid, (topic, sid, _) in sc.channels.items():
+                name, _, text = sc.schemas.get(sid, ("", "", ""))
+                key = (topic, name)
+                local[cid] = ids.setdefault(key, len(ids) + 1)
+                defs.setdefault(key, text)
+            self._messages += [(local[c], t, d) for c, t, d in sc.messages if c in local]
+        self._messages.sort(key=lambda m: m[1])
+        counts = {i: 0 for i in ids.values()}
+        for cid, _, _ in self._messages:
+            counts[cid] += 1
+        self.connections = [Connection(i, k[0], k[1], MessageDefinition(MessageDefinitionFormat.MSG, defs[k]), "",
+                                       counts[i], ConnectionExtRosbag2("cdr", []), self) for k, i in ids.items()]
+        per_topic = ", ".join(f"{c.topic} {c.msgcount}" for c in self.connections)
+        damaged = [(f, sc) for f, sc in scans if not sc.complete]
+        what = ("; ".join(f"{f.name} has no summary ({sc.stopped}; {sc.intact_bytes} of {sc.file_bytes} bytes "
+                          "intact)" for f, sc in damaged) if damaged else "no usable metadata.yaml")
+        self.recovery = (f"{path}: {what}: the recorder did not finish it; recovered {len(self._messages)} "
+                         f"messages by scanning ({per_topic or 'none'})")
+        self.recovered = {"messages": len(self._messages), "per_topic": {c.topic: c.msgcount for c in self.connections},
+                          "files": {f.name: {"bytes": sc.file_bytes, "intact_bytes": sc.intact_bytes,
+                                             "complete": sc.complete, "stopped": sc.stopped} for f, sc in scans}}
+
+    def messages(self, connections: Sequence[Connection] = ()) -> Iterator[tuple[Connection, int, bytes]]:
+        by_id = {c.id: c for c in self.connections}
+        wanted = {c.id for c in connections} or set(by_id)
+        return ((by_id[c], t, d) for c, t, d in self._messages if c in wanted)
+
+    def close(self) -> None:
+        """Nothing to release (the scan read the files)."""
+
+
+def _storage_files(folder: Path) -> list[Path]:
+    """The MCAP storage files of a bag folder, in name order."""
+    return sorted(folder.glob("*.mcap")) if folder.is_dir() else []
+
+
+def _check_crcs(files: Sequence[Path], path: str | Path) -> None:
+    """BagError if a complete MCAP file does not match its CRCs."""
+    for f in files:
+        try:
+            mcapfile.verify(f)
+        except (OSError, ValueError) as exc:
+            raise BagError(f"{path}: {_reason(exc)}") from None
+
+
 @contextmanager
-def open_bag(path: str | Path) -> Iterator[Reader]:
-    """Open a rosbag2 folder (or a single .mcap/.db3 file's folder) for reading; BagError if impossible."""
+def open_bag(path: str | Path) -> Iterator[Reader | RecoveredReader]:
+    """Open a rosbag2 folder (or a single .mcap/.db3 file's folder) for reading; BagError if impossible.
+
+    MCAP files are checked against their CRCs first. When rosbags cannot open the bag and its MCAP files
+    lack their summary (or metadata.yaml is missing), a :class:`RecoveredReader` is returned instead.
+    """
     p = Path(path)
     if not p.exists():
         raise BagError(f"{path}: no such bag")
     if p.is_file() and p.suffix in (".mcap", ".db3"):
         p = p.parent
+    files = _storage_files(p)
+    _check_crcs(files, path)
     try:
-        reader = Reader(p)
+        reader: Reader | RecoveredReader = Reader(p)
         reader.open()
     except _READ_ERRORS as exc:
-        raise BagError(f"{path}: cannot open bag: {_reason(exc)}") from exc
+        unfinished = [f for f in files if mcapfile.unfinished(f)]
+        if not unfinished and (not files or (p / "metadata.yaml").exists()):
+            raise BagError(f"{path}: cannot open bag: {_reason(exc)}") from exc
+        try:
+            reader = RecoveredReader(p, files)
+        except (OSError, ValueError) as damage:
+            raise BagError(f"{path}: cannot open bag: {_reason(exc)}; scanning failed: {_reason(damage)}") from None
+        if not reader.recovered["messages"]:
+            raise BagError(f"{path}: cannot open bag: {_reason(exc)}; scanning its MCAP found no message") from None
     try:
         yield reader
     finally:
@@ -146,10 +221,12 @@ def compressed_message(hdr: Any, fmt: str, data: Any) -> Any:
 class BagWriter:
     """A rosbag2 being written: connections by topic, messages serialised with the Jazzy types.
 
-    Use as a context manager; on an exception the partial bag is left for the caller to delete.
+    Use as a context manager; on an exception the partial bag is left for the caller to delete. MCAP files
+    get their CRCs when the writer closes.
     """
 
     def __init__(self, path: str | Path, storage: str = "mcap") -> None:
+        self._path, self._storage = Path(path), storage
         if storage not in STORAGES:
             raise BagError(f"unknown storage {storage!r}; choose mcap or sqlite3")
         plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
@@ -163,8 +240,11 @@ class BagWriter:
         self._writer.open()
         return self
 
-    def __exit__(self, *exc: object) -> None:
+    def __exit__(self, exc_type: object, *exc: object) -> None:
         self._writer.close()
+        if exc_type is None and self._storage == "mcap":
+            for f in _storage_files(self._path):
+                mcapfile.add_crcs(f)  # rosbags writes none: see flow_node.bag.mcapfile
 
     def add_topic(self, topic: str, msgtype: str, like: Connection | None = None) -> None:
         """Register ``topic``; ``like`` copies the definition of an input connection (raw passthrough)."""

@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+import cv2
+
 from ..core.config import MODELS, PRESETS
 from ..core.errors import ConfigError, FlowError
 from .bagio import STORAGES
@@ -24,10 +26,11 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from ..cli.estimate import OneLineParser, finite_scale
     from .synth import ENCODINGS, SynthSpec
 
     d = SynthSpec()
-    p = argparse.ArgumentParser(prog="flow_bag", description=__doc__.splitlines()[0])
+    p = OneLineParser(prog="flow_bag", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("synth", help="write a synthetic rosbag2 with exact ground-truth flow")
@@ -55,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--params", metavar="FILE.yaml", help="YAML parameters (plain or ROS params file)")
     e.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override one parameter; repeatable")
-    e.add_argument("--max-flow", type=float, default=None,
+    e.add_argument("--max-flow", type=finite_scale, default=None,
                    help="colour scale in px for flow_color and PNGs (0 = each frame's maximum; "
                    "default: the node's color_max_flow default)")
     e.add_argument("--png-frames", default="auto",
@@ -100,7 +103,7 @@ def _run(args: argparse.Namespace) -> int:
         count = run_play(args.bag, opts)
         print(f"flow_bag play: published {count} messages")
         return 0
-    from ..cli.estimate import config_from_args
+    from ..cli.estimate import config_from_args, one_line
     from .evaluate import EvalOptions, run_eval
 
     models = _models(args.model)
@@ -109,16 +112,26 @@ def _run(args: argparse.Namespace) -> int:
     configs = [base if m is None else base.replace(model=m) for m in models]
     opts = EvalOptions(image_topic=args.image_topic, gt_topic=args.gt_topic, max_flow=args.max_flow,
                        png_frames=args.png_frames, progress=not args.quiet)
-    run_eval(args.bag, args.output, configs, opts)
+    result = run_eval(args.bag, args.output, configs, opts)
+    for warning in result.warnings:
+        print(f"flow_bag eval: warning: {one_line(warning)}", file=sys.stderr)
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
+    from ..cli.estimate import native_stderr_silenced
+
     args = build_parser().parse_args(argv)
     try:
-        return _run(args)
+        if args.command == "play":  # rclpy logs through fd 2: keep it
+            return _run(args)
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        with native_stderr_silenced():  # libpng warnings while decoding compressed frames
+            return _run(args)
     except FlowError as exc:
-        print(f"flow_bag {args.command}: error: {exc}", file=sys.stderr)
+        from ..cli.estimate import one_line
+
+        print(f"flow_bag {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"flow_bag {args.command}: interrupted", file=sys.stderr)

@@ -30,6 +30,7 @@ from .bagio import (
     IMAGE_TYPES,
     BagError,
     BagWriter,
+    RecoveredReader,
     deserialize,
     find_connections,
     image_message,
@@ -41,6 +42,7 @@ from .bagio import (
 NODE_NAMESPACE = "/flow_node"  # the node's default name: its ~/flow is /flow_node/flow
 OUTPUT_TOPICS = ("flow", "magnitude", "flow_color", "confidence")
 DEFAULT_GT_TOPIC = "/camera/flow_gt"
+UNUSABLE = "image unusable: "  # FrameRecord.skipped prefix of an image that could not be used
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,8 @@ class EvalResult:
     drawn: list[Drawn]
     color_max_flow: float
     wall_seconds: float = 0.0
+    warnings: list[str] = field(default_factory=list)  # one line each, for stderr
+    recovered: dict[str, Any] | None = None  # what a bag without its MCAP summary still gave (bagio)
 
 
 def read_ground_truth(msg: Any, shape: tuple[int, int], stamp: int) -> np.ndarray:
@@ -183,6 +187,8 @@ def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig
         gt_topic = opts.gt_topic
         if gt_topic is None and any(c.topic == DEFAULT_GT_TOPIC for c in reader.connections):
             gt_topic = DEFAULT_GT_TOPIC
+        if gt_topic is not None and opts.image_topic == gt_topic:
+            raise BagError(f"{bag}: {gt_topic} is the ground-truth topic; the image topic must be another one")
         gt_conns = find_connections(reader, gt_topic, (IMAGE,), "gt") if gt_topic else []
         image_conns = find_connections(reader, opts.image_topic, IMAGE_TYPES, "image",
                                        exclude=(gt_topic,) if gt_topic else ())
@@ -197,9 +203,16 @@ def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig
                         writer.add_topic(run.topic(name, k == 0), IMAGE)
             for run in runs:
                 run.stream.warmup()  # JIT compilation (numba) now, not inside the first frame's time
+            if isinstance(reader, RecoveredReader):
+                result.warnings.append(reader.recovery)
+                result.recovered = reader.recovered
             _replay(reader, image_conns, gt_conns, result, chosen, writer, Progress(total, opts.progress))
     if result.images == 0:
         raise BagError(f"{bag}: the image topic {result.image_topic} has no messages")
+    unusable = [r for r in runs[0].records if r.skipped and r.skipped.startswith(UNUSABLE)]
+    if unusable:
+        result.warnings.append(f"{len(unusable)} of {result.images} images unusable and skipped (first: frame "
+                               f"{unusable[0].index}, {unusable[0].skipped[len(UNUSABLE):]})")
     return result
 
 
@@ -232,7 +245,7 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
             frame, label = decode(msg)
         except InputError as exc:
             for run in result.runs:
-                run.records.append(FrameRecord(index, stamp, skipped=f"image unusable: {exc}"))
+                run.records.append(FrameRecord(index, stamp, skipped=f"{UNUSABLE}{exc}"))
             progress.update(result.images)
             continue
         shape = frame.shape[:2]
@@ -243,7 +256,7 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
             try:
                 out = run.stream.process(frame, stamp, label)
             except InputError as exc:
-                run.records.append(FrameRecord(index, stamp, skipped=f"image unusable: {exc}"))
+                run.records.append(FrameRecord(index, stamp, skipped=f"{UNUSABLE}{exc}"))
                 continue
             if out is None:
                 run.records.append(FrameRecord(index, stamp, skipped=run.stream.last_reset_reason))
@@ -303,6 +316,11 @@ def run_eval(bag: str | Path, output: str | Path, configs: Sequence[FlowConfig],
         if out.exists():
             shutil.rmtree(out)
         tmp.rename(out)
+    except BagError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if str(bag) in str(exc):
+            raise
+        raise BagError(f"{bag}: {exc}") from exc  # every bag error names the bag
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -7,6 +7,7 @@ bytes (no re-encoding, headers unchanged), spaced by the recorded bag-time gaps 
 from __future__ import annotations
 
 import importlib
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -14,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.errors import ConfigError
-from .bagio import BagError, open_bag, read_messages
+from .bagio import BagError, RecoveredReader, open_bag, read_messages
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,8 @@ class PlayOptions:
             raise ConfigError(f"rate must be in (0, 1000], got {self.rate}")
         if self.loops < 1:
             raise ConfigError(f"loops must be >= 1, got {self.loops}")
+        if not 0.0 <= self.wait_for_subscribers < 1e6:  # also NaN and inf
+            raise ConfigError(f"wait-for-subscribers must be a number of seconds >= 0, got {self.wait_for_subscribers}")
 
 
 def parse_remap(items: Sequence[str]) -> tuple[tuple[str, str], ...]:
@@ -67,6 +70,8 @@ def load_schedule(path: str | Path, topics: Sequence[str] = ()) -> tuple[dict[st
             raise BagError(f"topic {missing[0]} is not in the bag")
         types = {c.topic: c.msgtype for c in conns}
         msgs = [(t, c.topic, bytes(raw)) for c, t, raw in read_messages(reader, conns)]
+        if isinstance(reader, RecoveredReader):
+            print(f"flow_bag play: warning: {reader.recovery}", file=sys.stderr)
     if not msgs:
         raise BagError(f"{path}: no messages to play")
     return types, msgs

@@ -79,6 +79,7 @@ def to_json(result: EvalResult) -> dict[str, Any]:
         "models": [{"label": run.label, "config": run.config.to_dict(), "summary": summarise_run(run),
                     "frames": [vars(r) for r in run.records]} for run in result.runs],
         "ranking": ranking(result.runs),
+        "recovered": result.recovered, "warnings": result.warnings,
     }
 
 
@@ -193,6 +194,7 @@ def panel(d: Drawn, max_flow: float, emax: float) -> np.ndarray:
 def plot(series: dict[str, list[tuple[int, float]]], title: str, size: tuple[int, int] = (720, 240)) -> np.ndarray:
     """A line plot (BGR uint8) of y over frame index for each named series, with axes, ticks and legend."""
     w, h = size
+    series = {k: [(x, y) for x, y in s if math.isfinite(y)] for k, s in series.items()}  # NaN has no pixel
     img = np.full((h, w, 3), 255, np.uint8)
     left, right, top, bottom = 60, 10, 24, 28
     pts = [p for s in series.values() for p in s]

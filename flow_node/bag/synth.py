@@ -29,6 +29,8 @@ COMPRESSED_ENCODINGS = ("png", "jpeg")
 ENCODINGS = RAW_ENCODINGS + COMPRESSED_ENCODINGS
 
 
+MAX_SIDE = 4096  # px: the renderer works in float64, a few arrays of the frame size at once
+
 @dataclass(frozen=True)
 class SynthSpec:
     """What to render: scene, frame count, size (width, height), rate, noise sigma (fraction of full
@@ -51,8 +53,8 @@ class SynthSpec:
             raise ConfigError(f"unknown encoding {self.encoding!r}; choose one of {', '.join(ENCODINGS)}")
         if self.frames < 2:
             raise ConfigError(f"frames must be >= 2, got {self.frames}")
-        if min(self.size) < 8:
-            raise ConfigError(f"size must be at least 8x8, got {self.size[0]}x{self.size[1]}")
+        if min(self.size) < 8 or max(self.size) > MAX_SIDE:
+            raise ConfigError(f"size must be from 8x8 to {MAX_SIDE}x{MAX_SIDE}, got {self.size[0]}x{self.size[1]}")
         if not 0.0 < self.fps <= 1000.0:
             raise ConfigError(f"fps must be in (0, 1000], got {self.fps}")
         if not 0.0 <= self.noise <= 0.5:

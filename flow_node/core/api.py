@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass
 
@@ -11,11 +12,15 @@ import numpy as np
 from .backends import select_backend
 from .config import FlowConfig
 from .engine import estimate_pair
-from .errors import InputError
+from .errors import InputError, NonFiniteResult
 from .photometric import reliability
 from .refine import SolveStats
 
 log = logging.getLogger("flow_node")
+
+# Floating-point frames are intensities in [0, 1]; values beyond this magnitude are garbage (1e30 in a 32FC1
+# image, a float TIFF of raw counts) whose squares overflow the solver's float32 arithmetic.
+FLOAT_INPUT_LIMIT = 1e6
 
 # ITU-R BT.601 luma weights for R, G, B
 _LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
@@ -25,8 +30,9 @@ def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") ->
     """Validate an image and convert it to float32 grey (H, W) in [0, 1].
 
     Accepts (H, W), (H, W, 1), (H, W, 3) and (H, W, 4) arrays; uint8 is divided by 255, uint16 by 65535,
-    floating point is taken as already in [0, 1] (must be finite). ``channel_order`` is ``rgb`` or
-    ``bgr`` for colour input (alpha, if present, is ignored). Raises InputError naming the problem.
+    floating point is taken as already in [0, 1] (must be finite, magnitude at most FLOAT_INPUT_LIMIT).
+    ``channel_order`` is ``rgb`` or ``bgr`` for colour input (alpha, if present, is ignored). Raises
+    InputError naming the problem.
     """
     if not isinstance(img, np.ndarray):
         raise InputError(f"{name}: expected a numpy array, got {type(img).__name__}")
@@ -42,8 +48,12 @@ def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") ->
         out = np.divide(img, np.float32(255.0 if img.dtype == np.uint8 else 65535.0), dtype=np.float32)
     elif img.dtype in (np.float32, np.float64, np.float16):
         out = img.astype(np.float32, copy=False)  # the engine never writes to its input
-        if not np.isfinite(out).all():
+        peak = float(np.max(np.abs(out)))  # NaN if any NaN, inf if any inf
+        if not math.isfinite(peak):
             raise InputError(f"{name}: contains NaN or infinite values")
+        if peak > FLOAT_INPUT_LIMIT:
+            raise InputError(f"{name}: float values reach {peak:.3g}; float frames must be intensities in "
+                             f"[0, 1] (magnitude at most {FLOAT_INPUT_LIMIT:g})")
     else:
         raise InputError(f"{name}: unsupported dtype {img.dtype}; use uint8, uint16 or float in [0, 1]")
     if channels == 1:
@@ -52,6 +62,16 @@ def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") ->
         rgb = out[:, :, :3] if channel_order == "rgb" else out[:, :, 2::-1]
         out = rgb @ _LUMA
     return np.ascontiguousarray(out, dtype=np.float32)
+
+
+def ensure_finite(flow: np.ndarray) -> np.ndarray:
+    """``flow`` unchanged if every value is finite, else NonFiniteResult: the last line of defence that keeps
+    NaN/inf from ever being published or written as a result (~0.1 ms at 640x480: numpy's SIMD isfinite;
+    a float64 sum took 0.7 ms)."""
+    if not np.isfinite(flow).all():
+        bad = int(np.count_nonzero(~np.isfinite(flow)))
+        raise NonFiniteResult(f"the engine's flow has {bad} NaN/inf value(s) of {flow.size}: input unusable")
+    return flow
 
 
 @dataclass
@@ -127,6 +147,7 @@ class FlowEstimator:
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
         flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
+        ensure_finite(flow)
         unexplained = reliability(*normalised, flow, self._backend.warper.sample)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)

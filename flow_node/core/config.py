@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import ConfigError, FileFormatError
+from .errors import ConfigError, FileFormatError, short_path
 from .photometric import PHOTOMETRIC
 from .warping import KERNELS as WARP_KERNELS
 
@@ -38,6 +38,40 @@ def _f(default: Any, help: str, *, lo: float | None = None, hi: float | None = N
     """A dataclass field carrying its description and its valid range or choices."""
     meta = {"help": help, "lo": lo, "hi": hi, "choices": choices, "lo_open": lo_open}
     return field(default=default, metadata=meta)
+
+
+MAX_YAML_DEPTH = 16  # nesting levels a parameter file may have (a ROS params file needs 3)
+MAX_YAML_ITEMS = 100_000  # values in all (aliases count each time they are used: no "billion laughs")
+
+
+def _yaml_reason(exc: Exception) -> str:
+    """PyYAML's multi-line error as one line: the problem and where (line, column, 1-based)."""
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+    return " ".join(f"{problem}{where}".split())
+
+
+def _depth(data: Any) -> int:
+    """Nesting depth of parsed YAML (a scalar is 0), computed without recursion; more than MAX_YAML_DEPTH
+    as soon as it exceeds that or the walk exceeds MAX_YAML_ITEMS values (aliases make cycles and blow-ups)."""
+    depth, stack, seen = 0, [(data, 0)], 0
+    while stack:
+        item, level = stack.pop()
+        seen += 1
+        if seen > MAX_YAML_ITEMS:
+            return MAX_YAML_DEPTH + 1
+        if isinstance(item, dict):
+            stack += [(v, level + 1) for v in item.values()]
+        elif isinstance(item, list):
+            stack += [(v, level + 1) for v in item]
+        else:
+            depth = max(depth, level)
+            continue
+        depth = max(depth, level + 1)
+        if depth > MAX_YAML_DEPTH:
+            break
+    return depth
 
 
 @dataclass(frozen=True)
@@ -144,12 +178,27 @@ class FlowConfig:
         """
         import yaml
 
+        shown = short_path(path)
         try:
-            data = yaml.safe_load(Path(path).read_text())
+            regular = not Path(path).exists() or Path(path).is_file()  # a FIFO would block the read
+            raw = Path(path).read_bytes() if regular else b""
         except OSError as exc:
-            raise FileFormatError(f"cannot read parameter file {path}: {exc.strerror}") from exc
+            reason = exc.strerror or type(exc).__name__
+            raise FileFormatError(f"cannot read parameter file {shown}: {reason}") from None
+        if not regular:
+            raise FileFormatError(f"cannot read parameter file {shown}: not a regular file")
+        try:
+            data = yaml.safe_load(raw.decode("utf-8"))  # pure Python: the C loader crashes on deep nesting
+        except UnicodeDecodeError as exc:
+            raise FileFormatError(f"parameter file {shown} is not UTF-8 text (byte 0x{raw[exc.start]:02x} at "
+                                  f"offset {exc.start})") from None
         except yaml.YAMLError as exc:
-            raise FileFormatError(f"{path} is not valid YAML: {exc}") from exc
+            raise FileFormatError(f"{shown} is not valid YAML: {_yaml_reason(exc)}") from None
+        except RecursionError:
+            raise FileFormatError(f"{shown}: YAML nested too deeply") from None
+        if _depth(data) > MAX_YAML_DEPTH:
+            raise FileFormatError(f"{shown}: YAML nested deeper than {MAX_YAML_DEPTH} levels or with more "
+                                  f"than {MAX_YAML_ITEMS} values")
         if data is None:
             data = {}
         if not isinstance(data, dict):

@@ -6,6 +6,8 @@ a message that names the problem; callers catch :class:`FlowError` to handle all
 
 from __future__ import annotations
 
+import os
+
 
 class FlowError(Exception):
     """Base class of every error flow_node raises on purpose."""
@@ -21,3 +23,17 @@ class InputError(FlowError, ValueError):
 
 class FileFormatError(FlowError, OSError):
     """A file that cannot be read or written in the expected format (.flo, PNG, YAML, bag)."""
+
+
+class NonFiniteResult(InputError):
+    """The engine produced NaN or infinite flow from this input: the frame is unusable, never a result."""
+
+
+def short_path(path: str | os.PathLike[str], limit: int = 120) -> str:
+    """``path`` for an error message: as given, or its start and end around "..." when longer than ``limit``
+    characters (an over-long path must not turn a one-line error into a screenful)."""
+    text = os.fsdecode(path)
+    if len(text) <= limit:
+        return text
+    keep = (limit - 3) // 2
+    return f"{text[:keep]}...{text[-keep:]}"

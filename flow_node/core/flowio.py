@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import cv2
@@ -12,18 +13,26 @@ from .errors import FileFormatError, InputError
 FLO_MAGIC = 202021.25
 
 
-def write_flo(path: str | Path, flow: np.ndarray) -> None:
-    """Write (H, W, 2) flow as Middlebury .flo: float32 magic, int32 width, height, then u, v interleaved."""
+def flo_bytes(flow: np.ndarray) -> bytes:
+    """(H, W, 2) flow as the bytes of a Middlebury .flo: float32 magic, int32 width, height, then u, v
+    interleaved (little-endian float32)."""
     if flow.ndim != 3 or flow.shape[2] != 2:
         raise InputError(f"flow must be (H, W, 2), got {flow.shape}")
     h, w = flow.shape[:2]
+    return (np.array([FLO_MAGIC], "<f4").tobytes() + np.array([w, h], "<i4").tobytes()
+            + flow.astype("<f4", copy=False).tobytes())
+
+
+def write_flo(path: str | Path, flow: np.ndarray) -> None:
+    """Write (H, W, 2) flow as a Middlebury .flo file (:func:`flo_bytes`); FileFormatError with the OS's
+    reason (written through Python's file object, so a full disk is an error, not a silent short file)."""
+    data = flo_bytes(flow)
     try:
         with open(path, "wb") as fh:
-            np.array([FLO_MAGIC], "<f4").tofile(fh)
-            np.array([w, h], "<i4").tofile(fh)
-            flow.astype("<f4").tofile(fh)
+            fh.write(data)
     except OSError as exc:
-        raise FileFormatError(f"cannot write {path}: {exc.strerror}") from exc
+        reason = exc.strerror or (os.strerror(exc.errno) if exc.errno else str(exc))
+        raise FileFormatError(f"cannot write {path}: {reason}") from exc
 
 
 def read_flo(path: str | Path) -> np.ndarray:

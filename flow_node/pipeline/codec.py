@@ -8,10 +8,15 @@ Decoded images are what :func:`flow_node.core.api.to_grey` accepts: grey ``(H, W
 (always R, G, B order, alpha dropped), dtype uint8, uint16 or float32, in native byte order. Bayer mosaics are
 demosaiced to RGB; YUV 4:2:2 images are returned as their luma plane (grey), which is exactly the grey the
 engine would compute from them.
+
+Size limit: an image (raw, or compressed as its header declares it) may have at most ``MAX_IMAGE_SIDE`` px a
+side and ``MAX_IMAGE_PIXELS`` px in all; larger ones are rejected as :class:`MalformedImage` before any pixel
+is decoded (a PNG header claiming 100000x100000 costs nothing). OpenCV decoder failures are rejections too.
 """
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 from typing import Any
 
@@ -73,6 +78,82 @@ for _pattern, _code in _BAYER.items():
 
 SUPPORTED_ENCODINGS: tuple[str, ...] = tuple(ENCODINGS)
 
+MAX_IMAGE_SIDE = 16384  # px, either side
+MAX_IMAGE_PIXELS = 1 << 26  # 67 Mpx (8192 x 8192)
+
+
+def check_size(width: int, height: int, what: str) -> None:
+    """MalformedImage unless 0 < width, height <= MAX_IMAGE_SIDE and width * height <= MAX_IMAGE_PIXELS."""
+    if width <= 0 or height <= 0:
+        raise MalformedImage(f"{what} has zero size ({width}x{height})")
+    if max(width, height) > MAX_IMAGE_SIDE or width * height > MAX_IMAGE_PIXELS:
+        raise MalformedImage(f"{what} is {width}x{height} px, over the limit of {MAX_IMAGE_SIDE} px a side "
+                             f"and {MAX_IMAGE_PIXELS} px")
+
+
+_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+# JPEG start-of-frame markers (baseline, extended, progressive, lossless, ...; not DHT C4, JPG C8, DAC CC)
+_JPEG_SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+
+
+def declared_size(buf: bytes | np.ndarray) -> tuple[int, int] | None:
+    """(width, height) a PNG or JPEG header declares, without decoding pixels; None for other formats or
+    a header too short to tell (the decoder then rejects it)."""
+    head = bytes(buf[:24])
+    if head.startswith(_PNG_MAGIC) and len(head) >= 24 and head[12:16] == b"IHDR":
+        w, h = struct.unpack(">II", head[16:24])
+        return w, h
+    if not head.startswith(b"\xff\xd8"):
+        return None
+    data = bytes(buf[: 1 << 20])  # SOF comes after the tables; a megabyte of markers is plenty
+    pos = 2
+    while pos + 9 <= len(data):
+        if data[pos] != 0xFF:
+            return None
+        marker = data[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        if marker in _JPEG_SOF:
+            h, w = struct.unpack(">HH", data[pos + 5:pos + 9])
+            return w, h
+        if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7:
+            pos += 2
+            continue
+        pos += 2 + struct.unpack(">H", data[pos + 2:pos + 4])[0]
+    return None
+
+
+def cv_reason(exc: BaseException) -> str:
+    """The one-line reason of an OpenCV error (its text after ``error:``, without the source location)."""
+    text = " ".join(str(exc).split())
+    return text.partition(" error: ")[2] or text or type(exc).__name__
+
+
+def decode_bytes(buf: np.ndarray, what: str) -> np.ndarray:
+    """Decode an encoded image (PNG, JPEG, TIFF, ... : what OpenCV reads) held in a flat uint8 array.
+
+    Returns grey (H, W) or RGB (H, W, 3) (alpha dropped) in the file's dtype. The declared size is checked
+    against the limit first; any decoder failure is a MalformedImage naming ``what``.
+    """
+    if buf.size == 0:
+        raise MalformedImage(f"{what} has no data")
+    size = declared_size(buf)
+    if size is not None:
+        check_size(*size, what)
+    try:
+        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    except cv2.error as exc:
+        raise MalformedImage(f"OpenCV cannot decode {what}: {cv_reason(exc)}") from None
+    if img is None:
+        raise MalformedImage(f"OpenCV cannot decode {what} ({buf.size} bytes)")
+    check_size(img.shape[1], img.shape[0], what)
+    if img.ndim == 3 and img.shape[2] == 1:
+        return img[:, :, 0]
+    if img.ndim == 3:
+        return np.ascontiguousarray(img[:, :, 2::-1])  # OpenCV decodes BGR(A); drop alpha, make RGB
+    return img
+
 
 def _data_bytes(data: Any) -> np.ndarray:
     """The message's ``data`` as a flat uint8 numpy view (no copy for buffers)."""
@@ -99,8 +180,7 @@ def raw_pixels(msg: Any) -> tuple[np.ndarray, Encoding]:
     """
     height, width, step = int(msg.height), int(msg.width), int(msg.step)
     enc = _lookup(str(msg.encoding))
-    if height <= 0 or width <= 0:
-        raise MalformedImage(f"{msg.encoding} image has zero size ({width}x{height})")
+    check_size(width, height, f"{msg.encoding} image")
     row_bytes = width * enc.channels * enc.dtype.itemsize
     if step < row_bytes:
         raise MalformedImage(f"{msg.encoding} {width}x{height}: step {step} < {row_bytes} bytes per row")
@@ -147,17 +227,7 @@ def compressed_to_array(msg: Any) -> np.ndarray:
     fmt = str(msg.format)
     if "compresseddepth" in fmt.lower():
         raise UnsupportedEncoding(f"compressed format {fmt!r} (compressedDepth) is not supported")
-    buf = _data_bytes(msg.data)
-    if buf.size == 0:
-        raise MalformedImage(f"compressed image ({fmt!r}) has no data")
-    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise MalformedImage(f"OpenCV cannot decode the compressed image (format {fmt!r}, {buf.size} bytes)")
-    if img.ndim == 3 and img.shape[2] == 1:
-        return img[:, :, 0]
-    if img.ndim == 3:
-        return np.ascontiguousarray(img[:, :, 2::-1])  # OpenCV decodes BGR(A); drop alpha, make RGB
-    return img
+    return decode_bytes(_data_bytes(msg.data), f"the compressed image (format {fmt!r})")
 
 
 def array_to_image_fields(arr: np.ndarray, encoding: str) -> dict[str, Any]:

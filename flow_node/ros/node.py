@@ -31,7 +31,7 @@ from ..core.config import implied_weights
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import array_to_image_fields, decode
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
-from . import diagnostics
+from . import diagnostics, security
 from .params import ParamSpec, coerce, param_specs, preset_values, settings_from_values
 
 _TYPES = {bool: Parameter.Type.BOOL, int: Parameter.Type.INTEGER, float: Parameter.Type.DOUBLE,
@@ -165,6 +165,7 @@ class FlowNode(Node):
         self._worker.start()
         self.get_logger().info(f"subscribed to {self._sub.topic_name}; model {settings.config.model}, "
                                f"backend {self._stream.backend}")
+        self._security = security.check_and_log(self)  # warns when SROS2 is asked for but not in effect
 
     # ------------------------------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> None:
@@ -243,7 +244,8 @@ class FlowNode(Node):
         st = diagnostics.status(w, name=f"{self.get_name()}: optical flow", hardware_id=hw,
                                 ready=self._ready.is_set(), backend=self._stream.backend, model=s.config.model,
                                 input_scale=s.input_scale, resolution=self._resolution)
-        self._pub_diag.publish(diagnostics.array(self.get_clock().now().to_msg(), [st]))
+        sec = security.statuses(self._security, self.get_name(), hw)
+        self._pub_diag.publish(diagnostics.array(self.get_clock().now().to_msg(), [st, *sec]))
 
     # ------------------------------------------------------------------------------------------ worker
     def _run(self) -> None:
