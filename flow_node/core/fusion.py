@@ -21,7 +21,7 @@ FUSION_WINDOW = 31  # px on the fusion level: the cost is a local mean, so one l
 FUSION_MARGIN = 1.3  # a candidate is taken where it costs less than this times the pyramid's flow
 FINAL_MARGIN = 1.3  # after the refinement: a candidate is taken where it costs less than this times the refined flow
 FINAL_ONLY_CONSISTENT = False  # True: ... and only where forward-backward consistent
-CONSISTENT_COST = 0.7  # cost factor of a forward-backward consistent candidate pixel
+CONSISTENT_COST = 0.5  # cost factor of a forward-backward consistent candidate pixel
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
 
