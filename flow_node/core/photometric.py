@@ -1,14 +1,16 @@
 """The photometric stage of the engine: what the solver sees of a pair's intensities, and how well the
 result explains them.
 
-``preprocess`` runs once per pair, before the pyramid (DESIGN.md, "Engine stages"). Its modes
+:func:`stage` runs once per pair, before the pyramid (DESIGN.md, "Engine stages"). Its modes
 (``PHOTOMETRIC``, the FlowConfig field ``photometric``):
 
 * ``none``: the grey images as they come ([0, 1] by the encoding's maximum).
 * ``normalise``: a global exposure change (gain and offset of frame 1 against frame 0, from matched
   percentiles, see :func:`exposure_change`) is undone, then one affine map for the pair takes its robust
-  range -- the 2nd to the 98th percentile of both frames' intensities -- to [0, 1]. The weights then mean
-  the same thing for 8-, 10-, 12- and 16-bit and low-contrast input (they act on contrast, not on
+  range -- the frames' mean 2nd and 98th percentiles -- to [0, 1] (coarsely quantised content: see
+  :func:`normalise_pair`); a pair with a detected exposure change is then normalised locally
+  (``local_contrast``), since the global fit is ~1 % off and the L1 data term reads that as motion. The
+  weights then mean the same thing for 8-, 10-, 12- and 16-bit and low-contrast input (they act on contrast, not on
   encoding units). Percentiles, not min/max, so a few hot pixels or a saturated highlight do not set the
   scale; they are taken on a strided subsample (every ``STRIDE``-th pixel in each direction). One map for
   both frames, not one per frame: the frames' content differs (motion at the border), and a per-frame map
