@@ -139,7 +139,9 @@ def test_several_models_ranked_like_the_paper(tmp_path):
     report = json.loads((out / "report.json").read_text())
     rank = {r["model"]: r for r in report["ranking"]}
     assert rank["l1_tv"]["rank"] == 1 and rank["l1_tv"]["mean_aee_over_min"] == pytest.approx(1.0)
-    assert rank["l2_l2"]["mean_aee_over_min"] > 1.5  # quadratic regulariser smears the object edges
+    # the quadratic regulariser smears the object edges: 1.07x with each model at its calibrated weight
+    # (1.5x and more when l2_l2 ran with l1_tv's weight)
+    assert rank["l2_l2"]["mean_aee_over_min"] > 1.03
     by_model = {m["label"]: m["summary"] for m in report["models"]}
     assert by_model["l2_l2"]["aee_mean"] > by_model["l1_tv"]["aee_mean"]
     topics = set(messages(out / "bag"))

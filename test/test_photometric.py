@@ -43,9 +43,10 @@ def test_bit_depth_does_not_change_the_result(pair) -> None:
 
 
 # AEE with an exposure change over AEE without, per mode: the local modes are invariant by construction;
-# normalise estimates the change from the frames' percentiles, which on a frame this small (60x80, motion
-# up to 2 px) moves them by ~1 % (on the suite's 320x240 pairs: within 1.3x)
-RATIO = {"normalise": 8.0, "local_contrast": 1.3, "structure_texture": 1.3}
+# normalise detects the change from the frames' percentiles and then normalises the pair locally (its global
+# fit alone left a ~1 % gain error: 6x the AEE on this 60x80 pair; the local normalisation costs ~1.8x here
+# against the unchanged pair's global one, 1.1-1.25x on the suite's 320x240 pairs)
+RATIO = {"normalise": 2.0, "local_contrast": 1.3, "structure_texture": 1.3}
 
 
 @pytest.mark.parametrize("mode", sorted(RATIO))

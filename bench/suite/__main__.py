@@ -54,7 +54,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                     "(default: DIS when quick, all otherwise); 'none' for no peers")
     ap.add_argument("--repeats", type=int, default=None, help="timed runs per pair (default 5; quick 3)")
     ap.add_argument("--slow-repeats", type=int, default=None,
-                    help="timed runs per pair of a method slower than 0.25 s per pair (default 2; quick 1)")
+                    help="timed runs per pair of a method slower than 0.25 s per pair (default 1)")
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default bench/results/suite[_quick].json;"
                     " the .md and .png go beside it)")
     ap.add_argument("--update-benchmarks", action="store_true", help="rewrite the generated suite section "
@@ -71,11 +71,11 @@ def main(argv: list[str] | None = None) -> int:
     else:
         regimes = [r for r in args.regimes.split(",") if r] or None
         peers = None if not args.peers else ([] if args.peers == "none" else args.peers.split(","))
-        started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
-        res = run_suite(None, regimes, args.split, args.quick, peers, args.repeats, args.slow_repeats,
-                        log=lambda s: print(s, flush=True))
-        res = {"command": "python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv),
-               "started": started, "machine": machine(), "versions": versions(), **res}
+        head = {"command": "python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv),
+                "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine(),
+                "versions": versions()}  # the commit as the run starts
+        res = {**head, **run_suite(None, regimes, args.split, args.quick, peers, args.repeats, args.slow_repeats,
+                                   log=lambda s: print(s, flush=True))}
         out = args.out or RESULTS / ("suite_quick.json" if args.quick else "suite.json")
     res["targets"] = targets.all_checks(res)
     write_json(out, res)

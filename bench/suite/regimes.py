@@ -15,20 +15,23 @@ from .data import Sample
 
 @dataclass(frozen=True)
 class Regime:
-    """``build(split, quick)`` returns the samples; ``seeded`` regimes depend on the split."""
+    """``build(split, quick)`` returns the samples; ``seeded`` regimes depend on the split; ``exclude`` names
+    methods not run on it (with the reason in the title)."""
 
     name: str
     title: str
     build: Callable[[str, bool], Iterable[Sample]]
     seeded: bool = True
     report_only: bool = False
+    exclude: tuple[str, ...] = ()
 
 
 REGIMES: dict[str, Regime] = {r.name: r for r in (
     Regime("middlebury", "Middlebury training set (real; frame10 -> frame11)", lambda split, q: data.middlebury(q),
            seeded=False),
-    Regime("large", "Large motions (../shared/data/large, 20-250 px; report only)",
-           lambda split, q: data.large(q), seeded=False, report_only=True),
+    Regime("large", "Large motions (../shared/data/large, 20-250 px; report only; without DualTVL1, which "
+           "takes 25-140 s per pair on them)", lambda split, q: data.large(q), seeded=False, report_only=True,
+           exclude=("dualtvl1",)),
     Regime("fine_320", "Fine band-limited textures, 320x240, 8 bit, shifts/rotations/zooms/affine 0.3-3 px",
            lambda split, q: synthetic.fine(split, q, (320, 240))),
     Regime("fine_640", "Fine band-limited textures, 640x480, 8 bit, shifts/rotations/zooms/affine 0.3-3 px",

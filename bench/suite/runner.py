@@ -60,13 +60,19 @@ def run_regime(name: str, made: Mapping[str, Method], split: str, quick: bool, r
                slow_seconds: float, log: Callable[[str], None]) -> dict[str, Any]:
     """One regime: per method the per-pair scores and their summary, ratios vs DIS, similar-time flags."""
     regime = REGIMES[name]
+    made = {n: m for n, m in made.items() if n not in regime.exclude}
     per: dict[str, dict[str, Any]] = {n: {} for n in made}
     start = time.perf_counter()
     pairs = []
     for k, sample in enumerate(regime.build(split, quick)):
         pairs.append({"name": sample.name, "variant": sample.variant, "size": sample.size, "bits": sample.bits})
-        for n, row in run_pair(made, sample, repeats, slow_repeats, slow_seconds, k).items():
+        t0 = time.perf_counter()
+        rows = run_pair(made, sample, repeats, slow_repeats, slow_seconds, k)
+        for n, row in rows.items():
             per[n][sample.name] = row
+        slowest = max(rows, key=lambda n: rows[n]["seconds"])
+        log(f"  {name} {k + 1}: {sample.name} {time.perf_counter() - t0:.1f} s "
+            f"(slowest {slowest} {rows[slowest]['seconds']:.2f} s)")
     methods = {n: {**metrics.summarise(per[n]), "per_pair": per[n]} for n in made}
     metrics.add_ratios(methods)
     ours = [n for n in made if n not in PEER_NAMES]
@@ -99,7 +105,7 @@ def run_suite(methods: Mapping[str, FlowConfig | Method] | None = None, regimes:
     if peers is None:
         peers = (DIS_ULTRAFAST, DIS_MEDIUM) if quick else tuple(PEERS)
     repeats = repeats if repeats is not None else (3 if quick else 5)
-    slow_repeats = slow_repeats if slow_repeats is not None else (1 if quick else 2)
+    slow_repeats = slow_repeats if slow_repeats is not None else 1
     made = build(methods, tuple(peers))
     started = time.time()
     res: dict[str, Any] = {

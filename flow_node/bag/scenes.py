@@ -345,16 +345,19 @@ class LinearMotion:
         if np.linalg.norm(np.asarray(self.matrix) - np.eye(2), 2) >= 0.5:
             raise ConfigError("affine motion too strong: need the largest singular value of M - I < 0.5")
 
-    def _linear(self, t: float) -> np.ndarray:
-        return np.eye(2) + t * (np.asarray(self.matrix) - np.eye(2))
+    def displacement(self, p: np.ndarray) -> np.ndarray:
+        """The frame-1 displacement (M - I)(p - c) + b at points p (..., 2)."""
+        e = np.asarray(self.matrix) - np.eye(2)
+        return (p - np.asarray(self.center)) @ e.T + np.asarray(self.offset)
 
     def forward(self, p: np.ndarray, t: float) -> np.ndarray:
-        c, b = np.asarray(self.center), np.asarray(self.offset)
-        return c + (p - c) @ self._linear(t).T + b * t
+        return p + t * self.displacement(p)
 
     def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
-        c, b = np.asarray(self.center), np.asarray(self.offset)
-        return c + (x - c - b * t) @ np.linalg.inv(self._linear(t)).T
+        """Solves x = p + t d(p): (I + t (M - I)) (p - c) = x - c - t b."""
+        a = np.eye(2) + t * (np.asarray(self.matrix) - np.eye(2))
+        rhs = x - np.asarray(self.center) - t * np.asarray(self.offset)
+        return np.asarray(self.center) + np.linalg.solve(a, rhs.reshape(-1, 2).T).T.reshape(x.shape)
 
 
 def fine_motion(kind: str, size: tuple[int, int], rng: np.random.Generator, max_disp: float = 3.0,

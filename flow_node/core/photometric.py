@@ -1,14 +1,16 @@
 """The photometric stage of the engine: what the solver sees of a pair's intensities, and how well the
 result explains them.
 
-``preprocess`` runs once per pair, before the pyramid (DESIGN.md, "Engine stages"). Its modes
+:func:`stage` runs once per pair, before the pyramid (DESIGN.md, "Engine stages"). Its modes
 (``PHOTOMETRIC``, the FlowConfig field ``photometric``):
 
 * ``none``: the grey images as they come ([0, 1] by the encoding's maximum).
 * ``normalise``: a global exposure change (gain and offset of frame 1 against frame 0, from matched
   percentiles, see :func:`exposure_change`) is undone, then one affine map for the pair takes its robust
-  range -- the 2nd to the 98th percentile of both frames' intensities -- to [0, 1]. The weights then mean
-  the same thing for 8-, 10-, 12- and 16-bit and low-contrast input (they act on contrast, not on
+  range -- the frames' mean 2nd and 98th percentiles -- to [0, 1] (coarsely quantised content: see
+  :func:`normalise_pair`); a pair with a detected exposure change is then normalised locally
+  (``local_contrast``), since the global fit is ~1 % off and the L1 data term reads that as motion. The
+  weights then mean the same thing for 8-, 10-, 12- and 16-bit and low-contrast input (they act on contrast, not on
   encoding units). Percentiles, not min/max, so a few hot pixels or a saturated highlight do not set the
   scale; they are taken on a strided subsample (every ``STRIDE``-th pixel in each direction). One map for
   both frames, not one per frame: the frames' content differs (motion at the border), and a per-frame map
@@ -23,9 +25,10 @@ result explains them.
 ``reliability`` is computed after the solve: the fraction of pixels the flow does not explain, i.e.
 whose residual |I1(x + flow(x)) - I0(x)| on the preprocessed pair exceeds RESIDUAL_OUTLIER (in units of
 the pair's robust range, on the ``normalise`` pair in every mode), sampled on every second pixel. A flow
-that matches the frames leaves only occlusions and noise: 0.02-0.19 on the 8 Middlebury pairs with
-``realtime``; garbage leaves most pixels unexplained: 0.48-0.68 for the flow of an exposure-changed pair
-without this stage, 0.53-0.81 for two unrelated frames. The node WARNs above UNRELIABLE (docs/node.md).
+that matches the frames leaves only occlusions and noise: 0.005-0.13 on the 8 Middlebury pairs with
+``realtime`` (0.02-0.19 with its earlier half-size setting); garbage leaves most pixels unexplained:
+0.35-0.58 for the flow of a x1.25 exposure-changed pair without this stage, 0.70-0.90 for two unrelated
+frames. The node WARNs above UNRELIABLE (docs/node.md).
 """
 
 from __future__ import annotations
@@ -47,13 +50,13 @@ QUANT_SIGMA = 1.0  # px: presmoothing of coarsely quantised pairs (turns their s
 CLIP_MARGIN = 0.01  # quantiles this close to the encoding's 0 or 1 may be clipped: not used for the fit
 LOCAL_SIGMA = 4.0  # px: the window of the local contrast normalisation
 LOCAL_EPS = 0.02  # of the pair's range: local contrast below this is not amplified (noise in flat areas)
-LOCAL_GAIN = 0.25  # output scale: local contrast 1 -> 0.25, about the range of a normalised frame's detail
+LOCAL_GAIN = 0.08  # output scale: the same alpha suits it and a normalised frame (measured on the suite)
 STRUCTURE_WEIGHT = 0.95
 ROF_THETA = 0.125
 ROF_ITERATIONS = 30
 RESIDUAL_OUTLIER = 0.05
 RELIABILITY_STRIDE = 2
-UNRELIABLE = 0.35  # unexplained fraction above which the node WARNs: Middlebury 0.02-0.19, garbage 0.48-0.81
+UNRELIABLE = 0.3  # unexplained fraction above which the node WARNs: Middlebury <= 0.19, garbage >= 0.35
 
 
 def sorted_sample(img: np.ndarray) -> np.ndarray:
@@ -95,6 +98,11 @@ def quantisation_step(ordered: np.ndarray) -> float:
 
 
 def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`normalise_pair` without its exposure flag."""
+    return normalise_pair(i0, i1)[:2]
+
+
+def normalise_pair(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     """Both frames (H, W) float32 with frame 1's exposure matched to frame 0 (:func:`exposure_change`) and
     one affine map for the pair taking its robust range -- the frames' mean 2nd and 98th percentiles -- to
     [0, 1].
@@ -102,7 +110,8 @@ def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A pair whose quantisation step is coarse against that range (rel = step / range > STEP_REF: content
     spanning fewer than ~100 grey levels) is presmoothed (QUANT_SIGMA) and mapped to [0, STEP_REF / rel]
     instead: its data term carries quantisation noise of relative size rel, and shrinking the contrast by
-    the same factor keeps the balance of data term and weights (exactly for the L1 data term)."""
+    the same factor keeps the balance of data term and weights (exactly for the L1 data term). The flag
+    says whether an exposure change was found (and undone)."""
     s0, s1 = sorted_sample(i0), sorted_sample(i1)
     gain, offset = exposure_change(s0, s1)
     if (gain, offset) != (1.0, 0.0):
@@ -116,7 +125,7 @@ def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if rel > STEP_REF:
         blur = lambda x: cv2.GaussianBlur(x, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)  # noqa: E731
         n0, n1 = blur(n0), blur(n1)
-    return n0, n1
+    return n0, n1, (gain, offset) != (1.0, 0.0)
 
 
 def rof_structure(img: np.ndarray, theta: float = ROF_THETA, iterations: int = ROF_ITERATIONS) -> np.ndarray:
@@ -153,8 +162,14 @@ def stage(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[tuple[np.ndarray, 
                                                                 tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
     The second is the ``normalise`` result in every mode, so the reliability figure has one meaning."""
-    n0, n1 = normalise(i0, i1)
-    return (solver_images(n0, n1, mode) if mode != "none" else (i0, i1)), (n0, n1)
+    n0, n1, exposure_changed = normalise_pair(i0, i1)
+    if mode == "none":
+        return (i0, i1), (n0, n1)
+    if mode == "normalise" and exposure_changed:
+        # the global fit leaves a residual gain of ~1 % (content differences move the percentiles), which
+        # the L1 data term reads as motion; the local normalisation is invariant to gain and offset outright
+        return (local_contrast(n0), local_contrast(n1)), (n0, n1)
+    return solver_images(n0, n1, mode), (n0, n1)
 
 
 def solver_images(n0: np.ndarray, n1: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
