@@ -298,7 +298,7 @@ PRESETS: dict[str, dict[str, Any]] = {
 
 # Large displacements (issue 12, BENCHMARKS.md "Large displacements"): every preset starts from OpenCV DIS
 # where a pair moves more than init_min_motion; the DIS preset is the one of similar cost. On
-# ../shared/data/large this takes quality from 19.9 to 11.0 mean AEE and realtime from 17.3 to 11.1;
+# ../shared/data/large this takes quality from 12.4 to 9.8 mean AEE and realtime from 13.9 to 10.7;
 # Middlebury (motions under 24 px) is unchanged by construction.
 PRESET_INITIALISATION = {"quality": "dis_medium", "balanced": "dis_fast", "realtime": "dis_ultrafast",
                          "fastest": "dis_ultrafast"}
