@@ -1,31 +1,65 @@
 """Synthetic frame pairs with exactly known flow, for the engine tests (no external data).
 
-A smooth random texture T is the second frame; the first frame samples T along the flow,
-I0(x) = T(x + f(x)), so that I1(x + f(x)) = I0(x) holds by construction for any flow field f.
+The texture T is analytic: a band-limited sum of cosines, evaluated at any real position. Frame 1 is T on
+the pixel grid and frame 0 samples T along the flow, I0(x) = T(x + f(x)), so I1(x + f(x)) = I0(x) holds
+exactly for any flow field f -- nothing is interpolated from a raster, so the engine's own interpolation
+errors show up in the tests (a pair rendered with the engine's warp would hide them).
 """
 
 from __future__ import annotations
 
-import cv2
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 
-def texture(h: int, w: int, seed: int = 0, cell: int = 4, blur: float = 1.0) -> np.ndarray:
-    """Smooth random texture in [0, 1], float32 (h, w): bicubic-upsampled noise, Gaussian blurred."""
+@dataclass(frozen=True)
+class Texture:
+    """T(x, y) = lo + scale * (sum_k amps_k cos(2 pi freqs_k . (x, y) + phases_k) - offset), on an h x w grid.
+
+    ``offset``/``scale`` map the grid's range onto [0.05, 0.95]; positions off the grid may fall a little
+    outside (the frames are float images, not clipped)."""
+
+    h: int
+    w: int
+    freqs: np.ndarray  # (K, 2) cycles/px as (fx, fy)
+    phases: np.ndarray  # (K,)
+    amps: np.ndarray  # (K,)
+    offset: float = 0.0
+    scale: float = 1.0
+
+    def sample(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """T at positions (x, y) px (same shapes) -> float32."""
+        arg = 2 * math.pi * (x[..., None] * self.freqs[:, 0] + y[..., None] * self.freqs[:, 1]) + self.phases
+        return (0.05 + self.scale * (np.cos(arg) @ self.amps - self.offset)).astype(np.float32)
+
+    @property
+    def image(self) -> np.ndarray:
+        """T on the pixel grid, float32 (h, w)."""
+        ys, xs = np.mgrid[0:self.h, 0:self.w].astype(np.float64)
+        return self.sample(xs, ys)
+
+
+def texture(h: int, w: int, seed: int = 0, cell: int = 4, blur: float = 1.0, n: int = 64) -> Texture:
+    """A smooth random texture for an h x w frame: n cosines, radial frequency log-uniform in [1/16, 1] x 0.6
+    / cell cycles/px (the detail of noise on ``cell``-px cells), amplitudes damped by a Gaussian blur of
+    ``blur`` px, values on the grid in [0.05, 0.95]."""
     rng = np.random.default_rng(seed)
-    coarse = rng.random((h // cell + 2, w // cell + 2)).astype(np.float32)
-    img = cv2.resize(coarse, (w + 2 * cell, h + 2 * cell), interpolation=cv2.INTER_CUBIC)[cell:-cell, cell:-cell]
-    img = cv2.GaussianBlur(img, (0, 0), blur)
-    img -= img.min()
-    return (img / img.max()).astype(np.float32)
+    fmax = 0.6 / cell
+    radius = np.exp(rng.uniform(math.log(fmax / 16.0), math.log(fmax), n))
+    angle = rng.uniform(0.0, 2 * math.pi, n)
+    freqs = np.stack([radius * np.cos(angle), radius * np.sin(angle)], axis=-1)
+    amps = np.exp(-2.0 * (math.pi * blur * radius) ** 2)
+    raw = Texture(h, w, freqs, rng.uniform(0.0, 2 * math.pi, n), amps)
+    grid = raw.image - 0.05
+    return Texture(h, w, freqs, raw.phases, amps, float(grid.min()), 0.9 / float(grid.max() - grid.min()))
 
 
-def pair_from_flow(t: np.ndarray, flow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(I0, I1) with I1 = t and I0(x) = t(x + flow(x)); flow (H, W, 2) px."""
-    h, w = t.shape
-    xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-    i0 = cv2.remap(t, xs + flow[..., 0], ys + flow[..., 1], cv2.INTER_CUBIC, borderMode=cv2.BORDER_REFLECT)
-    return i0.astype(np.float32), t
+def pair_from_flow(t: Texture, flow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(I0, I1) with I1 = T on the grid and I0(x) = T(x + flow(x)) exactly; flow (H, W, 2) px."""
+    ys, xs = np.mgrid[0:t.h, 0:t.w].astype(np.float64)
+    return t.sample(xs + flow[..., 0], ys + flow[..., 1]), t.image
 
 
 def constant_flow(h: int, w: int, u: float, v: float) -> np.ndarray:

@@ -130,7 +130,7 @@ def test_bad_frames_give_clear_errors(frame0, frame1, message: str) -> None:
 
 
 def test_every_input_encoding_maps_to_the_same_grey_range() -> None:
-    t = texture(24, 32, 0)
+    t = texture(24, 32, 0).image
     as8 = (t * 255).round().astype(np.uint8)
     as16 = (t * 65535).round().astype(np.uint16)
     rgb = np.repeat(t[..., None], 3, axis=2)
@@ -235,3 +235,19 @@ def test_cli_errors_are_one_line_and_nonzero(tmp_path: Path) -> None:
 def test_flow_error_is_the_common_base() -> None:
     assert issubclass(ConfigError, FlowError) and issubclass(InputError, FlowError)
     assert issubclass(FileFormatError, FlowError)
+
+
+def test_choosing_a_model_brings_its_calibrated_weights() -> None:
+    """API, mapping/YAML and CLI-style changes: a model without alpha/alpha1 gets MODEL_WEIGHTS; given wins."""
+    from flow_node.core.config import MODEL_WEIGHTS, MODELS
+
+    for model in MODELS:
+        w = MODEL_WEIGHTS[model]
+        assert (FlowConfig(model=model).alpha, FlowConfig(model=model).alpha1) == (w["alpha"], w["alpha1"])
+        assert FlowConfig.preset("quality").replace(model=model).alpha == (
+            FlowConfig.preset("quality").alpha if model == "l1_tv" else w["alpha"])  # same model: kept
+        assert FlowConfig.from_mapping({"preset": "realtime", "model": model, "alpha": 0.7}).alpha == 0.7
+    assert FlowConfig(model="l2_tv", alpha=0.3).alpha == 0.3
+    assert FlowConfig().with_overrides(["model=l2_l2"]).alpha == MODEL_WEIGHTS["l2_l2"]["alpha"]
+    with pytest.raises(ConfigError, match="alpha: must be finite"):
+        FlowConfig(alpha=float("nan"))  # the 'calibrated' default is a marker, not NaN

@@ -7,14 +7,15 @@ from synth import block_flow, constant_flow, interior, pair_from_flow, rotation_
 from flow_node import FlowConfig, aee, estimate_flow
 from flow_node.core.config import MODELS
 from flow_node.core.models import MODEL_SPECS, energy
-from flow_node.core.operators import image_gradient, linearise
+from flow_node.core.operators import linearise, warp_source
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 
 H, W = 64, 80
 # weights that suit each model on these textures (the L2 data term needs a smaller alpha than L1)
-ALPHA = {"l2_l2": 0.01, "l2_tv": 0.002, "l1_tv": 0.025, "l1_tv_l2": 0.025, "l1_tv_tv": 0.025}
-# stated accuracy: AEE bound (px) for translations and rotation, per model
-BOUND = {"l2_l2": 0.01, "l2_tv": 0.015, "l1_tv": 0.01, "l1_tv_l2": 0.01, "l1_tv_tv": 0.04}
+ALPHA = {"l2_l2": 0.005, "l2_tv": 0.0005, "l1_tv": 0.025, "l1_tv_l2": 0.025, "l1_tv_tv": 0.025}
+# stated accuracy: AEE bound (px) for translations and rotation, per model, on exactly rendered pairs
+# (measured 0.001-0.005, l1_tv_tv 0.015-0.018; the former OpenCV warp gave 0.03-0.07 here)
+BOUND = {"l2_l2": 0.008, "l2_tv": 0.015, "l1_tv": 0.005, "l1_tv_l2": 0.005, "l1_tv_tv": 0.03}
 
 
 def small_config(model: str, **kw) -> FlowConfig:
@@ -27,8 +28,7 @@ def small_config(model: str, **kw) -> FlowConfig:
 def linearised_problem(seed: int = 0) -> Problem:
     t = texture(40, 48, seed)
     i0, i1 = pair_from_flow(t, constant_flow(40, 48, 0.4, -0.3))
-    g = image_gradient(i1, "central")
-    a, c = linearise(i0, i1, None, g, np.zeros((2, 40, 48), np.float32), "central")
+    a, c = linearise(i0, warp_source(i1, "central", "bspline"), None, np.zeros((2, 40, 48), np.float32), "central")
     return Problem(a, c)
 
 
@@ -54,10 +54,10 @@ def test_energy_decreases_and_gap_to_optimum_shrinks(model: str) -> None:
 
 @pytest.mark.parametrize("model", MODELS)
 def test_identical_frames_give_zero_flow(model: str) -> None:
-    t = texture(H, W, 5)
+    t = texture(H, W, 5).image
     flow = estimate_flow(t, t.copy(), small_config(model))
     assert flow.shape == (H, W, 2) and flow.dtype == np.float32
-    assert np.abs(flow).max() < 1e-6
+    assert np.abs(flow).max() < 5e-3  # float32 round-off of the B-spline warp (1e-6 grey) is the only signal
 
 
 @pytest.mark.parametrize("model", MODELS)
@@ -116,7 +116,8 @@ def test_isotropic_suits_circles_anisotropic_suits_axis_aligned_squares() -> Non
 def test_large_displacement_needs_the_pyramid() -> None:
     gt = constant_flow(96, 128, 9.0, -8.0)
     i0, i1 = pair_from_flow(texture(96, 128, 4, cell=8, blur=2.0), gt)
-    with_pyramid = estimate_flow(i0, i1, small_config("l1_tv", levels=5, warps=5, median_filter=5))
+    # min_size 8: four levels, the coarsest sees a 1.1 px shift (with 16 only three, and 2.2 px)
+    with_pyramid = estimate_flow(i0, i1, small_config("l1_tv", levels=5, warps=5, median_filter=5, min_size=8))
     without = estimate_flow(i0, i1, small_config("l1_tv", levels=1, warps=5, median_filter=5))
     assert aee(interior(with_pyramid, 16), interior(gt, 16)) < 0.1
     assert aee(interior(without, 16), interior(gt, 16)) > 3.0
@@ -153,7 +154,7 @@ def test_tolerance_stops_easy_frames_early() -> None:
 
     t = texture(H, W, 6)
     est = FlowEstimator(small_config("l1_tv", iterations=200, tolerance=1e-3, levels=1, warps=1))
-    res = est.estimate(t, t.copy())
+    res = est.estimate(t.image, t.image)
     assert res.stats.total_iterations == 10  # stopped at the first check
     i0, i1 = pair_from_flow(t, constant_flow(H, W, 0.5, 0.2))
     res = est.estimate(i0, i1)
@@ -205,7 +206,8 @@ def test_interleaved_output_equals_resizing_each_component_then_interleaving() -
     """The engine's output step (scale the vectors at the solved size, interleave, resize once) gives the
     field that resizing each component, rescaling and interleaving gives, and the same size is a plain
     interleave."""
-    from flow_node.core.pyramid import interleaved_flow, resize_flow
+    from flow_node.core.layout import interleaved_flow
+    from flow_node.core.pyramid import resize_flow
 
     rng = np.random.default_rng(4)
     v = rng.normal(size=(2, 30, 41)).astype(np.float32)

@@ -112,3 +112,25 @@ def test_status_values_and_window_reset() -> None:
                                                 resolution="5x4").values}
     assert values["solve time mean (ms)"] == "n/a" and values["publish time mean (ms)"] == "n/a"
     assert values["frames published"] == "4"
+
+
+def test_an_unreliable_flow_warns_and_is_counted() -> None:
+    """A flow that leaves most pixels unexplained (photometric.reliability) is a WARN, not OK."""
+    from flow_node.core.photometric import UNRELIABLE
+
+    s = NodeStats()
+    good, bad = output(1.0), output(1.0)
+    good.unexplained, bad.unexplained = 0.05, UNRELIABLE + 0.2
+    s.received(False)
+    s.solved(0.02, 0.001, 0.0005, good)
+    w = s.window()
+    assert level_of(w, ready=True) == (OK, "computing flow") and w.unreliable == 0
+    for out in (bad, good):
+        s.received(False)
+        s.solved(0.02, 0.001, 0.0005, out)
+    w = s.window()
+    level, msg = level_of(w, ready=True)
+    assert level == WARN and "unreliable on 1 frame(s)" in msg
+    values = {kv.key: kv.value for kv in status(w, name="n: flow", hardware_id="", ready=True, backend="numpy",
+                                                model="l1_tv", input_scale=1.0, resolution="5x4").values}
+    assert values["unreliable frames"] == "1" and values["unexplained pixels (%)"] == "5.0"

@@ -24,7 +24,7 @@ from rclpy.qos import ReliabilityPolicy
 from ros_helpers import GT, I0, I1, Harness, call, image, mono8
 from sensor_msgs.msg import Image
 
-from flow_node.core.config import PRESETS, FlowConfig, fields_info
+from flow_node.core.config import MODEL_WEIGHTS, PRESETS, FlowConfig, fields_info
 from flow_node.core.errors import ConfigError
 from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import image_to_array
@@ -68,6 +68,19 @@ def test_preset_sets_its_group(harness: Harness) -> None:
                       "levels": q["levels"], "gradient_scheme": q["gradient_scheme"], "alpha": 0.04}
     harness.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2))
     assert harness.node.settings.config == FlowConfig.preset("quality").replace(backend="numpy", alpha=0.04)
+
+
+def test_model_brings_its_calibrated_weights(harness: Harness) -> None:
+    """Setting `model` alone also sets alpha/alpha1 (config.MODEL_WEIGHTS); a weight given with it wins."""
+    results = harness.set_params(model="l2_tv")
+    assert all(r.successful for r in results), [r.reason for r in results]
+    assert get_values(harness, ["model", "alpha"]) == {"model": "l2_tv", "alpha": MODEL_WEIGHTS["l2_tv"]["alpha"]}
+    results = harness.set_params(model="l1_tv_tv", alpha=0.04)
+    assert all(r.successful for r in results), [r.reason for r in results]
+    assert get_values(harness, ["model", "alpha", "alpha1"]) == {
+        "model": "l1_tv_tv", "alpha": 0.04, "alpha1": MODEL_WEIGHTS["l1_tv_tv"]["alpha1"]}
+    harness.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2))
+    assert harness.node.settings.config.alpha == 0.04 and harness.node.settings.config.model == "l1_tv_tv"
 
 
 @pytest.mark.parametrize("name,value,reason", [
@@ -125,7 +138,8 @@ def test_yaml_files_are_in_sync_and_load_as_configs() -> None:
         assert path.read_text() == render_yaml(name)
         assert FlowConfig.from_yaml(path) == FlowConfig.preset(name)
     text = (ROOT / "config/flow_node.yaml").read_text()
-    assert "    alpha: 0.015\n" in text and "    tolerance: 0.0\n" in text and "    level_alpha_factor: 1.0\n" in text
+    assert f"    alpha: {FlowConfig().alpha!r}\n" in text and "    tolerance: 0.0\n" in text
+    assert "    level_alpha_factor: 1.0\n" in text
 
 
 def test_settings_from_values_rejects_bad_combinations() -> None:

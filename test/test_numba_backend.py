@@ -23,8 +23,9 @@ from flow_node.core.backends import select_backend
 from flow_node.core.config import MODELS, FlowConfig
 from flow_node.core.errors import ConfigError
 from flow_node.core.models import MODEL_SPECS
-from flow_node.core.numba_backend import solve_numba
+from flow_node.core.numba_backend import WARPER, solve_numba
 from flow_node.core.solver import CHECK_EVERY, PDState, Problem, SolveParams, solve_numpy
+from flow_node.core.warping import NUMPY_WARPER
 
 H, W = 40, 56
 ITERATIONS = 40
@@ -156,7 +157,7 @@ def test_end_to_end_flow_agrees(model: str) -> None:
 
 
 def test_threads_cap() -> None:
-    t = texture(40, 48, seed=1)
+    t = texture(40, 48, seed=1).image
     est = FlowEstimator(FlowConfig(backend="numba", threads=1, levels=1, warps=1, iterations=5))
     est.estimate(t, t)
     assert numba_backend.threads() == 1 and numba.get_num_threads() == 1
@@ -199,9 +200,9 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
 
 def test_backend_selection_and_log() -> None:
     with flow_node_log(logging.INFO) as records:
-        assert select_backend("numpy") == ("numpy", solve_numpy)
-        assert select_backend("auto") == ("numba", solve_numba)
-        assert select_backend("numba") == ("numba", solve_numba)
+        assert select_backend("numpy") == ("numpy", solve_numpy, NUMPY_WARPER)
+        assert select_backend("auto") == ("numba", solve_numba, WARPER)
+        assert select_backend("numba") == ("numba", solve_numba, WARPER)
     lines = [r.getMessage() for r in records]
     assert len(lines) == 3
     assert lines[0].startswith("flow_node backend: numpy")
@@ -215,7 +216,7 @@ def test_fallback_when_numba_is_missing(monkeypatch: pytest.MonkeyPatch) -> None
     monkeypatch.setitem(sys.modules, "flow_node.core.numba_backend", None)  # import now raises ImportError
     monkeypatch.delattr(core, "numba_backend")
     with flow_node_log(logging.WARNING) as records:
-        assert select_backend("auto") == ("numpy", solve_numpy)
+        assert select_backend("auto") == ("numpy", solve_numpy, NUMPY_WARPER)
     assert [r.levelno for r in records] == [logging.WARNING]
     assert "numba not importable" in records[0].getMessage()
     with pytest.raises(ConfigError, match="numba"):

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..core.config import FlowConfig
 from ..core.errors import InputError
-from ..core.metrics import aee, angular_error, valid_mask
+from ..core.metrics import aee, angular_error, confidence_auc, valid_mask
 from ..pipeline.codec import array_to_image_fields, decode, image_to_array
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
 from .bagio import (
@@ -40,7 +40,7 @@ from .bagio import (
 from .progress import FrameCallback, FrameProgress
 
 NODE_NAMESPACE = "/flow_node"  # the node's default name: its ~/flow is /flow_node/flow
-OUTPUT_TOPICS = ("flow", "magnitude", "flow_color")
+OUTPUT_TOPICS = ("flow", "magnitude", "flow_color", "confidence")
 DEFAULT_GT_TOPIC = "/camera/flow_gt"
 UNUSABLE = "image unusable: "  # FrameRecord.skipped prefix of an image that could not be used
 
@@ -60,7 +60,8 @@ class EvalOptions:
 @dataclass
 class FrameRecord:
     """One processed image: its bag index and stamps; for a pair, time, iterations, magnitude statistics
-    and (with ground truth) AEE px and AE degrees. ``skipped`` holds the reason an image was unusable."""
+    and (with ground truth) AEE px, AE degrees and the confidence's ROC AUC against the real error (None
+    when every pixel is right or every one wrong). ``skipped`` holds the reason an image was unusable."""
 
     index: int
     stamp_ns: int
@@ -70,6 +71,7 @@ class FrameRecord:
     magnitude: dict[str, float] | None = None
     aee: float | None = None
     ae: float | None = None
+    confidence_auc: float | None = None
     skipped: str | None = None
     note: str | None = None
 
@@ -149,9 +151,10 @@ def _record(index: int, out: FlowOutput) -> FrameRecord:
                        {"mean": s.mean, "p95": s.p95, "max": s.max})
 
 
-def _score(rec: FrameRecord, flow: np.ndarray, gt: np.ndarray) -> None:
+def _score(rec: FrameRecord, out: FlowOutput, gt: np.ndarray) -> None:
     if valid_mask(gt).any():
-        rec.aee, rec.ae = aee(flow, gt), angular_error(flow, gt)
+        rec.aee, rec.ae = aee(out.flow, gt), angular_error(out.flow, gt)
+        rec.confidence_auc = confidence_auc(out.confidence(), out.flow, gt)
 
 
 def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig], opts: EvalOptions,
@@ -199,7 +202,7 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
             writer: BagWriter | None, progress: FrameProgress) -> None:
     """The single pass over the bag: decode, process per model, write outputs, score against GT."""
     gts: dict[int, Any] = {}  # stamp -> GT message not yet matched
-    pending: dict[int, list[tuple[FrameRecord, np.ndarray | None]]] = {}  # stamp -> outputs awaiting GT
+    pending: dict[int, list[tuple[FrameRecord, FlowOutput]]] = {}  # stamp -> outputs awaiting GT
     shape: tuple[int, int] | None = None
     last_stamp: int | None = None  # stamp of the previous image message, usable or not
     gt_ids = {c.id for c in gt_conns}
@@ -209,8 +212,8 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
         if conn.id in gt_ids:
             if stamp in pending and shape is not None:
                 gt = read_ground_truth(msg, shape, stamp)
-                for rec, flow in pending.pop(stamp):
-                    _score(rec, flow, gt)
+                for rec, out in pending.pop(stamp):
+                    _score(rec, out, gt)
                 _keep_gt(result, stamp, gt)
             else:
                 gts[stamp] = msg
@@ -249,9 +252,9 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
             if out.previous_stamp_ns != previous:
                 rec.note = "pair spans an unusable image: not scored against the ground truth"
             elif gt is not None:
-                _score(rec, out.flow, gt)
+                _score(rec, out, gt)
             else:
-                waiting.append((rec, out.flow))
+                waiting.append((rec, out))
         if waiting and gt_conns:
             pending[stamp] = waiting
         if draw is not None:
@@ -269,9 +272,9 @@ def _keep_gt(result: EvalResult, stamp: int, gt: np.ndarray) -> None:
 
 
 def _write_outputs(writer: BagWriter, run: ModelRun, primary: bool, t: int, hdr: Any, out: FlowOutput) -> None:
-    """The node's three output messages, with the input header."""
+    """The node's four output messages, with the input header."""
     arrays = (("flow", out.flow, "32FC2"), ("magnitude", out.magnitude, "32FC1"),
-              ("flow_color", out.color(), "bgr8"))
+              ("flow_color", out.color(), "bgr8"), ("confidence", out.confidence(), "32FC1"))
     for name, arr, enc in arrays:
         writer.write(run.topic(name, primary), t, image_message(hdr, array_to_image_fields(arr, enc)))
 

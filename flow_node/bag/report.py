@@ -38,6 +38,7 @@ def summarise_run(run: ModelRun) -> dict[str, Any]:
         "pairs_with_gt": len(scored),
         "aee_mean": _stat([r.aee for r in scored], np.mean), "aee_median": _stat([r.aee for r in scored], np.median),
         "aee_max": _stat([r.aee for r in scored], np.max), "ae_mean": _stat([r.ae for r in scored], np.mean),
+        "confidence_auc_mean": _stat([r.confidence_auc for r in scored if r.confidence_auc is not None], np.mean),
         "seconds_mean": _stat(secs, np.mean), "seconds_median": _stat(secs, np.median),
         "iterations_mean": _stat([r.iterations for r in pairs], np.mean),
         "magnitude_mean": _stat([r.magnitude["mean"] for r in pairs if r.magnitude], np.mean),
@@ -102,16 +103,18 @@ def to_markdown(result: EvalResult, pngs: list[str]) -> str:
     lines = [f"# flow_bag eval: {Path(result.bag).name}", "",
              f"Bag `{result.bag}`, image topic `{result.image_topic}`, ground truth "
              f"{'`' + result.gt_topic + '`' if result.gt_topic else 'none'}; {result.images} images. "
-             "AEE in px, AE in degrees (Middlebury definitions), times in ms per frame pair.", "",
+             "AEE in px, AE in degrees (Middlebury definitions), times in ms per frame pair; confidence AUC: "
+             "ROC AUC of ~/confidence for 'endpoint error < 3 px or 5 % of |gt|' (1 = perfect, 0.5 = chance).", "",
              "## Summary", "",
-             "| model | backend | pairs | with GT | AEE mean | AEE median | AE mean | time mean | time median "
-             "| mean \\|flow\\| |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| model | backend | pairs | with GT | AEE mean | AEE median | AE mean | confidence AUC | time mean "
+             "| time median | mean \\|flow\\| |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for run in result.runs:
         s = summarise_run(run)
         ms = {k: None if s[k] is None else 1000 * s[k] for k in ("seconds_mean", "seconds_median")}
         lines.append(f"| {s['model']} | {s['backend']} | {s['pairs']} | {s['pairs_with_gt']} | "
                      f"{_fmt(s['aee_mean'])} | {_fmt(s['aee_median'])} | {_fmt(s['ae_mean'], 2)} | "
-                     f"{_fmt(ms['seconds_mean'], 1)} | {_fmt(ms['seconds_median'], 1)} | "
+                     f"{_fmt(s['confidence_auc_mean'])} | {_fmt(ms['seconds_mean'], 1)} | "
+                     f"{_fmt(ms['seconds_median'], 1)} | "
                      f"{_fmt(s['magnitude_mean'])} |")
     rank = ranking(result.runs)
     if rank:

@@ -205,6 +205,8 @@ def make_scene(name: str, size: tuple[int, int], rng: np.random.Generator, brigh
         layers = (Layer(bg, wave),)
     elif name == "objects":
         layers = (Layer(bg, AffineMotion(c, (0.8, -0.4))),) + _objects(size, rng)
+    elif name in LARGE_MOTION_SCENES:
+        layers = LARGE_MOTION_SCENES[name](size, rng, bg)
     else:
         raise ConfigError(f"unknown scene {name!r}; choose one of {', '.join(SCENES)}")
     return Scene(name, size, layers, brightness)
@@ -223,6 +225,61 @@ def _objects(size: tuple[int, int], rng: np.random.Generator, count: int = 3) ->
         out.append(Layer(Texture.random(rng, fmax=1 / 6), AffineMotion((float(cx), float(cy)),
                                                                        (float(v[0]), float(v[1]))), shape))
     return tuple(out)
+
+
+# ------------------------------------------------------------------------- large displacements (issue 12)
+def _fast_objects(size: tuple[int, int], rng: np.random.Generator, speeds: tuple[float, float],
+                  count: int, centre_frame: float = 3.0) -> tuple[Layer, ...]:
+    """``count`` textured ellipses/boxes moving at ``speeds`` (min, max) px/frame in random directions,
+    placed so that each crosses the middle third of the image around frame ``centre_frame``; they pass in
+    front of each other and of the background (occlusions and disocclusions every frame)."""
+    w, h = size
+    out = []
+    for i in range(count):
+        speed = float(rng.uniform(*speeds))
+        angle = float(rng.uniform(0.0, 2 * math.pi))
+        v = (speed * math.cos(angle), speed * math.sin(angle))
+        mx, my = rng.uniform(1 / 3, 2 / 3) * w, rng.uniform(1 / 3, 2 / 3) * h
+        cx, cy = float(mx - centre_frame * v[0]), float(my - centre_frame * v[1])  # texture coords at t = 0
+        r = float(rng.uniform(0.12, 0.2) * min(w, h))
+        shape = (cx, cy, r * float(rng.uniform(0.8, 1.3)), r, "box" if i % 2 else "ellipse")
+        out.append(Layer(Texture.random(rng, fmin=1 / 100, fmax=1 / 6), AffineMotion((cx, cy), v), shape))
+    return tuple(out)
+
+
+def _coarse_texture(rng: np.random.Generator, bg: Texture) -> Texture:
+    """A texture with structure from 1/160 to 1/5 cycles/px for a fast scene: a motion of tens of pixels
+    is ambiguous on a texture without periods that long (the given ``bg``'s tint is kept)."""
+    t = Texture.random(rng, n=36, fmin=1 / 160)
+    return Texture(t.freqs, t.phases, t.amps, bg.tint)
+
+
+def fast_pan(size: tuple[int, int], rng: np.random.Generator, bg: Texture) -> tuple[Layer, ...]:
+    """A camera panning 20-40 px/frame (scaled to a 320 px wide image, at most 150 px) over a textured
+    background, with three objects crossing at 40-110 px/frame."""
+    bg = _coarse_texture(rng, bg)
+    w, h = size
+    k = w / 320.0
+    pan = min(150.0, float(rng.uniform(20.0, 40.0)) * k)
+    angle = float(rng.uniform(0.0, 2 * math.pi))
+    layers = (Layer(bg, AffineMotion(((w - 1) / 2.0, (h - 1) / 2.0), (pan * math.cos(angle),
+                                                                       pan * math.sin(angle)))),)
+    return layers + _fast_objects(size, rng, (min(150.0, 40.0 * k), min(150.0, 110.0 * k)), 3)
+
+
+def fast_objects(size: tuple[int, int], rng: np.random.Generator, bg: Texture) -> tuple[Layer, ...]:
+    """A nearly still background (a 1-3 px/frame drift) and four objects at 60-150 px/frame (scaled to a
+    320 px wide image, at most 150 px): the motion a pyramid loses, with large occluded areas."""
+    bg = _coarse_texture(rng, bg)
+    w, h = size
+    k = w / 320.0
+    drift = rng.uniform(1.0, 3.0, 2) * rng.choice([-1.0, 1.0], 2)
+    layers = (Layer(bg, AffineMotion(((w - 1) / 2.0, (h - 1) / 2.0), (float(drift[0]), float(drift[1])))),)
+    return layers + _fast_objects(size, rng, (min(150.0, 60.0 * k), min(150.0, 150.0 * k)), 4)
+
+
+LARGE_MOTION_SCENES = {"fast_pan": fast_pan, "fast_objects": fast_objects}
+SCENES = SCENES + tuple(LARGE_MOTION_SCENES)
 
 
 # ---------------------------------------------------------------------------------------------------------

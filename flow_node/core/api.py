@@ -11,8 +11,10 @@ import numpy as np
 
 from .backends import select_backend
 from .config import FlowConfig
+from .engine import estimate_pair
 from .errors import InputError, NonFiniteResult
-from .pyramid import SolveStats, coarse_to_fine
+from .photometric import reliability
+from .refine import SolveStats
 
 log = logging.getLogger("flow_node")
 
@@ -74,12 +76,19 @@ def ensure_finite(flow: np.ndarray) -> np.ndarray:
 
 @dataclass
 class FlowResult:
-    """Flow (H, W, 2) float32 px/frame plus what the solve did."""
+    """Flow (H, W, 2) float32 px/frame plus what the solve did.
+
+    ``unexplained``: the fraction of (sampled) pixels whose photometric residual after the solve is large
+    (photometric.reliability): ~0.0-0.1 for a flow that matches the frames, near 1 for garbage.
+    ``frames``: the normalised pair that figure judges (photometric.stage), which the confidence
+    (fusion.confidence) is computed on when asked for."""
 
     flow: np.ndarray
     stats: SolveStats
     seconds: float
     backend: str
+    unexplained: float = 0.0
+    frames: tuple[np.ndarray, np.ndarray] | None = None
 
 
 class FlowEstimator:
@@ -90,7 +99,12 @@ class FlowEstimator:
 
     def __init__(self, config: FlowConfig | None = None) -> None:
         self._config = config if config is not None else FlowConfig()
-        self.backend, self._solve = select_backend(self._config.backend, self._config.threads)
+        self._backend = select_backend(self._config.backend, self._config.threads)
+
+    @property
+    def backend(self) -> str:
+        """Name of the resolved backend (``numpy`` or ``numba``)."""
+        return self._backend.name
 
     @property
     def config(self) -> FlowConfig:
@@ -99,7 +113,7 @@ class FlowEstimator:
     @config.setter
     def config(self, cfg: FlowConfig) -> None:
         if (cfg.backend, cfg.threads) != (self._config.backend, self._config.threads):
-            self.backend, self._solve = select_backend(cfg.backend, cfg.threads)
+            self._backend = select_backend(cfg.backend, cfg.threads)
         self._config = cfg
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
@@ -118,22 +132,36 @@ class FlowEstimator:
         return self.estimate_grey(to_grey(frame0, "frame0", channel_order), to_grey(frame1, "frame1", channel_order),
                                   initial_flow)
 
-    def estimate_grey(self, i0: np.ndarray, i1: np.ndarray, initial_flow: np.ndarray | None = None) -> FlowResult:
+    def estimate_grey(self, i0: np.ndarray, i1: np.ndarray, initial_flow: np.ndarray | None = None,
+                      previous_flow: np.ndarray | None = None) -> FlowResult:
         """:meth:`estimate` for frames that already went through :func:`to_grey` (float32 (H, W) in [0, 1],
-        finite): a stream that converts each frame once on arrival need not validate it again per pair."""
+        finite): a stream that converts each frame once on arrival need not validate it again per pair.
+
+        ``initial_flow`` (H, W, 2) px is a warm start; ``previous_flow`` (H, W, 2) the flow of the pair
+        that ended with i0 (a stream's; used when ``config.temporal_init`` is 1). Both are fused per pixel
+        with the pyramid's estimate on the level where they are trusted (``config.init_scale``)."""
         if i0.shape != i1.shape:
             raise InputError(f"frames differ in size: frame0 is {i0.shape[1]}x{i0.shape[0]}, "
                              f"frame1 is {i1.shape[1]}x{i1.shape[0]}")
-        init = None
-        if initial_flow is not None:
-            if initial_flow.shape != i0.shape + (2,):
-                raise InputError(f"initial_flow: expected shape {i0.shape + (2,)}, got {initial_flow.shape}")
-            init = np.moveaxis(initial_flow, -1, 0)  # coarse_to_fine casts it (once) as it resizes it
+        init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
+                                                                        (previous_flow, "previous_flow")))
         start = time.perf_counter()
-        flow, stats = coarse_to_fine(i0, i1, self._config, self._solve, init)
+        flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
         ensure_finite(flow)
-        seconds = time.perf_counter() - start  # the output layout included: it is part of the engine's work
-        return FlowResult(flow, stats, seconds, self.backend)
+        unexplained = reliability(*normalised, flow, self._backend.warper.sample)
+        seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
+
+
+def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -> np.ndarray | None:
+    """A (H, W, 2) flow as a float32 (2, H, W) view or copy; InputError unless it matches ``shape``."""
+    if flow is None:
+        return None
+    if flow.shape != shape + (2,):
+        raise InputError(f"{name}: expected shape {shape + (2,)}, got {flow.shape}")
+    if not np.isfinite(flow).all():
+        raise InputError(f"{name}: contains NaN or infinite values")
+    return np.moveaxis(flow, -1, 0).astype(np.float32, copy=False)
 
 
 def estimate_flow(frame0: np.ndarray, frame1: np.ndarray, config: FlowConfig | None = None, *,

@@ -15,11 +15,22 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError, FileFormatError, short_path
+from .photometric import PHOTOMETRIC
+from .warping import KERNELS as WARP_KERNELS
 
 MODELS = ("l2_l2", "l2_tv", "l1_tv", "l1_tv_l2", "l1_tv_tv")
 TV_NORMS = ("isotropic", "anisotropic")
 GRADIENT_SCHEMES = ("forward", "central", "interpolated")
 BACKENDS = ("auto", "numpy", "numba")
+INITIALISATIONS = ("none", "dis_ultrafast", "dis_fast", "dis_medium", "orb", "sift")
+
+
+class _Calibrated(float):
+    """The default of alpha/alpha1: a marker (not a value a user can pass) replaced on construction by the
+    model's calibrated weight (MODEL_WEIGHTS)."""
+
+
+CALIBRATED = _Calibrated("nan")
 
 
 def _f(default: Any, help: str, *, lo: float | None = None, hi: float | None = None,
@@ -73,12 +84,16 @@ class FlowConfig:
     ``alpha1`` its alpha_1, both absolute.
     """
 
-    model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1)",
-                    choices=MODELS)
-    alpha: float = _f(0.025, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv)",
-                      lo=0.0, hi=1000.0, lo_open=True)
-    alpha1: float = _f(0.5, "second weight alpha_1: of (1/2)|w|^2 in l1_tv_l2, of |grad w|_1 in l1_tv_tv",
-                       lo=0.0, hi=10000.0)
+    photometric: str = _f("normalise", "photometric preprocessing of each pair: normalise (each frame's 2nd-98th "
+                          "percentile range to [0, 1]: bit depth, contrast and exposure invariant), "
+                          "structure_texture (normalise, then Wedel's texture part), none (grey / max)",
+                          choices=PHOTOMETRIC)
+    model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1); choosing a "
+                    "model without alpha/alpha1 also selects its calibrated weights", choices=MODELS)
+    alpha: float = _f(CALIBRATED, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv); default: the "
+                      "model's calibrated weight", lo=0.0, hi=1000.0, lo_open=True)
+    alpha1: float = _f(CALIBRATED, "second weight alpha_1: of (1/2)|w|^2 in l1_tv_l2, of |grad w|_1 in l1_tv_tv; "
+                       "default: the model's calibrated weight", lo=0.0, hi=10000.0)
     tv_norm: str = _f("isotropic", "vector norm of the TV terms: isotropic (joint Euclidean) or "
                       "anisotropic (sum of absolute values)", choices=TV_NORMS)
     gradient_scheme: str = _f("central", "image gradient: forward, central, or interpolated "
@@ -99,11 +114,27 @@ class FlowConfig:
                             choices=(0, 3, 5))
     level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
                                    "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
+    warp_kernel: str = _f("bspline", "cubic kernel of the warp: bspline (prefiltered cubic B-spline) or keys "
+                          "(Keys a = -1/2, Catmull-Rom); both reproduce linear ramps", choices=WARP_KERNELS)
+    initialisation: str = _f("none", "flow the refinement starts from, fused per pixel with the pyramid's own: "
+                             "none, OpenCV DIS (dis_ultrafast/dis_fast/dis_medium) or sparse descriptor "
+                             "matches densified edge-aware (orb/sift)", choices=INITIALISATIONS)
+    init_scale: float = _f(0.25, "with an initialisation, refinement restarts on the coarsest pyramid level "
+                           "with at least this fraction of the input resolution", lo=0.0, hi=1.0, lo_open=True)
+    init_min_motion: float = _f(24.0, "an initialisation the engine computes is fused only when its 95th-percentile "
+                                "|flow| (px) exceeds this (smaller motions: the pyramid alone is more accurate; "
+                                "0 = always)", lo=0.0, hi=10000.0)
+    temporal_init: int = _f(0, "in a stream (node, flow_bag eval): 1 = the previous pair's flow, carried "
+                            "forward, is an initialisation of the next pair", choices=(0, 1))
     backend: str = _f("auto", "solver backend: numba kernels, numpy reference, or auto (numba if importable)",
                       choices=BACKENDS)
     threads: int = _f(0, "threads for the numba backend (0 = all cores)", lo=0, hi=1024)
 
     def __post_init__(self) -> None:
+        if self.model in MODEL_WEIGHTS:  # an unknown model is reported by the field check below
+            for name, value in MODEL_WEIGHTS[self.model].items():
+                if getattr(self, name) is CALIBRATED:
+                    object.__setattr__(self, name, value)
         for f in dataclasses.fields(self):
             object.__setattr__(self, f.name, _check_field(f, getattr(self, f.name)))
         if self.model in ("l1_tv_l2", "l1_tv_tv") and self.alpha1 <= 0.0:
@@ -179,11 +210,12 @@ class FlowConfig:
         return cls.from_mapping(data, base)
 
     def replace(self, **changes: Any) -> FlowConfig:
-        """A validated copy with ``changes`` applied."""
+        """A validated copy with ``changes`` applied; a change of ``model`` without ``alpha``/``alpha1``
+        also sets them to the new model's calibrated weights (:func:`implied_weights`)."""
         unknown = sorted(set(changes) - set(field_names()))
         if unknown:
             raise ConfigError(f"unknown parameter(s) {', '.join(unknown)}")
-        return dataclasses.replace(self, **changes)
+        return dataclasses.replace(self, **implied_weights(self.model, changes), **changes)
 
     def with_overrides(self, assignments: Iterable[str]) -> FlowConfig:
         """Apply ``key=value`` strings (CLI ``--set``), parsed by each field's type."""
@@ -203,24 +235,75 @@ class FlowConfig:
         return dataclasses.asdict(self)
 
 
+# The calibrated weights of each model: the defaults of alpha/alpha1 when a model is chosen without them.
+# On normalised pairs (photometric="normalise") with the default pyramid, the best of a grid on the 8
+# Middlebury pairs (`python -m bench.accuracy --model-search`; BENCHMARKS.md, "Model-aware weights").
+MODEL_WEIGHTS: dict[str, dict[str, float]] = {
+    "l2_l2": dict(alpha=0.0003, alpha1=0.5),
+    "l2_tv": dict(alpha=0.0002, alpha1=0.5),
+    "l1_tv": dict(alpha=0.03, alpha1=0.5),
+    "l1_tv_l2": dict(alpha=0.03, alpha1=0.5),
+    "l1_tv_tv": dict(alpha=0.02, alpha1=0.5),
+}
+
+
+def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str, float]:
+    """The weights a change implies: when ``changes`` switches the model away from ``current_model`` and does
+    not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS); else {}.
+
+    The one rule for every entry point (API ``replace``, CLI ``--model``, the node's ``model`` parameter):
+    re-selecting the current model, or giving a weight with it, keeps what was given."""
+    model = changes.get("model", current_model)
+    if model == current_model or model not in MODEL_WEIGHTS:
+        return {}
+    return {k: v for k, v in MODEL_WEIGHTS[model].items() if k not in changes}
+
+
 PRESETS: dict[str, dict[str, Any]] = {
-    # quality/balanced: from the documented search on Middlebury (BENCHMARKS.md, issue 2): a fine pyramid
-    # (x0.8, down to min_size) with few warps per level beats a coarse one with many, at the same cost;
-    # quality's 2 x 30 per level keeps it within 1/15 of OpenCV DualTVL1's time (issue 3).
-    "quality": dict(model="l1_tv", alpha=0.02, iterations=30, warps=2, levels=15, scale_factor=0.8,
-                    level_alpha_factor=0.8, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
-    "balanced": dict(model="l1_tv", alpha=0.02, iterations=15, warps=2, levels=15, scale_factor=0.8,
-                     level_alpha_factor=0.8, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3),
-    # realtime/fastest: from the speed frontier (BENCHMARKS.md, issue 3). Like DIS, they stop the pyramid
-    # above full resolution and upsample the flow: realtime solves down to half size (finest_level 1),
-    # fastest to quarter size; below ~20 ms per VGA pair the full-resolution level's per-warp work and
-    # kernels cost more than all coarser levels together, for AEE that the median filter and a smaller
-    # alpha recover more cheaply.
-    "realtime": dict(model="l1_tv", alpha=0.015, iterations=10, warps=2, levels=5, finest_level=1,
+    # Re-tuned on the suite as a whole (issue 11; bench.suite tune split + Middlebury, BENCHMARKS.md "Presets
+    # re-tuned on the suite"), after the exact warp and the photometric stage (photometric="normalise", the
+    # default, in every preset: it wins on every regime with an exposure change and costs nothing elsewhere).
+    # quality/balanced: a fine pyramid (x0.8, down to min_size) with few warps per level (issue 2 search);
+    # alpha 0.03 on normalised contrast (0.02 was tuned on grey/255 and 8-bit Middlebury only: on exactly
+    # rendered fine textures 8-bit quantisation is the floor and a larger alpha averages it out -- fine
+    # textures 0.0155 at 0.03 before the quantisation-aware normalisation, 0.0126 after, 0.0115 at 0.1 --
+    # while Middlebury's 8 pairs want it small: 0.319 at 0.02, 0.315 at 0.03, 0.319 at 0.04).
+    # level_alpha_factor 1 (was 0.8): 0.8**14 = 0.04 left the coarse levels of the 15-level pyramid almost
+    # unregularised, and on the finest texture band (up to 1/3 cycles/px, aliased there) they converged to a
+    # wrong flow the fine levels never left: 0.42 and 0.34 AEE on 2 of the 12 tune pairs, 0.72 on a report
+    # pair; at 1.0 every pair is at 0.008-0.018 (tune mean 0.074 -> 0.012; 0.9 still fails one pair), for
+    # Middlebury 0.315 -> 0.326.
+    "quality": dict(model="l1_tv", alpha=0.03, iterations=30, warps=2, levels=15, scale_factor=0.8,
+                    level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                    finest_level=0),
+    "balanced": dict(model="l1_tv", alpha=0.03, iterations=15, warps=2, levels=15, scale_factor=0.8,
+                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
+                     finest_level=0),
+    # realtime/fastest (re-tuned for issue 11): solving only down to half/quarter size (finest_level 1/2, like
+    # DIS) loses sub-pixel fine texture entirely (realtime 0.18-0.21, fastest 0.82-1.06 AEE on the suite's
+    # fine textures against DIS medium 0.053 / ultrafast 0.16). realtime now solves at full resolution, which
+    # about meets DIS medium's AEE on fine textures (tune split: 0.060 at alpha 0.03, 0.048 at 0.05; DIS
+    # medium ~0.05 per pair) and Middlebury <= 0.45 (0.408 at 0.03, 0.452 at 0.05: alpha 0.04 between them;
+    # 4 levels instead of 5: 0.68, Urban's motions need the fifth) at ~3x DIS medium's time; fastest takes
+    # the former realtime's place (half size): 0.19 on fine textures (DIS ultrafast 0.16) at ~4x its time,
+    # Middlebury 0.59. realtime 20 iterations per warp (was 10): at 10 it is unconverged (its fine-texture AEE
+    # was 0.06 at 8 bit and 0.11 at 10-16 bit on a rotation; 0.022 at 20) for +15 % time. The measured frontier is in
+    # BENCHMARKS.md; neither reaches DIS's time at its accuracy.
+    "realtime": dict(model="l1_tv", alpha=0.04, iterations=20, warps=2, levels=5, finest_level=0,
                      median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
-    "fastest": dict(model="l1_tv", alpha=0.015, iterations=8, warps=2, levels=5, finest_level=2,
+    "fastest": dict(model="l1_tv", alpha=0.05, iterations=8, warps=2, levels=5, finest_level=1,
                     median_filter=3, gradient_scheme="interpolated", tolerance=0.0),
 }
+
+
+# Large displacements (issue 12, BENCHMARKS.md "Large displacements"): every preset starts from OpenCV DIS
+# where a pair moves more than init_min_motion; the DIS preset is the one of similar cost. On
+# ../shared/data/large this takes quality from 12.4 to 9.8 mean AEE and realtime from 13.9 to 10.7;
+# Middlebury (motions under 24 px) is unchanged by construction.
+PRESET_INITIALISATION = {"quality": "dis_medium", "balanced": "dis_fast", "realtime": "dis_ultrafast",
+                         "fastest": "dis_ultrafast"}
+for _name, _init in PRESET_INITIALISATION.items():
+    PRESETS[_name]["initialisation"] = _init
 
 
 @dataclass(frozen=True)
@@ -243,10 +326,11 @@ def field_names() -> tuple[str, ...]:
 def fields_info() -> list[FieldInfo]:
     """Name, type, default, description and range of every field."""
     types = {"int": int, "float": float, "str": str}
+    defaults = FlowConfig()  # resolved defaults (alpha/alpha1: the default model's calibrated weights)
     out = []
     for f in dataclasses.fields(FlowConfig):
         m = f.metadata
-        out.append(FieldInfo(f.name, types[str(f.type)], f.default, m["help"], m["lo"], m["hi"],
+        out.append(FieldInfo(f.name, types[str(f.type)], getattr(defaults, f.name), m["help"], m["lo"], m["hi"],
                              m["choices"]))
     return out
 

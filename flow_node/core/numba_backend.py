@@ -1,4 +1,5 @@
-"""The numba backend: :func:`solve_numba`, a drop-in :data:`~flow_node.core.solver.LevelSolver`.
+"""The numba backend: :func:`solve_numba`, a drop-in :data:`~flow_node.core.solver.LevelSolver`, and
+:data:`WARPER`, the compiled :class:`flow_node.core.warping.Warper`.
 
 Same semantics as solver.solve_numpy (scaling E / alpha, update order, stopping rule every CHECK_EVERY
 iterations, Bregman linear term ``problem.b``); the kernels are in numba_kernels.py. Differences that do
@@ -21,6 +22,7 @@ import numpy as np
 
 from . import numba_kernels as nk
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
+from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 
 _F32 = np.float32
 PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
@@ -97,3 +99,30 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         spec.data == "l1", nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
         threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS))
+
+
+def sample_numba(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel: str) -> np.ndarray:
+    """warping.sample_coefficients with the numba kernel: coef (H, W) or (C, H, W) at (map_x, map_y)."""
+    src = _f32c(coef)
+    flat = src.reshape((-1,) + src.shape[-2:])
+    out = np.empty((flat.shape[0],) + map_x.shape, _F32)
+    numba.set_num_threads(threads())
+    nk.warp_kernel(flat, _f32c(map_x), _f32c(map_y), KERNEL_CODES[kernel], out,
+                   threads() > 1 and map_x.size >= PARALLEL_MIN_PIXELS)
+    return out.reshape(coef.shape[:-2] + map_x.shape)
+
+
+def bspline_prefilter_numba(img: np.ndarray) -> np.ndarray:
+    """warping.bspline_prefilter with the numba kernel: B-spline coefficients of img (..., H, W), float32."""
+    out = np.array(img, dtype=_F32, order="C", copy=True)
+    h, w = out.shape[-2:]
+    flat = out.reshape(-1)
+    numba.set_num_threads(threads())
+    parallel = threads() > 1 and flat.size >= PARALLEL_MIN_PIXELS
+    nk.bspline_lines(flat, h, h * w, w, 1, w, BSPLINE_POLE, min(w, HORIZON), parallel)  # rows
+    nk.bspline_lines(flat, w, h * w, 1, w, h, BSPLINE_POLE, min(h, HORIZON), parallel)  # columns
+    return out
+
+
+WARPER = Warper(sample_numba, bspline_prefilter_numba)
+warp_numba = WARPER.warp

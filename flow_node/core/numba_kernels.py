@@ -237,3 +237,111 @@ def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  #
         if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
             break
     return k
+
+
+# --------------------------------------------------------------------------------------------- warp
+@njit(**_JIT)
+def cubic_weights4(t, kernel):  # noqa: ANN001, ANN201
+    """Tap weights at offsets -1, 0, 1, 2 for the fraction t (warping.cubic_weights): kernel 0 = Keys
+    a = -1/2, 1 = cubic B-spline."""
+    s = _ONE - t
+    if kernel == 0:  # Keys a = -1/2 written per tap (the same polynomials, expanded)
+        h = np.float32(0.5)
+        return (h * t * (-s * s), _ONE + t * t * (np.float32(1.5) * t - np.float32(2.5)),
+                _ONE + s * s * (np.float32(1.5) * s - np.float32(2.5)), h * s * (-t * t))
+    sixth = np.float32(1.0 / 6.0)
+    return (sixth * s * s * s, np.float32(2.0 / 3.0) - t * t * (_ONE - np.float32(0.5) * t),
+            np.float32(2.0 / 3.0) - s * s * (_ONE - np.float32(0.5) * s), sixth * t * t * t)
+
+
+@njit(**_JIT)
+def _floor(x):  # noqa: ANN001, ANN201
+    """floor of a float32 as an int64, without math.floor's float64 round trip."""
+    i = np.int64(x)
+    return i - 1 if x < i else i
+
+
+@njit(**_JIT)
+def _mirror(i, n):  # noqa: ANN001, ANN201
+    """warping.mirror_index for one index."""
+    i = -i if i < 0 else i
+    i = 2 * (n - 1) - i if i > n - 1 else i
+    return min(max(i, 0), n - 1)
+
+
+@njit(**_JIT)
+def _warp_rows(img, map_x, map_y, kernel, out, i):  # noqa: ANN001, ANN201
+    """Row i of :func:`warp_kernel`."""
+    nc, h, w = img.shape
+    for j in range(map_x.shape[1]):
+        mx, my = map_x[i, j], map_y[i, j]
+        xi, yi = _floor(mx), _floor(my)
+        wx0, wx1, wx2, wx3 = cubic_weights4(mx - np.float32(xi), kernel)
+        wy0, wy1, wy2, wy3 = cubic_weights4(my - np.float32(yi), kernel)
+        if xi >= 1 and xi + 2 < w:  # interior: no reflection (the common, predictable case)
+            c0, c1, c2, c3 = xi - 1, xi, xi + 1, xi + 2
+        else:
+            c0, c1, c2, c3 = _mirror(xi - 1, w), _mirror(xi, w), _mirror(xi + 1, w), _mirror(xi + 2, w)
+        if yi >= 1 and yi + 2 < h:
+            r0, r1, r2, r3 = yi - 1, yi, yi + 1, yi + 2
+        else:
+            r0, r1, r2, r3 = _mirror(yi - 1, h), _mirror(yi, h), _mirror(yi + 1, h), _mirror(yi + 2, h)
+        for ch in range(nc):
+            out[ch, i, j] = (
+                wy0 * (wx0 * img[ch, r0, c0] + wx1 * img[ch, r0, c1] + wx2 * img[ch, r0, c2] + wx3 * img[ch, r0, c3])
+                + wy1 * (wx0 * img[ch, r1, c0] + wx1 * img[ch, r1, c1] + wx2 * img[ch, r1, c2] + wx3 * img[ch, r1, c3])
+                + wy2 * (wx0 * img[ch, r2, c0] + wx1 * img[ch, r2, c1] + wx2 * img[ch, r2, c2] + wx3 * img[ch, r2, c3])
+                + wy3 * (wx0 * img[ch, r3, c0] + wx1 * img[ch, r3, c1] + wx2 * img[ch, r3, c2] + wx3 * img[ch, r3, c3]))
+
+
+@njit(parallel=True, **_JIT)
+def warp_kernel(img, map_x, map_y, kernel, out, parallel):  # noqa: ANN001, ANN201
+    """out[c, i, j] = separable cubic sample of img[c] (C, H, W) at (map_x, map_y)[i, j], mirrored taps;
+    rows in parallel when ``parallel`` (else serial: cheaper on small levels)."""
+    if parallel:
+        for i in prange(map_x.shape[0]):
+            _warp_rows(img, map_x, map_y, kernel, out, i)
+    else:
+        for i in range(map_x.shape[0]):
+            _warp_rows(img, map_x, map_y, kernel, out, i)
+
+
+@njit(**_JIT)
+def _bspline_line(flat, base, step, length, pole, horizon):  # noqa: ANN001, ANN201
+    """In place: the direct transform of one line (``length`` elements ``step`` apart from ``base``)."""
+    z = pole
+    acc = 0.0
+    zk = 1.0
+    for k in range(horizon):  # mirrored causal start: sum z^k s[k]
+        acc += zk * 6.0 * flat[base + k * step]
+        zk *= z
+    prev = acc
+    flat[base] = prev
+    for k in range(1, length):
+        prev = 6.0 * flat[base + k * step] + z * prev
+        flat[base + k * step] = prev
+    last = base + (length - 1) * step
+    prev = (z / (z * z - 1.0)) * (flat[last] + z * flat[last - step])
+    flat[last] = prev
+    for k in range(length - 2, -1, -1):
+        prev = z * (prev - flat[base + k * step])
+        flat[base + k * step] = prev
+
+
+@njit(parallel=True, **_JIT)
+def bspline_lines(flat, per_plane, plane, line_step, step, length, pole, horizon, parallel):  # noqa: ANN001, ANN201
+    """In place: the cubic B-spline direct transform (warping.bspline_prefilter) of every line of a
+    flattened (N, H, W) array; line l starts at (l // per_plane) * plane + (l % per_plane) * line_step and
+    has ``length`` elements ``step`` apart (rows: step 1; columns: step W). Accumulates in float64; lines in
+    parallel when ``parallel``."""
+    if length == 1:
+        return
+    lines = flat.shape[0] // plane * per_plane
+    if parallel:
+        for line in prange(lines):
+            _bspline_line(flat, (line // per_plane) * plane + (line % per_plane) * line_step, step, length, pole,
+                          horizon)
+    else:
+        for line in range(lines):
+            _bspline_line(flat, (line // per_plane) * plane + (line % per_plane) * line_step, step, length, pole,
+                          horizon)

@@ -10,8 +10,9 @@ Image derivatives (the paper's Table 2 schemes) are separate from ``grad``: they
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
+
+from .warping import NUMPY_WARPER, Warper
 
 
 def grad(f: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -56,7 +57,7 @@ def image_gradient(img: np.ndarray, scheme: str) -> np.ndarray:
 
 
 def warp_maps(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Sampling maps x + u, y + v for cv2.remap and the mask of points that stay inside the image.
+    """Sampling maps x + u, y + v for the warp (warping.py) and the mask of points that stay inside the image.
 
     flow: (2, H, W) px. Returns map_x, map_y (H, W) float32 and inside (H, W) bool.
     """
@@ -69,31 +70,30 @@ def warp_maps(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return map_x, map_y, inside
 
 
-def warp(img: np.ndarray, map_x: np.ndarray, map_y: np.ndarray) -> np.ndarray:
-    """Bicubic sample of img (H, W) or (C, H, W) at (map_x, map_y); border replicated."""
-    if img.ndim == 3:
-        out = np.empty((img.shape[0],) + map_x.shape, dtype=img.dtype)
-        for ch, dst in zip(img, out, strict=True):
-            cv2.remap(np.ascontiguousarray(ch), map_x, map_y, dst=dst, interpolation=cv2.INTER_CUBIC,
-                      borderMode=cv2.BORDER_REPLICATE)
-        return out
-    return cv2.remap(img, map_x, map_y, interpolation=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+def warp_source(i1: np.ndarray, scheme: str, kernel: str, warper: Warper = NUMPY_WARPER) -> np.ndarray:
+    """What each warp of one level samples: (3, H, W) float32 = [I1, its image gradient (scheme)] as the
+    kernel's coefficients. Built once per level. For the B-spline only I1 is prefiltered and the gradient
+    taken of its coefficients: both filters are linear and shift-invariant, so that is the prefiltered
+    gradient (away from the one-pixel border) at a third of the prefilter's cost."""
+    coef = warper.coefficients(i1, kernel)
+    return np.concatenate([coef[None], image_gradient(coef, scheme)])
 
 
-def linearise(i0: np.ndarray, i1: np.ndarray, grad_i0: np.ndarray, grad_i1: np.ndarray,
-              flow0: np.ndarray, scheme: str) -> tuple[np.ndarray, np.ndarray]:
+def linearise(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | None, flow0: np.ndarray, scheme: str,
+              kernel: str = "bspline", warper: Warper = NUMPY_WARPER) -> tuple[np.ndarray, np.ndarray]:
     """Linearised brightness constancy around flow0 (paper, "Large Displacements").
 
     rho(v) = I1(x + v0) + grad I1(x + v0) . (v - v0) - I0(x) = a . v + c, with a the image gradient of the
-    chosen scheme. Returns a (2, H, W) and c (H, W); both are zero where x + v0 leaves the image, which
-    removes those pixels from the data term. Without warping (v0 = 0) c is the paper's u_t = I1 - I0.
+    chosen scheme. I1 and its gradient (``source1``, :func:`warp_source`) are sampled at x + v0 with one
+    cubic ``kernel`` (warping.py), so the warped gradient is that of the same interpolant family. Returns
+    a (2, H, W) and c (H, W); both are zero where x + v0 leaves the image, which removes those pixels from
+    the data term. Without warping (v0 = 0) c is the paper's u_t = I1 - I0.
     """
     map_x, map_y, inside = warp_maps(flow0)
-    i1w = warp(i1, map_x, map_y)
+    warped = warper.sample(source1, map_x, map_y, kernel)
+    i1w, a = warped[0], warped[1:]
     if scheme == "interpolated":
-        a = 0.5 * (grad_i0 + warp(grad_i1, map_x, map_y))
-    else:
-        a = warp(grad_i1, map_x, map_y)
+        a = 0.5 * (grad_i0 + a)
     c = i1w - i0 - a[0] * flow0[0] - a[1] * flow0[1]
     a *= inside
     c *= inside

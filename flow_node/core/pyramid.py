@@ -1,33 +1,20 @@
-"""Coarse-to-fine warping (paper, "Large Displacements"): one generic driver, the per-warp solver passed in.
+"""The image pyramid of the coarse-to-fine scheme (paper, "Large Displacements"): level shapes, Gaussian
+pyramids, and carrying fields, flows and solver states between levels.
 
-Images are float32 (H, W) in [0, 1]; flow is channel-first (2, H, W) in pixels of the level it lives on,
-until the driver returns it interleaved (H, W, 2) at full resolution.
+Images are float32 (H, W); flow is channel-first (2, H, W) in pixels of the level it lives on. Level 0 is
+the input resolution; level l has shape ``shape * scale_factor**l`` (rounded). The driver that walks the
+levels is :mod:`flow_node.core.refine`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from .config import FlowConfig
-from .models import MODEL_SPECS, residual
-from .operators import div, image_gradient, linearise
-from .solver import LevelSolver, PDState, Problem, SolveParams
-
-
-@dataclass
-class SolveStats:
-    """What a solve did: iterations per level (finest first) and the level shapes."""
-
-    shapes: list[tuple[int, int]] = field(default_factory=list)
-    iterations: list[int] = field(default_factory=list)
-    bregman_iterations: int = 0
-
-    @property
-    def total_iterations(self) -> int:
-        return sum(self.iterations)
+from .solver import PDState
 
 
 def pyramid_shapes(shape: tuple[int, int], levels: int, scale: float, min_size: int) -> list[tuple[int, int]]:
@@ -81,83 +68,31 @@ def resize_state(state: PDState, shape: tuple[int, int]) -> PDState:
     )
 
 
-def interleaved_flow(v: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """The engine's output: a (2, h, w) flow as float32 (H, W, 2) at ``shape``, vectors in pixels of ``shape``.
+@dataclass(frozen=True)
+class Pyramid:
+    """Both frames on every level, finest first: ``shapes[l]`` (h, w), ``i0[l]`` and ``i1[l]`` float32."""
 
-    Interleaves at the solved size, then (if it differs) rescales the vectors there and resizes bilinearly:
-    bilinear interpolation is linear, so scaling first gives the same field and the full-size array is
-    written once, not three times (resize, scale, interleave).
-    """
-    small = cv2.merge([v[0].astype(np.float32, copy=False), v[1].astype(np.float32, copy=False)])
-    h, w = shape
-    if small.shape[:2] == (h, w):
-        return small
-    small *= np.array([w / v.shape[2], h / v.shape[1]], dtype=np.float32)
-    return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
+    shapes: list[tuple[int, int]]
+    i0: list[np.ndarray]
+    i1: list[np.ndarray]
+
+    @property
+    def coarsest(self) -> int:
+        return len(self.shapes) - 1
+
+    def scale(self, level: int) -> float:
+        """Width of ``level`` over the input width (1 on level 0)."""
+        return self.shapes[level][1] / self.shapes[0][1]
+
+    def level_at_scale(self, scale: float) -> int:
+        """The coarsest level whose resolution is at least ``scale`` of the input (0 if none coarser is)."""
+        level = 0
+        while level < self.coarsest and self.scale(level + 1) >= scale - 1e-9:
+            level += 1
+        return level
 
 
-def median_filter(v: np.ndarray, size: int) -> np.ndarray:
-    """Median of each flow component over size x size windows (OpenCV; size 3 or 5)."""
-    out = np.empty_like(v)
-    for ch, dst in zip(v, out, strict=True):
-        cv2.medianBlur(np.ascontiguousarray(ch), size, dst=dst)
-    return out
-
-
-def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, solve: LevelSolver,
-                   initial_flow: np.ndarray | None = None) -> tuple[np.ndarray, SolveStats]:
-    """Estimate flow from i0 to i1 with warping on a Gaussian pyramid: float32 (H, W, 2), u then v, px.
-
-    On each level, coarsest first: ``cfg.warps`` times linearise around the current flow (bicubic warp of
-    frame 1 and its gradient, outside pixels masked), run ``solve`` and median-filter the flow; then carry
-    primal and dual variables to the next level. After the finest solved level, ``cfg.bregman_iterations``
-    Bregman steps on the last linearisation (see :func:`bregman`). The finest solved level is
-    ``cfg.finest_level`` (clamped to the coarsest level the image has); when it is not 0 its flow is
-    upsampled bilinearly to (H, W) with the vectors rescaled; finer levels are not solved. The result is
-    interleaved (:func:`interleaved_flow`), the layout of the API and of a 32FC2 image.
-    """
-    spec = MODEL_SPECS[cfg.model]
+def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig) -> Pyramid:
+    """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size)."""
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
-    finest = min(cfg.finest_level, len(shapes) - 1)
-    p0 = build_pyramid(i0, shapes, cfg.scale_factor)
-    p1 = build_pyramid(i1, shapes, cfg.scale_factor)
-    stats = SolveStats(shapes=shapes, iterations=[0] * len(shapes))
-    state = PDState.zeros(spec, shapes[-1])
-    if initial_flow is not None:
-        state.v = resize_flow(initial_flow.astype(np.float32, copy=False), shapes[-1])  # a new array
-    for lvl in range(len(shapes) - 1, finest - 1, -1):
-        if state.v.shape[1:] != shapes[lvl]:
-            state = resize_state(state, shapes[lvl])
-        params = SolveParams(spec, cfg.alpha * cfg.level_alpha_factor**lvl, cfg.alpha1, cfg.tv_norm,
-                             cfg.iterations, cfg.tolerance)
-        g1 = image_gradient(p1[lvl], cfg.gradient_scheme)
-        g0 = image_gradient(p0[lvl], cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
-        for _ in range(cfg.warps):
-            a, c = linearise(p0[lvl], p1[lvl], g0, g1, state.v, cfg.gradient_scheme)
-            stats.iterations[lvl] += solve(Problem(a, c), state, params)
-            if cfg.median_filter:
-                state.v = median_filter(state.v, cfg.median_filter)
-        if lvl == finest and cfg.bregman_iterations:
-            stats.bregman_iterations = bregman(Problem(a, c), state, params, solve, cfg.bregman_iterations)
-    return interleaved_flow(state.v, shapes[0]), stats
-
-
-def bregman(problem: Problem, state: PDState, p: SolveParams, solve: LevelSolver, n: int) -> int:
-    """Contrast-restoring Bregman iterations (paper, "Bregman Iterations") on one linearised problem.
-
-    L2 data: the shifted data term -- the residual is added back, c_{k+1} = c_k + rho(v_k) with the
-    original c, which is the paper's b-update written on the data. L1 data: the original form, the
-    linear term -alpha <b_k, v> in G with b_k = (K* y_k)_v / alpha = -div(y_k / alpha), the subgradient
-    of R at v_k that the dual variable provides (the solver's y is already y / alpha, see solver.py).
-    Returns the iterations run.
-    """
-    total = 0
-    c_shift = problem.c
-    for _ in range(n):
-        if p.spec.data == "l2":
-            c_shift = c_shift + residual(state.v, problem.a, problem.c)
-            step = Problem(problem.a, c_shift)
-        else:
-            step = Problem(problem.a, problem.c, -div(state.y))
-        total += solve(step, state, p)
-    return total
+    return Pyramid(shapes, build_pyramid(i0, shapes, cfg.scale_factor), build_pyramid(i1, shapes, cfg.scale_factor))

@@ -11,6 +11,9 @@ previous to this frame. Rules, in order:
   changes, or when the stamp goes backwards (a looping bag); :meth:`FlowStream.reset` does it by hand;
 * ``input_scale`` < 1 shrinks both frames (area interpolation) before solving, and the flow is returned AT
   THAT RESOLUTION in pixels of the shrunk image; multiply by ``1 / input_scale`` for full-resolution pixels.
+* with ``config.temporal_init`` = 1 the previous pair's flow, carried forward to the new pair's first frame,
+  initialises the next solve (fused per pixel with the pyramid's estimate, so a scene cut costs nothing but
+  time); a reset or a change of the config forgets it.
 
 No rclpy or rosbags here: the caller decodes messages with :mod:`flow_node.pipeline.codec`.
 """
@@ -28,7 +31,8 @@ from ..core.api import FlowEstimator, to_grey
 from ..core.config import FlowConfig
 from ..core.errors import ConfigError
 from ..core.flowio import flow_to_color
-from ..core.pyramid import SolveStats
+from ..core.fusion import confidence
+from ..core.refine import SolveStats
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
 COLOR_MAX_FLOW_RANGE = (0.0, 10000.0)
@@ -85,8 +89,9 @@ class FlowOutput:
     """One result: flow from the previous frame to the frame stamped ``stamp_ns``.
 
     ``flow`` (H, W, 2) float32 and ``magnitude`` (H, W) float32 are in px/frame at the processing
-    resolution (``scale`` times the input size). Magnitude, colour image and summary are computed on first
-    use only (the node publishes magnitude and colour only when subscribed, summarises only for diagnostics).
+    resolution (``scale`` times the input size). Magnitude, colour image, confidence and summary are computed
+    on first use only (the node publishes magnitude, colour and confidence only when subscribed, summarises
+    only for diagnostics). ``frames`` holds the two grey frames the flow was solved on (for the confidence).
     """
 
     flow: np.ndarray
@@ -98,6 +103,9 @@ class FlowOutput:
     model: str
     scale: float
     color_max_flow: float
+    unexplained: float = 0.0  # FlowResult.unexplained: fraction of pixels the flow does not explain
+    frames: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    _confidence: np.ndarray | None = field(default=None, repr=False)
     _magnitude: np.ndarray | None = field(default=None, repr=False)
     _color: np.ndarray | None = field(default=None, repr=False)
     _summary: FlowSummary | None = field(default=None, repr=False)
@@ -115,6 +123,15 @@ class FlowOutput:
         if self._summary is None:
             self._summary = summarise(self.magnitude)
         return self._summary
+
+    def confidence(self) -> np.ndarray:
+        """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.fusion.confidence`:
+        low where the data residual says the flow is wrong or the pixel occluded), cached."""
+        if self._confidence is None:
+            if self.frames is None:
+                raise ValueError("this output keeps no frames; the confidence cannot be computed")
+            self._confidence = confidence(self.frames[0], self.frames[1], self.flow)
+        return self._confidence
 
     def color(self) -> np.ndarray:
         """Middlebury colour coding, (H, W, 3) uint8 in B, G, R order (bgr8), cached."""
@@ -136,6 +153,7 @@ class FlowStream:
         self._prev: np.ndarray | None = None
         self._prev_key: tuple[tuple[int, ...], str] | None = None
         self._prev_stamp: int = 0
+        self._prev_flow: np.ndarray | None = None  # flow of the pair that ended with _prev (temporal_init)
         self.last_reset_reason: str = "first frame"
 
     # ----------------------------------------------------------------------------------------- settings
@@ -178,6 +196,7 @@ class FlowStream:
                 reason = reason or "input_scale changed"
             if pending.config != self._settings.config:
                 self._estimator.config = pending.config
+                self._prev_flow = None
             self._settings = pending
         return reason
 
@@ -193,6 +212,7 @@ class FlowStream:
 
     def _start(self, grey: np.ndarray, key: tuple[tuple[int, ...], str], stamp_ns: int, reason: str) -> None:
         self._prev, self._prev_key, self._prev_stamp = grey, key, stamp_ns
+        self._prev_flow = None
         self.last_reset_reason = reason
 
     def process(self, frame: np.ndarray, stamp_ns: int, encoding: str = "",
@@ -216,8 +236,11 @@ class FlowStream:
             self._start(grey, key, stamp_ns, reason)
             return None
         prev, prev_stamp = self._prev, self._prev_stamp
-        result = self._estimator.estimate_grey(prev, grey)  # both converted by _prepare
-        self._prev, self._prev_stamp = grey, stamp_ns
         s = self._settings
+        previous = self._prev_flow if s.config.temporal_init else None
+        result = self._estimator.estimate_grey(prev, grey, previous_flow=previous)  # both from _prepare
+        self._prev, self._prev_stamp = grey, stamp_ns
+        self._prev_flow = result.flow if s.config.temporal_init else None
         return FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
-                          result.backend, s.config.model, s.input_scale, s.color_max_flow)
+                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
+                          result.frames)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
+from ..core.photometric import UNRELIABLE
 from ..pipeline.stream import FlowOutput, FlowSummary
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
@@ -50,6 +51,8 @@ class Window:
     last_rejection: str
     last_error: str
     since_input: float | None
+    unreliable: int = 0  # outputs of the period whose unexplained fraction exceeds UNRELIABLE
+    unexplained: float | None = None  # of the last output
 
 
 @dataclass
@@ -63,6 +66,7 @@ class NodeStats:
     _solve: list[float] = field(default_factory=list)
     _overhead: list[float] = field(default_factory=list)
     _publish: list[float] = field(default_factory=list)
+    _unreliable: int = 0
     _last: FlowOutput | None = None
     _last_input: float | None = None
     last_reset: str = ""
@@ -105,6 +109,7 @@ class NodeStats:
             self.solve_total += solve_s
             self._overhead.append(overhead_s)
             self._publish.append(publish_s)
+            self._unreliable += int(output.unexplained > UNRELIABLE)
             self._last = output
 
     def window(self) -> Window:
@@ -116,9 +121,10 @@ class NodeStats:
             w = Window(now - self._start, Totals(**vars(t)), t.received - m.received, t.published - m.published,
                        t.dropped - m.dropped, t.rejected - m.rejected, t.errors - m.errors, self._solve,
                        self._overhead, self._publish, None, self.last_reset, self.last_rejection, self.last_error,
-                       None if self._last_input is None else now - self._last_input)
+                       None if self._last_input is None else now - self._last_input, self._unreliable,
+                       None if last is None else last.unexplained)
             self._start, self._mark = now, Totals(**vars(t))
-            self._solve, self._overhead, self._publish = [], [], []
+            self._solve, self._overhead, self._publish, self._unreliable = [], [], [], 0
         w.summary = None if last is None else last.summary
         return w
 
@@ -140,8 +146,9 @@ def too_slow(w: Window) -> str | None:
 def level_of(w: Window, ready: bool, backend_warning: str | None = None) -> tuple[int, str]:
     """Level and reason: ERROR if the engine failed or every frame of the period was rejected; WARN while
     warming up, without input for 3 periods, with rejections, when the solver is slower than the input
-    (:func:`too_slow`) or drops more than half the frames. ``backend_warning`` (the numpy fallback: numba
-    missing) makes any OK a WARN and is appended to every other reason: it lasts as long as the process."""
+    (:func:`too_slow`), drops more than half the frames, or when a flow of the period left more than
+    UNRELIABLE of its pixels unexplained (photometric.reliability). ``backend_warning`` (the numpy fallback:
+    numba missing) makes any OK a WARN and is appended to every other reason: it lasts as long as the process."""
     level, reason = _level_of(w, ready)
     if not backend_warning:
         return level, reason
@@ -165,6 +172,9 @@ def _level_of(w: Window, ready: bool) -> tuple[int, str]:
         return WARN, slow
     if w.received and w.dropped > w.received / 2:
         return WARN, f"solver too slow: dropped {w.dropped} of {w.received} frames"
+    if w.unreliable:
+        return WARN, (f"flow unreliable on {w.unreliable} frame(s): over {100 * UNRELIABLE:.0f}% of pixels "
+                      "not explained by the flow")
     return OK, "computing flow"
 
 
@@ -192,6 +202,8 @@ def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str,
         ("flow magnitude mean (px)", "n/a" if s is None else f"{s.mean:.3f}"),
         ("flow magnitude p95 (px)", "n/a" if s is None else f"{s.p95:.3f}"),
         ("flow magnitude max (px)", "n/a" if s is None else f"{s.max:.3f}"),
+        ("unexplained pixels (%)", "n/a" if w.unexplained is None else f"{100.0 * w.unexplained:.1f}"),
+        ("unreliable frames", str(w.unreliable)),
         ("frames received", str(w.totals.received)),
         ("frames published", str(w.totals.published)),
         ("frames dropped", str(w.totals.dropped)),

@@ -30,6 +30,7 @@ from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from ..core.backends import fallback_warning
+from ..core.config import implied_weights
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import array_to_image_fields, decode
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
@@ -153,6 +154,7 @@ class FlowNode(Node):
         self._pub_color = self.create_publisher(Image, "~/flow_color", 1, qos_overriding_options=overrides)
         self._pub_pair = self.create_publisher(TimeReference, "~/flow_pair", 1, qos_overriding_options=overrides)
         self._pub_info = self.create_publisher(CameraInfo, "~/camera_info", 1, qos_overriding_options=overrides)
+        self._pub_conf = self.create_publisher(Image, "~/confidence", 1, qos_overriding_options=overrides)
         self._pub_diag = self.create_publisher(diagnostics.DiagnosticArray, "/diagnostics", 10)
         qos = QoSProfile(**{k: getattr(qos_profile_sensor_data, k) for k in ("reliability", "durability",
                                                                            "history")}, depth=1)
@@ -201,7 +203,8 @@ class FlowNode(Node):
         return values
 
     def _expand_preset(self, params: list[Parameter]) -> list[Parameter]:
-        """Pre-set callback: setting ``preset`` also sets its group (values given in the same call win)."""
+        """Pre-set callback: setting ``preset`` also sets its group, setting ``model`` its calibrated weights
+        (config.implied_weights); values given in the same call win."""
         names = {p.name for p in params}
         out = list(params)
         for p in params:
@@ -211,6 +214,8 @@ class FlowNode(Node):
                 except ConfigError:
                     continue  # _validate rejects it with the reason
                 out += [Parameter(k, value=coerce(self._specs[k], v)) for k, v in group.items() if k not in names]
+        given = {p.name: p.value for p in out}  # a new model without weights brings its calibrated ones
+        out += [Parameter(k, value=v) for k, v in implied_weights(self.get_parameter("model").value, given).items()]
         return out
 
     def _validate(self, params: list[Parameter]) -> SetParametersResult:
@@ -304,13 +309,14 @@ class FlowNode(Node):
         self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, publish_s, out)
 
     def _publish(self, header: Header, out: FlowOutput) -> float:
-        """Flow, magnitude and colour with the new frame's header; each is built and published only while
-        its topic has subscribers (the colour image is not even computed otherwise). Returns the seconds
+        """Flow, magnitude, colour and confidence with the new frame's header; each is built and published only
+        while its topic has subscribers (colour and confidence are not even computed otherwise). Returns the seconds
         spent inside rclpy's ``publish`` (C conversion, serialisation and the middleware's send)."""
         publish_s = 0.0
         for pub, image, encoding in ((self._pub_flow, lambda: out.flow, "32FC2"),
                                      (self._pub_mag, lambda: out.magnitude, "32FC1"),
-                                     (self._pub_color, out.color, "bgr8")):
+                                     (self._pub_color, out.color, "bgr8"),
+                                     (self._pub_conf, out.confidence, "32FC1")):
             if pub.get_subscription_count() > 0:
                 msg = image_msg(header, array_to_image_fields(image(), encoding))
                 t0 = time.perf_counter()

@@ -137,10 +137,10 @@ def render_yaml(preset: str | None = None) -> str:
              "# Parameters of the flow_node node (any node name: /**). See docs/node.md.",
              "/**:", "  ros__parameters:"]
     if preset:
+        preset_values(preset)  # ConfigError for an unknown name
+        lines.insert(2, "# The preset's values live in one place, flow_node/core/config.py (PRESETS); the node expands")
+        lines.insert(3, "# `preset` into them at start-up. Parameters added below it override single values.")
         lines.append(f"    preset: {_yaml_value(preset)}")
-        values = preset_values(preset)
-        for k in PRESETS[preset]:  # the values it stands for; the rest of its group are FlowConfig's defaults
-            lines.append(f"    {k}: {_yaml_value(values[k])}")
     else:
         for s in param_specs():
             lines.append(f"    # {s.description}" + (" (read-only)" if s.read_only else ""))

@@ -1,0 +1,106 @@
+"""The engine's stages, composed: photometric preprocessing -> initialisation -> coarse-to-fine refinement
+with the paper's models -> fusion -> output layout (DESIGN.md, "Engine stages").
+
+Each stage is one function with one interface, in the module named for it:
+
+=====================  =========================================================  ==========================
+stage                  interface                                                  module
+=====================  =========================================================  ==========================
+photometric            (i0, i1, mode) -> (solver pair, normalised pair)           ``core/photometric.py``
+initialisation         (i0, i1, cfg, initial, previous) -> [Candidate]            ``core/initialise.py``
+refinement             (pyramid, cfg, backend, state, first, last, stats) -> state ``core/refine.py``
+fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice)                         ``core/fusion.py``
+output layout          (2, h, w) -> (H, W, 2) at the input size                   ``core/layout.py``
+=====================  =========================================================  ==========================
+
+Without a candidate -- or when no computed candidate says the pair moves further than ``cfg.init_min_motion``
+(:func:`~flow_node.core.initialise.beyond_reach`) -- the refinement runs over the whole pyramid from zero
+flow (the paper's scheme). With candidates it runs from the coarsest level down to just above the *start
+level* -- the coarsest level with at least ``cfg.init_scale`` of the input resolution, where the
+initialisation is trusted -- and there the pyramid's estimate and every candidate (resampled to that level)
+are fused per pixel by data cost; the refinement then continues from the fused flow to the finest solved
+level, where its result and the candidates are fused once more (an initialisation the refinement drifted
+away from wrongly is recovered there).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .backends import Backend
+from .config import FlowConfig
+from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT, fuse
+from .initialise import Candidate, beyond_reach, forward_backward_consistent, initialise
+from .layout import interleaved_flow
+from .models import MODEL_SPECS
+from .photometric import stage
+from .pyramid import Pyramid, make_pyramid, resize_flow, resize_state
+from .refine import SolveStats, finest_level, refine_levels
+from .solver import PDState
+
+
+def start_level(pyr: Pyramid, cfg: FlowConfig) -> int:
+    """The level the refinement restarts from with an initialisation: the coarsest one with at least
+    ``cfg.init_scale`` of the input resolution, never finer than the finest solved level."""
+    return max(pyr.level_at_scale(cfg.init_scale), finest_level(pyr, cfg))
+
+
+def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: list[Candidate],
+                stats: SolveStats) -> PDState:
+    """Refinement and fusion: the whole pyramid from zero flow, or (with candidates) down to the start
+    level, fusion there, then on to the finest solved level. Returns the state on the finest solved level."""
+    finest = finest_level(pyr, cfg)
+    state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[-1])
+    stats.init_offered = "+".join(c.name for c in candidates)
+    candidates = beyond_reach(candidates, cfg.init_min_motion)
+    if not candidates:
+        return refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest, stats)
+    start = start_level(pyr, cfg)
+    if start < pyr.coarsest:
+        state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, start + 1, stats)
+        state = resize_state(state, pyr.shapes[start])
+    state.v, choice = fuse_on_level(pyr, start, state.v, candidates)
+    stats.init = "+".join(c.name for c in candidates)
+    stats.start_level = start
+    stats.init_share = float(np.mean(choice > 0))
+    state = refine_levels(pyr, cfg, backend, state, start, finest, stats)
+    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates, final=True)
+    stats.final_init_share = float(np.mean(choice > 0))
+    return state
+
+
+def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, candidates: list[Candidate],
+                  final: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it; returns
+    the fused flow and the per-pixel choice (0 = ``flow``). On the start level (``final`` False) candidates
+    are preferred (FUSION_MARGIN) and forward-backward consistent pixels trusted more (checked there, where
+    a candidate has a backward flow); after the refinement (``final``) a candidate must be clearly better
+    than the refined flow (FINAL_MARGIN), which is then usually the more accurate one, and consistent where
+    it can be checked."""
+    shape = pyr.shapes[level]
+    flows = [flow] + [resize_flow(c.flow, shape) for c in candidates]
+    trusted = [None] + [None if c.backward is None else forward_backward_consistent(f, resize_flow(c.backward, shape))
+                        for f, c in zip(flows[1:], candidates, strict=True)]
+    if final:
+        return fuse(pyr.i0[level], pyr.i1[level], flows, trusted, FINAL_MARGIN, only_consistent=FINAL_ONLY_CONSISTENT)
+    return fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
+
+
+def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
+                  initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, SolveStats, tuple[np.ndarray, np.ndarray]]:
+    """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px;
+    the stats; and the normalised pair of the photometric stage (what the flow's reliability and
+    confidence are judged on).
+
+    ``initial_flow`` (2, H, W) is a caller's warm start; ``previous_flow`` (2, H, W) the previous pair's
+    flow in a stream (used when ``cfg.temporal_init``). Both only enter through the fusion, so a wrong one
+    costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
+    upsampled to (H, W) by the output layout stage.
+    """
+    (i0, i1), normalised = stage(i0, i1, cfg.photometric)
+    candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
+    pyr = make_pyramid(i0, i1, cfg)
+    stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
+    state = refine_from(pyr, cfg, backend, candidates, stats)
+    return interleaved_flow(state.v, pyr.shapes[0]), stats, normalised

@@ -1,0 +1,127 @@
+"""The fusion and confidence stage: per-pixel choice between flow candidates by their data cost, and a
+per-pixel confidence of a flow in [0, 1].
+
+Images are float32 (h, w) grey; flows are channel-first (2, h, w) in pixels of that grid. The data cost of
+a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the brightness and gradient
+mismatch after warping frame 1 back along the flow, over the pixels whose x + flow(x) stays inside the
+image. Fusion takes, per pixel, the candidate of least cost, with the pyramid's own estimate (the first
+candidate) weighted by FUSION_MARGIN and forward-backward confirmed candidate pixels by CONSISTENT_COST;
+where no candidate has data, the nearest decided pixel's choice. An initialisation that is wrong somewhere
+costs clearly more there and is not used there: it cannot make a pair much worse than the pyramid alone.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .operators import warp_maps
+
+FUSION_WINDOW = 31  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
+FUSION_MARGIN = 1.3  # a candidate is taken where it costs less than this times the pyramid's flow
+FINAL_MARGIN = 1.3  # after the refinement: a candidate is taken where it costs less than this times the refined flow
+FINAL_ONLY_CONSISTENT = False  # True: ... and only where forward-backward consistent
+CONSISTENT_COST = 0.5  # cost factor of a forward-backward consistent candidate pixel
+CONFIDENCE_WINDOW = 5
+CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
+
+
+def _box(img: np.ndarray, window: int) -> np.ndarray:
+    return cv2.boxFilter(img, -1, (window, window), borderType=cv2.BORDER_REFLECT)
+
+
+def _grad(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Central differences (Sobel / 8), px^-1 in intensity units: (d/dx, d/dy), each (h, w)."""
+    return (cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE),
+            cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE))
+
+
+def planes(img: np.ndarray) -> np.ndarray:
+    """An image with its gradient, interleaved (h, w, 3) float32: I, dI/dx, dI/dy -- what a cost compares."""
+    return cv2.merge([img.astype(np.float32, copy=False), *_grad(img)])
+
+
+def warp_residual(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray,
+                  stacks: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel mismatch |I1(x + f) - I0(x)| + |grad I1(x + f) - grad I0(x)|_1 (h, w) float32, and the
+    bool mask of pixels whose x + f stays inside the image. The gradient part keeps the cost meaningful
+    under a brightness change between the frames. Frame 1 and its gradient are sampled bilinearly (one
+    OpenCV remap): enough for judging a flow -- a cost, not the data term. ``stacks`` = (:func:`planes` of
+    i0, of i1), computed once when several flows are judged on one pair."""
+    s0, s1 = stacks if stacks is not None else (planes(i0), planes(i1))
+    map_x, map_y, inside = warp_maps(flow)
+    w1 = cv2.remap(s1, map_x, map_y, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    r = np.abs(w1 - s0).sum(axis=-1, dtype=np.float32)
+    return r, inside
+
+
+def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | None = None,
+              stacks: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Local mean of :func:`warp_residual` over the pixels of a ``window`` x ``window`` box whose x + f
+    stays inside the image (h, w); inf where (almost) none does. Leaving the image is no evidence against a
+    flow (a camera moving forward carries the border out), so such pixels are judged by their neighbours."""
+    window = FUSION_WINDOW if window is None else window
+    r, inside = warp_residual(i0, i1, flow, stacks)
+    m = inside.astype(np.float32)
+    support = _box(m, window)
+    cost = _box(r * m, window) / np.maximum(support, 1e-6)
+    cost[support < 0.05] = np.inf
+    return cost
+
+
+def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
+         consistent: list[np.ndarray | None] | None = None,
+         margin: float = FUSION_MARGIN, only_consistent: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel fusion of flow candidates (each (2, h, w)); candidates[0] is the reference (the pyramid's
+    own flow); another candidate is taken where it costs less than ``margin`` times the reference.
+    ``consistent`` (per candidate, (h, w) bool or None) marks pixels where a forward-backward check
+    confirmed a candidate: its cost counts CONSISTENT_COST times there (in flat or reflective areas a wrong
+    flow can match the grey values as well as the right one; a consistency check is independent evidence),
+    or, with ``only_consistent``, the candidate is considered nowhere else.
+    Returns the fused flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
+    stacks = (planes(i0), planes(i1))
+    costs = np.stack([data_cost(i0, i1, c, stacks=stacks) for c in candidates])
+    costs[0] *= margin
+    for k, ok in enumerate(consistent or []):
+        if ok is not None and only_consistent:
+            costs[k][~ok] = np.inf
+        elif ok is not None:
+            costs[k][ok] *= CONSISTENT_COST
+    choice = np.argmin(costs, axis=0)
+    choice = fill_undecided(choice, ~np.isfinite(costs).any(axis=0))
+    stack = np.stack(candidates)
+    fused = np.take_along_axis(stack, choice[None, None], axis=0)[0]
+    return fused.astype(np.float32, copy=False), choice
+
+
+def fill_undecided(choice: np.ndarray, undecided: np.ndarray) -> np.ndarray:
+    """Where every candidate leaves the image (``undecided`` (h, w) bool) no data decides: take the choice
+    (h, w) int of the nearest decided pixel, so the flow there continues its neighbours' instead of
+    defaulting to the reference (which the regulariser and the median filter would spread inwards)."""
+    if not undecided.any() or undecided.all():
+        return choice
+    _, labels = cv2.distanceTransformWithLabels(undecided.astype(np.uint8), cv2.DIST_L2, 5,
+                                                labelType=cv2.DIST_LABEL_PIXEL)
+    lut = np.zeros(labels.max() + 1, choice.dtype)
+    lut[labels[~undecided]] = choice[~undecided]
+    return lut[labels]
+
+
+def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
+    """Confidence of ``flow`` (H, W, 2) between frames i0, i1 (H, W): float32 (H, W) in [0, 1].
+
+    The local data residual (:func:`warp_residual`, a CONFIDENCE_WINDOW box) divided by the local image
+    gradient magnitude is an endpoint-error estimate e in px (a residual of r where the image changes by g
+    per px is about r / g px of misalignment); confidence = 1 / (1 + (e / CONFIDENCE_SCALE_PX)^2), and 0
+    where x + f leaves the image. Occluded pixels (their content is not in frame 1) and wrong flow have a
+    large residual, hence low confidence; flat regions, where no flow is observable, have little gradient,
+    hence low confidence too.
+    """
+    f = np.moveaxis(flow, -1, 0)
+    r, inside = warp_residual(i0, i1, f)
+    gx, gy = _grad(i0)
+    g = _box(np.abs(gx) + np.abs(gy), CONFIDENCE_WINDOW)
+    err = _box(r, CONFIDENCE_WINDOW) / (g + 1e-3)
+    conf = 1.0 / (1.0 + (err / CONFIDENCE_SCALE_PX) ** 2)
+    conf[~inside] = 0.0
+    return conf.astype(np.float32, copy=False)

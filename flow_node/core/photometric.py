@@ -1,0 +1,197 @@
+"""The photometric stage of the engine: what the solver sees of a pair's intensities, and how well the
+result explains them.
+
+:func:`stage` runs once per pair, before the pyramid (DESIGN.md, "Engine stages"). Its modes
+(``PHOTOMETRIC``, the FlowConfig field ``photometric``):
+
+* ``none``: the grey images as they come ([0, 1] by the encoding's maximum).
+* ``normalise``: a global exposure change (gain and offset of frame 1 against frame 0, from matched
+  percentiles, see :func:`exposure_change`) is undone, then one affine map for the pair takes its robust
+  range -- the frames' mean 2nd and 98th percentiles -- to [0, 1] (coarsely quantised content: see
+  :func:`normalise_pair`); a pair with a detected exposure change is then normalised locally
+  (``local_contrast``), since the global fit is ~1 % off and the L1 data term reads that as motion. The
+  weights then mean the same thing for 8-, 10-, 12- and 16-bit and low-contrast input (they act on contrast, not on
+  encoding units). Percentiles, not min/max, so a few hot pixels or a saturated highlight do not set the
+  scale; they are taken on a strided subsample (every ``STRIDE``-th pixel in each direction). One map for
+  both frames, not one per frame: the frames' content differs (motion at the border), and a per-frame map
+  would turn that into a brightness difference, i.e. flow error.
+* ``local_contrast``: ``normalise``, then each frame divided by its local contrast (:func:`local_contrast`):
+  invariant to gain and offset without estimating them, so also to vignetting and local exposure changes.
+* ``structure_texture``: ``normalise``, then the texture part of Wedel et al.'s structure-texture
+  decomposition (TV-L1, DAGM 2009): I - STRUCTURE_WEIGHT * S(I), with S the ROF (TV-L2) denoising of I
+  (Chambolle's projection, ``ROF_ITERATIONS`` steps, weight ``ROF_THETA``), renormalised. It also removes smooth
+  illumination changes (shading, vignetting), at the price of some signal on smooth image regions.
+
+``reliability`` is computed after the solve: the fraction of pixels the flow does not explain, i.e.
+whose residual |I1(x + flow(x)) - I0(x)| on the preprocessed pair exceeds RESIDUAL_OUTLIER (in units of
+the pair's robust range, on the ``normalise`` pair in every mode), sampled on every second pixel. A flow
+that matches the frames leaves only occlusions and noise: 0.005-0.13 on the 8 Middlebury pairs with
+``realtime`` (0.02-0.19 with its earlier half-size setting); garbage leaves most pixels unexplained:
+0.35-0.58 for the flow of a x1.25 exposure-changed pair without this stage, 0.70-0.90 for two unrelated
+frames. The node WARNs above UNRELIABLE (docs/node.md).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .operators import div, grad
+from .warping import Sample, sample_coefficients
+
+PHOTOMETRIC = ("normalise", "local_contrast", "structure_texture", "none")
+PERCENTILES = (2.0, 98.0)
+STRIDE = 3
+MIN_SPAN = 1e-6  # a pair whose robust range is below this (flat) is only shifted, not scaled
+EXPOSURE_QUANTILES = np.arange(5.0, 96.0, 5.0)
+EXPOSURE_DEAD_ZONE = 0.1  # |gain - 1| below which frame 1 is left alone (see exposure_change)
+STEP_REF = 0.01  # quantisation step (of the pair's range) up to which the data term is left as it is
+QUANT_SIGMA = 1.0  # px: presmoothing of coarsely quantised pairs (turns their staircases back into ramps)
+CLIP_MARGIN = 0.01  # quantiles this close to the encoding's 0 or 1 may be clipped: not used for the fit
+LOCAL_SIGMA = 4.0  # px: the window of the local contrast normalisation
+LOCAL_EPS = 0.02  # of the pair's range: local contrast below this is not amplified (noise in flat areas)
+LOCAL_GAIN = 0.08  # output scale: the same alpha suits it and a normalised frame (measured on the suite)
+STRUCTURE_WEIGHT = 0.95
+ROF_THETA = 0.125
+ROF_ITERATIONS = 30
+RESIDUAL_OUTLIER = 0.05
+RELIABILITY_STRIDE = 2
+UNRELIABLE = 0.3  # unexplained fraction above which the node WARNs: Middlebury <= 0.19, garbage >= 0.35
+
+
+def sorted_sample(img: np.ndarray) -> np.ndarray:
+    """Every STRIDE-th pixel of img (H, W) in each direction (all of a small image), sorted, flattened."""
+    sample = img[::STRIDE, ::STRIDE] if min(img.shape) > 4 * STRIDE else img
+    return np.sort(sample, axis=None)
+
+
+def quantiles(ordered: np.ndarray, percents: np.ndarray | tuple[float, ...]) -> np.ndarray:
+    """Nearest-rank percentiles (in %) of a sorted sample, float64."""
+    idx = np.rint(np.asarray(percents) / 100.0 * (ordered.size - 1)).astype(np.int64)
+    return ordered[idx].astype(np.float64)
+
+
+def exposure_change(s0: np.ndarray, s1: np.ndarray) -> tuple[float, float]:
+    """(gain, offset) with gain * I1 + offset ~ I0 in distribution, from the sorted samples s0, s1 of the
+    frames (:func:`sorted_sample`): a least-squares line through their matched 5th..95th percentiles,
+    leaving out quantiles that may be clipped. Returns (1, 0) when |gain - 1| < EXPOSURE_DEAD_ZONE: a pair
+    without an exposure change differs in content (motion at the border, small images), which moves the
+    percentiles -- measured: gains 0.95-1.05 with offsets of a few grey levels on unchanged pairs -- and
+    must not read as an exposure change (a false correction is a brightness difference, i.e. flow error).
+    Auto-exposure steps are larger (0.75-1.33)."""
+    q0, q1 = quantiles(s0, EXPOSURE_QUANTILES), quantiles(s1, EXPOSURE_QUANTILES)
+    ok = (np.minimum(q0, q1) > CLIP_MARGIN) & (np.maximum(q0, q1) < 1.0 - CLIP_MARGIN)
+    if ok.sum() < 3 or np.ptp(q1[ok]) <= MIN_SPAN:
+        return 1.0, 0.0
+    gain, offset = np.polyfit(q1[ok], q0[ok], 1)
+    if abs(gain - 1.0) < EXPOSURE_DEAD_ZONE:
+        return 1.0, 0.0
+    return float(gain), float(offset)
+
+
+def quantisation_step(ordered: np.ndarray) -> float:
+    """The smallest positive difference between the grey values of a sorted sample: the encoding's step for
+    integer input (1/255 for 8 bit, 1/65535 for 10-bit content in mono16), ~0 for continuous values."""
+    gaps = np.diff(ordered)
+    gaps = gaps[gaps > 0]
+    return float(gaps.min()) if gaps.size else 0.0
+
+
+def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`normalise_pair` without its exposure flag."""
+    return normalise_pair(i0, i1)[:2]
+
+
+def normalise_pair(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Both frames (H, W) float32 with frame 1's exposure matched to frame 0 (:func:`exposure_change`) and
+    one affine map for the pair taking its robust range -- the frames' mean 2nd and 98th percentiles -- to
+    [0, 1].
+
+    A pair whose quantisation step is coarse against that range (rel = step / range > STEP_REF: content
+    spanning fewer than ~100 grey levels) is presmoothed (QUANT_SIGMA) and mapped to [0, STEP_REF / rel]
+    instead: its data term carries quantisation noise of relative size rel, and shrinking the contrast by
+    the same factor keeps the balance of data term and weights (exactly for the L1 data term). The flag
+    says whether an exposure change was found (and undone)."""
+    s0, s1 = sorted_sample(i0), sorted_sample(i1)
+    gain, offset = exposure_change(s0, s1)
+    if (gain, offset) != (1.0, 0.0):
+        i1 = i1 * np.float32(gain) + np.float32(offset)
+        s1 = s1 * gain + offset
+    lo, hi = 0.5 * (quantiles(s0, PERCENTILES) + quantiles(s1, PERCENTILES))
+    span = hi - lo if hi - lo > MIN_SPAN else 1.0
+    rel = quantisation_step(s0) / span
+    scale = np.float32(min(1.0, STEP_REF / rel) / span if rel > 0 else 1.0 / span)
+    n0, n1 = (i0 - np.float32(lo)) * scale, (i1 - np.float32(lo)) * scale
+    if rel > STEP_REF:
+        blur = lambda x: cv2.GaussianBlur(x, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)  # noqa: E731
+        n0, n1 = blur(n0), blur(n1)
+    return n0, n1, (gain, offset) != (1.0, 0.0)
+
+
+def rof_structure(img: np.ndarray, theta: float = ROF_THETA, iterations: int = ROF_ITERATIONS) -> np.ndarray:
+    """ROF denoising argmin_S |grad S|_1 + |S - img|^2 / (2 theta) by Chambolle's dual projection
+    (step 1/4, isotropic), the structure part of the decomposition. img (H, W) -> (H, W) float32."""
+    p = np.zeros((2,) + img.shape, np.float32)
+    step = np.float32(0.25)
+    for _ in range(iterations):
+        g = grad(div(p) - img / np.float32(theta))
+        p = (p + step * g) / (1.0 + step * np.sqrt(g[0] ** 2 + g[1] ** 2))
+    return (img - theta * div(p)).astype(np.float32)
+
+
+def texture_part(img: np.ndarray) -> np.ndarray:
+    """The texture part I - STRUCTURE_WEIGHT * rof_structure(I) of a frame, (H, W) float32."""
+    return (img - STRUCTURE_WEIGHT * rof_structure(img)).astype(np.float32)
+
+
+def local_contrast(img: np.ndarray) -> np.ndarray:
+    """(I - G*I) / (sqrt(G*(I - G*I)^2) + LOCAL_EPS) * LOCAL_GAIN with G a Gaussian of LOCAL_SIGMA px:
+    invariant to a gain and offset of the frame (exactly, where the local contrast is well above
+    LOCAL_EPS), and, being a shift-invariant local operator, it commutes with the motion. (H, W) float32."""
+    blur = lambda x: cv2.GaussianBlur(x, (0, 0), LOCAL_SIGMA, borderType=cv2.BORDER_REFLECT)  # noqa: E731
+    detail = img - blur(img)
+    return (detail * (LOCAL_GAIN / (np.sqrt(blur(detail * detail)) + LOCAL_EPS))).astype(np.float32)
+
+
+def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """The photometric stage: both frames (H, W) float32 as the solver should see them (see module doc)."""
+    return stage(i0, i1, mode)[0]
+
+
+def stage(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[tuple[np.ndarray, np.ndarray],
+                                                                tuple[np.ndarray, np.ndarray]]:
+    """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
+    The second is the ``normalise`` result in every mode, so the reliability figure has one meaning."""
+    n0, n1, exposure_changed = normalise_pair(i0, i1)
+    if mode == "none":
+        return (i0, i1), (n0, n1)
+    if mode == "normalise" and exposure_changed:
+        # the global fit leaves a residual gain of ~1 % (content differences move the percentiles), which
+        # the L1 data term reads as motion; the local normalisation is invariant to gain and offset outright
+        return (local_contrast(n0), local_contrast(n1)), (n0, n1)
+    return solver_images(n0, n1, mode), (n0, n1)
+
+
+def solver_images(n0: np.ndarray, n1: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """The solver's images of a normalised pair for ``mode`` (not ``none``)."""
+    if mode == "local_contrast":
+        return local_contrast(n0), local_contrast(n1)
+    if mode == "structure_texture":
+        return normalise(texture_part(n0), texture_part(n1))
+    return n0, n1
+
+
+def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients) -> float:
+    """Fraction of pixels the flow does not explain: |I1(x + flow) - I0(x)| > RESIDUAL_OUTLIER on every
+    RELIABILITY_STRIDE-th pixel whose target stays inside the frame (i0, i1 preprocessed (H, W); flow
+    (H, W, 2) px). 0 = every sampled pixel explained, 1 = none. Uses the Keys kernel (no prefilter)."""
+    h, w = i0.shape
+    s = RELIABILITY_STRIDE
+    ys, xs = np.mgrid[0:h:s, 0:w:s].astype(np.float32)
+    map_x = xs + flow[::s, ::s, 0]
+    map_y = ys + flow[::s, ::s, 1]
+    inside = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
+    if not inside.any():
+        return 1.0
+    res = np.abs(sample(i1, map_x, map_y, "keys") - i0[::s, ::s])
+    return float(np.mean(res[inside] > RESIDUAL_OUTLIER))

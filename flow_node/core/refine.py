@@ -1,0 +1,114 @@
+"""The refinement stage: coarse-to-fine warping with the paper's models (paper, "Large Displacements").
+
+A generic driver over a :class:`~flow_node.core.pyramid.Pyramid` with the per-warp solver and the warp passed
+in (a :class:`~flow_node.core.backends.Backend`: numpy reference or numba kernels). :func:`refine_levels` walks
+a range of levels, coarse to fine, from a given state, so the engine can start it anywhere: on the coarsest
+level from zero flow, or on the level where an initialisation is trusted (:mod:`flow_node.core.engine`).
+Flow is channel-first (2, h, w) in pixels of its level.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .backends import Backend
+from .bregman import bregman
+from .config import FlowConfig
+from .layout import interleaved_flow
+from .models import MODEL_SPECS
+from .operators import image_gradient, linearise, warp_source
+from .pyramid import Pyramid, make_pyramid, resize_state
+from .solver import PDState, Problem, SolveParams
+
+
+@dataclass
+class SolveStats:
+    """What a solve did: iterations per level (finest first) and the level shapes; the initialisation used
+    (``init``: the candidates' names joined by '+', '' for none; ``init_offered``: those the initialisation
+    stage computed, before the ones within the pyramid's reach were dropped), the level the refinement restarted from
+    with it (``start_level``, -1 without one), the share of pixels the fusion there took from a candidate
+    (``init_share``) and the share the fusion after the finest level took (``final_init_share``: where
+    the refinement did not improve on a candidate)."""
+
+    shapes: list[tuple[int, int]] = field(default_factory=list)
+    iterations: list[int] = field(default_factory=list)
+    bregman_iterations: int = 0
+    init: str = ""
+    init_offered: str = ""
+    start_level: int = -1
+    init_share: float = 0.0
+    final_init_share: float = 0.0
+
+    @property
+    def total_iterations(self) -> int:
+        return sum(self.iterations)
+
+
+def median_filter(v: np.ndarray, size: int) -> np.ndarray:
+    """Median of each flow component over size x size windows (OpenCV; size 3 or 5)."""
+    out = np.empty_like(v)
+    for ch, dst in zip(v, out, strict=True):
+        cv2.medianBlur(np.ascontiguousarray(ch), size, dst=dst)
+    return out
+
+
+def level_params(cfg: FlowConfig, level: int) -> SolveParams:
+    """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``."""
+    return SolveParams(MODEL_SPECS[cfg.model], cfg.alpha * cfg.level_alpha_factor**level, cfg.alpha1,
+                       cfg.tv_norm, cfg.iterations, cfg.tolerance)
+
+
+def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState,
+                bregman_steps: int = 0) -> tuple[int, int]:
+    """``cfg.warps`` times: linearise around the current flow (the backend's warp of frame 1 and its
+    gradient with ``cfg.warp_kernel``, outside pixels masked), run the backend's solver and median-filter
+    the flow; then ``bregman_steps`` Bregman steps on the
+    last linearisation. ``state`` lives on ``level`` and is updated in place. Returns (iterations, Bregman
+    iterations)."""
+    params = level_params(cfg, level)
+    i0, i1 = pyr.i0[level], pyr.i1[level]
+    src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
+    g0 = image_gradient(i0, cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
+    iterations = 0
+    for _ in range(cfg.warps):
+        a, c = linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
+        iterations += backend.solve(Problem(a, c), state, params)
+        if cfg.median_filter:
+            state.v = median_filter(state.v, cfg.median_filter)
+    extra = bregman(Problem(a, c), state, params, backend.solve, bregman_steps) if bregman_steps else 0
+    return iterations, extra
+
+
+def refine_levels(pyr: Pyramid, cfg: FlowConfig, backend: Backend, state: PDState, first: int, last: int,
+                  stats: SolveStats) -> PDState:
+    """Solve levels ``first`` down to ``last`` (first >= last), carrying primal and dual variables to each
+    finer level (flow vectors rescaled). ``state`` may live on any level; it is resampled to ``first``.
+    Bregman steps (``cfg.bregman_iterations``) run on ``last`` when it is the finest solved level
+    (:func:`finest_level`). Iterations are added to ``stats``; returns the state on ``last``."""
+    finest = finest_level(pyr, cfg)
+    for lvl in range(first, last - 1, -1):
+        if state.v.shape[1:] != pyr.shapes[lvl]:
+            state = resize_state(state, pyr.shapes[lvl])
+        steps = cfg.bregman_iterations if lvl == finest else 0
+        its, extra = solve_level(pyr, lvl, cfg, backend, state, steps)
+        stats.iterations[lvl] += its
+        stats.bregman_iterations += extra
+    return state
+
+
+def finest_level(pyr: Pyramid, cfg: FlowConfig) -> int:
+    """The finest level solved: ``cfg.finest_level`` clamped to the coarsest level the pyramid has."""
+    return min(cfg.finest_level, pyr.coarsest)
+
+
+def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend) -> tuple[np.ndarray, SolveStats]:
+    """The refinement stage alone on a pair, from zero flow over the whole pyramid (no photometric stage,
+    no initialisation, no fusion: the paper's scheme as it stands): flow float32 (H, W, 2) px and stats."""
+    pyr = make_pyramid(i0, i1, cfg)
+    stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
+    state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[-1])
+    state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest_level(pyr, cfg), stats)
+    return interleaved_flow(state.v, pyr.shapes[0]), stats
