@@ -231,12 +231,11 @@ PRESETS: dict[str, dict[str, Any]] = {
     # BENCHMARKS.md; neither reaches DIS's time at its accuracy.
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=20, warps=2, levels=5, finest_level=0,
                      median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
-    # fastest: photometric local_contrast -- at half size it beats normalise on the suite's fine textures
-    # (0.110 vs 0.185 AEE, tune split), bit depths (0.128 vs 0.305), noise (0.120 vs 0.200) and flat areas
-    # (0.111 vs 0.200), loses on Middlebury (0.58 vs 0.51) and low contrast (0.079 vs 0.057); realtime
-    # (full size) is better with normalise on 4 of those 6 regimes (bench/results/tune/s9.json).
+    # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
+    # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
+    # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
     "fastest": dict(model="l1_tv", alpha=0.05, iterations=8, warps=2, levels=5, finest_level=1,
-                    median_filter=3, gradient_scheme="interpolated", tolerance=0.0, photometric="local_contrast"),
+                    median_filter=3, gradient_scheme="interpolated", tolerance=0.0),
 }
 
 
