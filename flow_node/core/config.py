@@ -287,10 +287,16 @@ PRESETS: dict[str, dict[str, Any]] = {
     # 4 levels instead of 5: 0.68, Urban's motions need the fifth) at ~3x DIS medium's time; fastest takes
     # the former realtime's place (half size): 0.19 on fine textures (DIS ultrafast 0.16) at ~4x its time,
     # Middlebury 0.59. realtime 20 iterations per warp (was 10): at 10 it is unconverged (its fine-texture AEE
-    # was 0.06 at 8 bit and 0.11 at 10-16 bit on a rotation; 0.022 at 20) for +15 % time. The measured frontier is in
+    # was 0.06 at 8 bit and 0.11 at 10-16 bit on a rotation; 0.022 at 20) for +15 % time; then 3 warps x 13
+    # (the same iterations per level): 2 x 20 still converged to a wrong flow on the finest texture band at
+    # 10-16 bit (tune split, 6 seeds: 16-bit mean 0.183, max 0.98; 8-bit 0.048), 3 x 13 gives 0.027 / 0.028
+    # (max 0.063), Middlebury 0.380 (0.382), at no extra time. The measured frontier is in
     # BENCHMARKS.md; neither reaches DIS's time at its accuracy.
-    "realtime": dict(model="l1_tv", alpha=0.04, iterations=20, warps=2, levels=5, finest_level=0,
+    "realtime": dict(model="l1_tv", alpha=0.04, iterations=13, warps=3, levels=5, finest_level=0,
                      median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
+    # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
+    # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
+    # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
     "fastest": dict(model="l1_tv", alpha=0.05, iterations=8, warps=2, levels=5, finest_level=1,
                     median_filter=3, gradient_scheme="interpolated", tolerance=0.0),
 }
