@@ -138,7 +138,8 @@ def test_yaml_files_are_in_sync_and_load_as_configs() -> None:
         assert path.read_text() == render_yaml(name)
         assert FlowConfig.from_yaml(path) == FlowConfig.preset(name)
     text = (ROOT / "config/flow_node.yaml").read_text()
-    assert f"    alpha: {FlowConfig().alpha!r}\n" in text and "    tolerance: 0.0\n" in text
+    node_default = FlowConfig.preset("realtime")  # the node's defaults are its default preset's values
+    assert f"    alpha: {node_default.alpha!r}\n" in text and "    tolerance: 0.0\n" in text
     assert "    level_alpha_factor: 1.0\n" in text
 
 

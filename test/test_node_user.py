@@ -32,20 +32,23 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_preset_switch_sets_the_whole_group() -> None:
-    """realtime solves at half size (finest_level 1); quality does not list finest_level, yet after
-    realtime -> quality the node must solve at full size: every engine setting is the new preset's."""
+    """A setting the new preset does not list must not keep the old value: after fastest (half-size solve)
+    and a hand-set min_size, switching to quality must give every engine setting of quality."""
     h = Harness("/t_preset_switch", name="flow_switch")
     try:
-        results = h.set_params(preset="realtime")
+        results = h.set_params(preset="fastest")
         assert all(r.successful for r in results), [r.reason for r in results]
-        assert get_values(h, ["finest_level"]) == {"finest_level": 1}
-        assert "finest_level" not in PRESETS["quality"]
+        assert get_values(h, ["finest_level"]) == {"finest_level": FlowConfig.preset("fastest").finest_level} != {
+            "finest_level": 0}
+        assert all(r.successful for r in h.set_params(min_size=8))
+        assert "min_size" not in PRESETS["quality"]
         results = h.set_params(preset="quality")
         assert all(r.successful for r in results), [r.reason for r in results]
         got = get_values(h, ["preset", "finest_level", "levels", "iterations", "min_size", "alpha1"])
         q = FlowConfig.preset("quality")
-        assert got == {"preset": "quality", "finest_level": 0, "levels": q.levels, "iterations": q.iterations,
-                       "min_size": q.min_size, "alpha1": q.alpha1}
+        assert got == {"preset": "quality", "finest_level": q.finest_level, "levels": q.levels,
+                       "iterations": q.iterations, "min_size": q.min_size, "alpha1": q.alpha1}
+        assert q.min_size != 8
         flow = image_to_array(h.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2)))
         assert h.node.settings.config == q.replace(backend="numpy")  # backend is read-only: not in the group
         assert flow.shape == (60, 80, 2) and aee(flow, GT) < 0.25

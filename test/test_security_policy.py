@@ -21,8 +21,6 @@ from flow_node.ros.node import FlowNode
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "config" / "flow_node.policy.xml"
-# In the table ahead of the node: interfaces other branches add (the confidence output); allowed, not created.
-NOT_YET_CREATED = {"~/confidence"}
 
 
 def rules(xml: str, profile_index: int = 0) -> dict[str, set[str]]:
@@ -120,10 +118,9 @@ def test_policy_names_are_what_the_node_creates(compressed: bool) -> None:
     policy = rules(sp.render(["--image", image, "--namespace", ns, "--name", name]
                              + (["--compressed"] if compressed else [])))
     resolved = {a: {sp.resolve(n, ns, name) for n in names} for a, names in policy.items()}
-    ahead = {sp.resolve(n, ns, name) for n in NOT_YET_CREATED}
     for access in ("publish", "subscribe", "reply"):
         missing, extra = created[access] - resolved[access], resolved[access] - created[access]
         assert not missing, f"{access}: the policy misses {missing} (add a row to INTERFACES)"
-        assert extra <= ahead, f"{access}: the policy allows {extra - ahead}, which the node does not create"
+        assert not extra, f"{access}: the policy allows {extra}, which the node does not create"
     assert f"{ns}/{name}/reset" in created["reply"]
     assert created["subscribe"] == {image + ("/compressed" if compressed else ""), camera_info_topic(image)}

@@ -73,10 +73,6 @@ def drop_policy(enclave: str, drop: sp.Interface) -> str:
     return sp.policy_xml(enclave, [sp.Profile("/", "flow_node", rows)], "test: one row dropped")
 
 
-# rows the node does not create yet (other branches add them): dropping them changes nothing
-NOT_YET_CREATED = {"~/confidence"}
-
-
 SROS2_API = """
 import sys
 from pathlib import Path
@@ -192,9 +188,6 @@ def test_every_row_of_the_policy_is_needed(secure: dict[str, str]) -> None:
     assert report["/flow_node"] is None, report["/flow_node"]
     for k, row in enumerate(rows):
         error = report[f"/drop{k}"]
-        if row.name in NOT_YET_CREATED:
-            assert error is None, f"{row.name}: {error}"
-            continue
         assert error is not None, f"the node started without {row.name} in its policy"
         dds = sp.resolve(row.name, "/", "flow_node")
         if row.access == "reply":
