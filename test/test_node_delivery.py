@@ -59,7 +59,8 @@ print(json.dumps({{"received": len(got), "sizes": sorted(set(got)), "published":
 def test_vga_flow_at_30hz_reaches_another_process_with_the_profile() -> None:
     env = {**os.environ, "FASTRTPS_DEFAULT_PROFILES_FILE": str(PROFILE)}
     node = subprocess.Popen([sys.executable, "-m", "flow_node.ros.node", "--ros-args", "-r", f"__ns:={NS}",
-                             "-r", f"__node:={NODE}", "-r", f"image:={NS}/image", "-p", "diagnostics_period:=0.2"],
+                             "-r", f"__node:={NODE}", "-r", f"image:={NS}/image", "-p", "diagnostics_period:=0.2",
+                             "-p", "preset:=fastest"],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     sub = subprocess.Popen([sys.executable, "-c", SUBSCRIBER], env=env, stdout=subprocess.PIPE, text=True)
     ctx = Context()

@@ -28,7 +28,7 @@ from flow_node.core.config import MODEL_WEIGHTS, PRESETS, FlowConfig, fields_inf
 from flow_node.core.errors import ConfigError
 from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import image_to_array
-from flow_node.ros.params import param_specs, render_yaml, settings_from_values
+from flow_node.ros.params import NODE_PRESET, param_specs, render_yaml, settings_from_values
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -132,13 +132,13 @@ def test_descriptors_come_from_the_config_table(harness: Harness) -> None:
 
 def test_yaml_files_are_in_sync_and_load_as_configs() -> None:
     assert (ROOT / "config/flow_node.yaml").read_text() == render_yaml()
-    assert FlowConfig.from_yaml(ROOT / "config/flow_node.yaml") == FlowConfig.preset("realtime")  # the default
+    assert FlowConfig.from_yaml(ROOT / "config/flow_node.yaml") == FlowConfig.preset(NODE_PRESET)  # the default
     for name in PRESETS:
         path = ROOT / f"config/{name}.yaml"
         assert path.read_text() == render_yaml(name)
         assert FlowConfig.from_yaml(path) == FlowConfig.preset(name)
     text = (ROOT / "config/flow_node.yaml").read_text()
-    node_default = FlowConfig.preset("realtime")  # the node's defaults are its default preset's values
+    node_default = FlowConfig.preset(NODE_PRESET)  # the node's defaults are its default preset's values
     assert f"    alpha: {node_default.alpha!r}\n" in text and "    tolerance: 0.0\n" in text
     assert "    level_alpha_factor: 1.0\n" in text
 

@@ -27,6 +27,7 @@ from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import image_to_array
 from flow_node.ros.camera_info import scaled_camera_info
 from flow_node.ros.node import FlowNode
+from flow_node.ros.params import NODE_PRESET
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,15 +57,16 @@ def test_preset_switch_sets_the_whole_group() -> None:
         h.close()
 
 
-def test_default_is_the_realtime_preset() -> None:
+def test_default_is_the_node_preset_that_keeps_up() -> None:
     ctx = Context()
     rclpy.init(context=ctx)
     try:
         node = FlowNode("flow_defaults", parameter_overrides=[Parameter("warmup", value=False),
                                                               Parameter("backend", value="numpy")], context=ctx)
         try:
-            assert node.get_parameter("preset").value == "realtime"
-            assert node.settings.config == FlowConfig.preset("realtime").replace(backend="numpy")
+            assert NODE_PRESET == "fastest"  # docs/node.md, "Defaults": keeps up with 30 Hz VGA on 2 cores
+            assert node.get_parameter("preset").value == NODE_PRESET
+            assert node.settings.config == FlowConfig.preset(NODE_PRESET).replace(backend="numpy")
             assert node.get_parameter("flow_units").value == "px/frame"
         finally:
             node.destroy_node()

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import threading
 from typing import TYPE_CHECKING
 
 from ..core.config import MODELS, PRESETS
@@ -111,13 +112,25 @@ def _run(args: argparse.Namespace) -> int:
 
         opts = PlayOptions(args.rate, args.loop, 1, parse_remap(args.topic_remap), tuple(args.topics),
                            args.wait_for_subscribers)
-        # Ctrl-C stops playback with KeyboardInterrupt even when this process was started with SIGINT
-        # ignored (a background job of a non-interactive shell inherits SIG_IGN, which Python keeps)
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        # Ctrl-C is how a (looping) playback ends, a normal stop. The first one sets `stop`, which playback
+        # checks before each message, so the count printed is exact (a KeyboardInterrupt could land between
+        # a publish and its count); a second one interrupts whatever runs. Installed even when this process
+        # was started with SIGINT ignored (a background job of a non-interactive shell inherits SIG_IGN).
+        stop = threading.Event()
+
+        def on_sigint(signum: int, frame: object) -> None:
+            if stop.is_set():
+                raise KeyboardInterrupt
+            stop.set()
+
+        signal.signal(signal.SIGINT, on_sigint)
         try:
-            count = run_play(args.bag, opts)
-        except PlaybackInterrupted as exc:  # Ctrl-C is how a (looping) playback ends: a normal stop
+            count = run_play(args.bag, opts, stop)
+        except PlaybackInterrupted as exc:
             print(f"flow_bag play: stopped by Ctrl-C after publishing {exc.published} messages")
+            return 0
+        if stop.is_set():
+            print(f"flow_bag play: stopped by Ctrl-C after publishing {count} messages")
             return 0
         print(f"flow_bag play: published {count} messages")
         return 0

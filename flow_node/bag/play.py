@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import importlib
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -87,27 +88,28 @@ class PlaybackInterrupted(KeyboardInterrupt):
 
 def play(node: Any, path: str | Path, opts: PlayOptions,
          on_publish: Callable[[str, int, float], None] | None = None,
-         should_stop: Callable[[], bool] = lambda: False) -> int:
+         stop: threading.Event | None = None) -> int:
     """Publish the bag through ``node`` (an rclpy Node) with recorded timing; returns messages published.
 
     ``on_publish(topic, bag_time_ns, wall_time)`` is called after each publish. The caller owns the node and
-    spins it (or not) as it likes; this function only publishes and sleeps. Ctrl-C (KeyboardInterrupt)
+    spins it (or not) as it likes; this function only publishes and sleeps. ``stop``, once set (e.g. by a
+    SIGINT handler), ends playback before the next message: the count is then exact, which a
+    KeyboardInterrupt cannot promise (it may land between a publish and its count). A KeyboardInterrupt
     while playing raises :class:`PlaybackInterrupted` with the count published so far.
     """
+    stop = stop if stop is not None else threading.Event()
     types, msgs = load_schedule(path, opts.topics)
     remap = dict(opts.remap)
     pubs = {topic: node.create_publisher(message_class(mt), remap.get(topic, topic), 10)
             for topic, mt in types.items()}
-    _wait_for_subscribers(list(pubs.values()), opts.wait_for_subscribers)
+    _wait_for_subscribers(list(pubs.values()), opts.wait_for_subscribers, stop)
     count, loop = 0, 0
     try:
         while loop < opts.loops or opts.loop:
             start_wall, start_bag = time.monotonic(), msgs[0][0]
             for t, topic, raw in msgs:
                 delay = start_wall + (t - start_bag) / 1e9 / opts.rate - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-                if should_stop():
+                if (delay > 0 and stop.wait(delay)) or stop.is_set():
                     return count
                 pubs[topic].publish(raw)
                 count += 1
@@ -125,14 +127,16 @@ def play(node: Any, path: str | Path, opts: PlayOptions,
 DISCOVERY_SETTLE_S = 1.0
 
 
-def _wait_for_subscribers(pubs: list[Any], seconds: float) -> None:
-    """Wait until every publisher has a subscriber (at most ``seconds``), then DISCOVERY_SETTLE_S more."""
+def _wait_for_subscribers(pubs: list[Any], seconds: float, stop: threading.Event) -> None:
+    """Wait until every publisher has a subscriber (at most ``seconds``), then DISCOVERY_SETTLE_S more;
+    returns early once ``stop`` is set."""
     deadline = time.monotonic() + seconds
     while seconds > 0 and time.monotonic() < deadline:
         if all(p.get_subscription_count() > 0 for p in pubs):
-            time.sleep(DISCOVERY_SETTLE_S)
+            stop.wait(DISCOVERY_SETTLE_S)
             return
-        time.sleep(0.05)
+        if stop.wait(0.05):
+            return
 
 
 ACK_TIMEOUT_S = 2.0  # after the last message, how long to wait for reliable subscribers to acknowledge it
@@ -147,7 +151,7 @@ def _wait_for_acks(pubs: list[Any]) -> None:
         pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
 
 
-def run_play(path: str | Path, opts: PlayOptions) -> int:
+def run_play(path: str | Path, opts: PlayOptions, stop: threading.Event | None = None) -> int:
     """Stand-alone playback: own rclpy context and node. Returns messages published; Ctrl-C raises
     :class:`PlaybackInterrupted` (with the count) after a clean shutdown.
 
@@ -162,7 +166,7 @@ def run_play(path: str | Path, opts: PlayOptions) -> int:
     rclpy.init(args=[], signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("flow_bag_play")
     try:
-        return play(node, path, opts)
+        return play(node, path, opts, stop=stop)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

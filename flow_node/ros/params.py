@@ -38,8 +38,9 @@ class ParamSpec:
 READ_ONLY_FIELDS = frozenset({"backend", "threads"})
 
 # The node's default preset: started without a params file it keeps up with a 30 Hz VGA camera on 2 cores
-# (FlowConfig's plain defaults take ~0.3 s per VGA pair); docs/node.md, "Defaults".
-NODE_PRESET = "realtime"
+# (~16 ms per VGA pair; since issue 11's re-tune `realtime` solves at full resolution, ~0.1 s per VGA pair,
+# and FlowConfig's plain defaults take ~0.3 s); docs/node.md, "Defaults".
+NODE_PRESET = "fastest"
 
 
 def param_specs() -> list[ParamSpec]:
