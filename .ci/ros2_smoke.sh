@@ -23,7 +23,7 @@ stop() {  # stop NAME: SIGINT to its process group (what Ctrl-C does), wait; its
 param() { ros2 param get "$1" "$2" 2>&1; }
 has() { grep -Eq -- "$2" <<< "$1"; }  # has TEXT PATTERN (no pipe: grep -q closing it early breaks pipefail)
 
-[ -f "$share/config/realtime.yaml" ] && [ -f "$share/launch/flow_node.launch.py" ] || fail "no config/launch in $share"
+[ -f "$share/config/fastest.yaml" ] && [ -f "$share/launch/flow_node.launch.py" ] || fail "no config/launch in $share"
 ros2 run flow_node flow_bag --help > /dev/null || fail "flow_bag --help"
 
 # a relative params file that does not exist here: one line, exit 1 (no traceback)
@@ -34,13 +34,13 @@ echo "ok: missing params file -> $(grep 'cannot start' <<< "$out")"
 
 ros2 daemon start > /dev/null 2>&1; sleep 2
 start node ros2 run flow_node flow_node --ros-args -r image:=/smoke/image -r __node:=smoke_flow \
-  --params-file "$share/config/realtime.yaml"
-for _ in $(seq 60); do has "$(param /smoke_flow preset)" "String value is: realtime" && break; sleep 1; done
-has "$(param /smoke_flow preset)" "String value is: realtime" || fail "node not up: $(cat "$log/node")"
-has "$(ros2 param get /smoke_flow finest_level)" "Integer value is: 1" || fail "realtime finest_level"
+  --params-file "$share/config/fastest.yaml"
+for _ in $(seq 60); do has "$(param /smoke_flow preset)" "String value is: fastest" && break; sleep 1; done
+has "$(param /smoke_flow preset)" "String value is: fastest" || fail "node not up: $(cat "$log/node")"
+has "$(ros2 param get /smoke_flow finest_level)" "Integer value is: 1" || fail "fastest finest_level"
 has "$(ros2 param set /smoke_flow preset quality)" "Set parameter successful" || fail "param set preset quality"
 has "$(param /smoke_flow finest_level)" "Integer value is: 0" || fail "quality kept finest_level: $(param /smoke_flow finest_level)"
-echo "ok: preset realtime -> quality sets finest_level 0"
+echo "ok: preset fastest -> quality sets finest_level 0"
 
 # flow_bag play into the node, stopped with Ctrl-C: exit 0 and the real count, no rcl remap warning
 start play ros2 run flow_node flow_bag play "$bag" --loop --topic-remap /camera/image_raw:=/smoke/image
