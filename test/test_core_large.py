@@ -17,6 +17,7 @@ import small_frames
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowEstimator
 from flow_node.core.backends import NUMPY
+from flow_node.core.config import FlowConfig
 from flow_node.core.densify import densify, forward_propagate, push_pull
 from flow_node.core.engine import estimate_pair, start_level
 from flow_node.core.fusion import confidence, data_cost, fuse
@@ -238,3 +239,17 @@ def test_a_computed_initialisation_is_fused_only_for_large_motions() -> None:
     assert np.array_equal(small.flow, FlowEstimator(SHORT).estimate_grey(i0, i1).flow)
     j0, j1, _ = shifted_pair(0, SHIFT, (240, 180))
     assert FlowEstimator(cfg).estimate_grey(j0, j1).stats.init == "dis_medium"
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (8, 40), (40, 11), (15, 15)])
+def test_every_preset_runs_on_frames_too_small_for_dis(shape) -> None:
+    """OpenCV's DIS refuses frames under 12 px a side (cv2.error): such a pair runs the pyramid alone, with
+    the presets that start from DIS as with the rest (found by the fuzz layer under colcon test)."""
+    rng = np.random.default_rng(3)
+    f0 = rng.random(shape, dtype=np.float32)
+    f1 = np.roll(f0, 1, axis=1)
+    for name in ("quality", "balanced", "realtime", "fastest"):
+        cfg = FlowConfig.preset(name).replace(backend="numpy", iterations=3)
+        assert cfg.initialisation.startswith("dis")
+        flow = FlowEstimator(cfg).estimate(f0, f1).flow
+        assert flow.shape == shape + (2,) and np.isfinite(flow).all()

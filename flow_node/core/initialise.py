@@ -81,6 +81,10 @@ def dis_pair(u0: np.ndarray, u1: np.ndarray, preset: str,
     return fwd, (algo.calc(u1, u0, None) if backward else None)
 
 
+# OpenCV's DIS refuses frames under 12 px a side (its patches and pyramid); smaller ones get no DIS candidate
+DIS_MIN_SIDE = 16
+
+
 def dis_candidate(i0: np.ndarray, i1: np.ndarray, preset: str, min_motion: float) -> Candidate:
     """DIS as a candidate; when its motion will get it fused (:func:`moves_far`), also the backward flow
     for the consistency check (otherwise that second DIS run is saved)."""
@@ -169,7 +173,7 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, initial_flow: np
     if previous_flow is not None and cfg.temporal_init:
         out.append(Candidate("previous", propagated_flow(i0, previous_flow)))
     source = cfg.initialisation
-    if source in DIS_PRESETS:
+    if source in DIS_PRESETS and min(i0.shape) >= DIS_MIN_SIDE:
         out.append(dis_candidate(i0, i1, source, cfg.init_min_motion))
     elif source in MATCHERS:
         flow = matches_flow(i0, i1, source)
