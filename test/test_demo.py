@@ -13,8 +13,11 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def node_processes() -> list[str]:
+    """Node processes of this checkout's interpreter (the demo starts its node with it): another checkout's
+    node on the same machine is none of this test's business."""
     out = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout
-    return [line for line in out.splitlines() if "flow_node.ros.node" in line and str(os.getpid()) not in line]
+    return [line for line in out.splitlines()
+            if "flow_node.ros.node" in line and sys.executable in line and str(os.getpid()) not in line]
 
 
 def test_live_node_matches_eval(tmp_path):
