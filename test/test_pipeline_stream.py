@@ -141,3 +141,18 @@ def test_summary_and_magnitude_numbers() -> None:
 def test_scaled_shape() -> None:
     assert scaled_shape((480, 640), 0.5) == (240, 320)
     assert scaled_shape((3, 3), 0.1) == (2, 2)
+
+
+def test_confidence_is_judged_on_px_per_frame_whatever_the_units() -> None:
+    """flow_units px/s scales the flow by 1 / interval; the confidence (a data residual at x + flow) must
+    still be computed on the displacement over the pair, so it is the same in both units."""
+    from flow_node.pipeline.units import output_in_units
+
+    s = stream()
+    s.process(I0, 0)
+    out = s.process(I1, 50_000_000)  # 20 Hz: px/s is 20x px/frame
+    fast = output_in_units(out, "px/s")
+    assert np.allclose(fast.flow, 20.0 * out.flow)
+    conf = out.confidence()
+    assert conf.mean() > 0.5  # the right flow is mostly trusted
+    np.testing.assert_allclose(fast.confidence(), conf, atol=1e-6)

@@ -105,6 +105,7 @@ class FlowOutput:
     color_max_flow: float
     unexplained: float = 0.0  # FlowResult.unexplained: fraction of pixels the flow does not explain
     frames: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    frame_flow: np.ndarray | None = field(default=None, repr=False)  # px/frame when ``flow`` is not (units)
     _confidence: np.ndarray | None = field(default=None, repr=False)
     _magnitude: np.ndarray | None = field(default=None, repr=False)
     _color: np.ndarray | None = field(default=None, repr=False)
@@ -130,7 +131,8 @@ class FlowOutput:
         if self._confidence is None:
             if self.frames is None:
                 raise ValueError("this output keeps no frames; the confidence cannot be computed")
-            self._confidence = confidence(self.frames[0], self.frames[1], self.flow)
+            flow = self.flow if self.frame_flow is None else self.frame_flow
+            self._confidence = confidence(self.frames[0], self.frames[1], flow)
         return self._confidence
 
     def color(self) -> np.ndarray:

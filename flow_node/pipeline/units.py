@@ -37,5 +37,6 @@ def output_in_units(out: FlowOutput, units: str) -> FlowOutput:
     factor = units_factor(units, out.stamp_ns - out.previous_stamp_ns)
     if factor == 1.0:
         return out
-    return replace(out, flow=(out.flow * np.float32(factor)).astype(np.float32, copy=False), _magnitude=None,
-                   _color=None, _summary=None)
+    return replace(out, flow=(out.flow * np.float32(factor)).astype(np.float32, copy=False),
+                   frame_flow=out.flow if out.frame_flow is None else out.frame_flow, _magnitude=None, _color=None,
+                   _summary=None)
