@@ -20,7 +20,7 @@ from rosbags.rosbag2.enums import StoragePlugin
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
-from ..core.errors import FileFormatError
+from ..core.errors import FileFormatError, one_line
 from . import mcapfile
 
 IMAGE = "sensor_msgs/msg/Image"
@@ -42,8 +42,7 @@ def typestore() -> Typestore:
 
 def _reason(exc: BaseException) -> str:
     """A one-line reason for a low-level exception."""
-    text = " ".join(str(exc).split()) or type(exc).__name__
-    return text if len(text) < 200 else text[:197] + "..."
+    return one_line(exc, 200) or type(exc).__name__
 
 
 # Storage plugins raise a variety of exceptions on damaged files (struct, sqlite3, KeyError, rosbags'

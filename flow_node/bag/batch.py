@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.config import FlowConfig
-from ..core.errors import ClusterError, FlowError
+from ..core.errors import ClusterError, FlowError, one_line
 from .bagio import BagError
 from .evaluate import EvalOptions, run_eval
 
@@ -250,7 +250,7 @@ def evaluate_bag(job: BagJob) -> BagOutcome:
     except FlowError as exc:
         outcome.reason = str(exc)
     except Exception as exc:  # noqa: BLE001 - one broken bag must not stop the batch
-        outcome.reason = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+        outcome.reason = f"{type(exc).__name__}: {one_line(exc, None)}"
     outcome.seconds = time.monotonic() - start
     return outcome
 
@@ -296,7 +296,7 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
                 resource.close()
         _restore_environ(environ)
         where = f"the Dask scheduler at {scheduler}" if scheduler else "a local Dask cluster"
-        raise ClusterError(f"cannot start or reach {where}: {' '.join(str(exc).split())}") from exc
+        raise ClusterError(f"cannot start or reach {where}: {one_line(exc, None)}") from exc
     try:
         yield client
     finally:
@@ -366,7 +366,7 @@ def run_jobs(client: Any, jobs: Sequence[BagJob], progress: BatchProgress) -> li
                 outcome = fut.result()
             except Exception as exc:  # noqa: BLE001 - the worker died or the task was lost
                 outcome = BagOutcome(job.bag, job.name, "failed",
-                                     reason=f"task lost: {type(exc).__name__}: {' '.join(str(exc).split())}")
+                                     reason=f"task lost: {type(exc).__name__}: {one_line(exc, None)}")
             done[job.name] = outcome
             progress.finish(outcome)
     finally:

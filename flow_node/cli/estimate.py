@@ -24,17 +24,9 @@ import numpy as np
 from ..core import FlowConfig, FlowError, FlowEstimator, flow_to_color
 from ..core.api import to_grey
 from ..core.config import MODELS, PRESETS
-from ..core.errors import FileFormatError, short_path
+from ..core.errors import FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
 from ..pipeline.codec import decode_bytes
-
-MESSAGE_LIMIT = 400  # characters of one error line
-
-
-def one_line(text: str, limit: int = MESSAGE_LIMIT) -> str:
-    """``text`` on one line (whitespace runs collapsed) and at most ``limit`` characters."""
-    flat = " ".join(str(text).split())
-    return flat if len(flat) <= limit else flat[: limit - 3] + "..."
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -8,6 +8,14 @@ from __future__ import annotations
 
 import os
 
+MESSAGE_LIMIT = 400  # characters of one error line
+
+
+def one_line(text: object, limit: int | None = MESSAGE_LIMIT) -> str:
+    """``text`` on one line (whitespace runs collapsed), cut to at most ``limit`` characters (None: no cut)."""
+    flat = " ".join(str(text).split())
+    return flat if limit is None or len(flat) <= limit else flat[: limit - 3] + "..."
+
 
 class FlowError(Exception):
     """Base class of every error flow_node raises on purpose."""

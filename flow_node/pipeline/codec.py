@@ -23,7 +23,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..core.errors import InputError
+from ..core.errors import InputError, one_line
 
 
 class UnsupportedEncoding(InputError):
@@ -126,7 +126,7 @@ def declared_size(buf: bytes | np.ndarray) -> tuple[int, int] | None:
 
 def cv_reason(exc: BaseException) -> str:
     """The one-line reason of an OpenCV error (its text after ``error:``, without the source location)."""
-    text = " ".join(str(exc).split())
+    text = one_line(exc, None)
     return text.partition(" error: ")[2] or text or type(exc).__name__
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import yaml
 
 from ..core.config import FlowConfig
-from ..core.errors import ConfigError, FileFormatError
+from ..core.errors import ConfigError, FileFormatError, one_line
 
 
 def params_files(args: Sequence[str]) -> list[str]:
@@ -74,4 +74,4 @@ def check_params_files(args: Sequence[str]) -> None:
 def rcl_error_line(exc: Exception) -> str:
     """rcl's error text without its C source locations (", at /path/file.c:123"), on one line."""
     text = re.sub(r",? at [^\s,]+\.c(pp)?:\d+", "", str(exc))
-    return " ".join(text.split())
+    return one_line(text, None)
