@@ -68,19 +68,6 @@ def to_u8(img: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
 
 
-def dis_flow(i0: np.ndarray, i1: np.ndarray, preset: str) -> np.ndarray:
-    """DIS optical flow (OpenCV, ``preset`` a key of DIS_PRESETS) from i0 to i1: (2, H, W) float32."""
-    return np.moveaxis(dis_pair(to_u8(i0), to_u8(i1), preset, backward=False)[0], -1, 0)
-
-
-def dis_pair(u0: np.ndarray, u1: np.ndarray, preset: str,
-             backward: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-    """DIS from uint8 u0 to u1 and (if ``backward``) from u1 to u0: interleaved (H, W, 2) float32 each."""
-    algo = cv2.DISOpticalFlow_create(DIS_PRESETS[preset])
-    fwd = algo.calc(u0, u1, None)
-    return fwd, (algo.calc(u1, u0, None) if backward else None)
-
-
 # OpenCV's DIS refuses frames under 12 px a side (its patches and pyramid); smaller ones get no DIS candidate
 DIS_MIN_SIDE = 16
 
@@ -89,8 +76,9 @@ def dis_candidate(i0: np.ndarray, i1: np.ndarray, preset: str, min_motion: float
     """DIS as a candidate; when its motion will get it fused (:func:`moves_far`), also the backward flow
     for the consistency check (otherwise that second DIS run is saved)."""
     u0, u1 = to_u8(i0), to_u8(i1)
-    fwd = np.moveaxis(dis_pair(u0, u1, preset, backward=False)[0], -1, 0)
-    bwd = np.moveaxis(dis_pair(u1, u0, preset, backward=False)[0], -1, 0) if moves_far(fwd, min_motion) else None
+    algo = cv2.DISOpticalFlow_create(DIS_PRESETS[preset])  # calc without an initial flow: runs independent
+    fwd = np.moveaxis(algo.calc(u0, u1, None), -1, 0)
+    bwd = np.moveaxis(algo.calc(u1, u0, None), -1, 0) if moves_far(fwd, min_motion) else None
     return Candidate(preset, fwd, bwd)
 
 
@@ -189,4 +177,6 @@ def beyond_reach(candidates: list[Candidate], min_motion: float) -> list[Candida
     Middlebury, whose largest motions are ~21 px, fusing DIS anyway costs quality 0.32 -> 0.51 mean AEE:
     DIS is less precise, and a data cost cannot always tell), so only the candidate's computation is
     spent, not accuracy."""
-    return [c for c in candidates if c.name == "initial_flow" or moves_far(c.flow, min_motion)]
+    # a DIS candidate carries a backward flow exactly when dis_candidate found it moves far (same threshold)
+    return [c for c in candidates
+            if c.name == "initial_flow" or c.backward is not None or moves_far(c.flow, min_motion)]
