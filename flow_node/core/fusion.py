@@ -118,9 +118,9 @@ def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
     hence low confidence too.
     """
     f = np.moveaxis(flow, -1, 0)
-    r, inside = warp_residual(i0, i1, f)
-    gx, gy = _grad(i0)
-    g = _box(np.abs(gx) + np.abs(gy), CONFIDENCE_WINDOW)
+    s0 = planes(i0)  # I0 and its gradient: the residual's and the normalisation's
+    r, inside = warp_residual(i0, i1, f, (s0, planes(i1)))
+    g = _box(np.abs(s0[..., 1]) + np.abs(s0[..., 2]), CONFIDENCE_WINDOW)
     err = _box(r, CONFIDENCE_WINDOW) / (g + 1e-3)
     conf = 1.0 / (1.0 + (err / CONFIDENCE_SCALE_PX) ** 2)
     conf[~inside] = 0.0
