@@ -20,6 +20,7 @@ import numpy as np
 from flow_node.core.api import FlowEstimator, to_grey
 from flow_node.core.config import FlowConfig
 from flow_node.core.flowio import read_flo, read_image
+from flow_node.core.initialise import to_u8  # the engine's own conversion; also used by the benches
 from flow_node.core.metrics import aee, angular_error
 
 REPO = Path(__file__).resolve().parent.parent
@@ -51,11 +52,6 @@ def load_middlebury(data: Path, names: tuple[str, ...] = SEQUENCES) -> list[Pair
         i1 = to_grey(read_image(seq / "frame11.png"), "frame11")
         pairs.append(Pair(name, i0, i1, read_flo(seq / "flow10.flo")))
     return pairs
-
-
-def to_u8(img: np.ndarray) -> np.ndarray:
-    """Grey [0, 1] float -> uint8 (rounded), for OpenCV peers."""
-    return np.clip(np.rint(img * 255.0), 0, 255).astype(np.uint8)
 
 
 # ------------------------------------------------------------------------------------------------- peers
