@@ -9,8 +9,11 @@ import pytest
 from synth import constant_flow, interior, pair_from_flow, rotation_flow, texture
 
 from flow_node import FlowConfig, aee
+from flow_node.core import numba_backend
 from flow_node.core.backends import Backend, select_backend
-from flow_node.core.numba_backend import bspline_prefilter_numba, warp_numba
+from flow_node.core.config import GRADIENT_SCHEMES
+from flow_node.core.numba_backend import WARPER, bspline_prefilter_numba, linearise_numba, warp_numba
+from flow_node.core.operators import image_gradient, linearise, warp_source
 from flow_node.core.refine import coarse_to_fine
 from flow_node.core.warping import KERNELS, Warper, bspline_prefilter, warp
 
@@ -68,6 +71,27 @@ def test_numba_warp_matches_the_numpy_reference(kernel: str) -> None:
     assert np.abs(warp_numba(img, map_x, map_y, kernel) - warp(img, map_x, map_y, kernel)).max() < 1e-5
     assert np.abs(warp_numba(img[0], map_x, map_y, kernel) - warp(img[0], map_x, map_y, kernel)).max() < 1e-5
     assert np.abs(bspline_prefilter_numba(img) - bspline_prefilter(img)).max() < 1e-5
+
+
+@pytest.mark.parametrize("scheme", GRADIENT_SCHEMES)
+@pytest.mark.parametrize("kernel", KERNELS)
+@pytest.mark.parametrize("parallel", [False, True])
+def test_numba_linearise_matches_the_numpy_reference(kernel: str, scheme: str, parallel: bool,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """The fused linearisation kernel: a and c as operators.linearise, including the pixels whose target
+    leaves the image (zero there), odd sizes and the parallel rows."""
+    monkeypatch.setattr(numba_backend, "PARALLEL_MIN_PIXELS", 0 if parallel else 10**9)
+    rng = np.random.default_rng(5)
+    i0, i1 = rng.random((2, 31, 45)).astype(np.float32)
+    flow = (2.5 * rng.standard_normal((2, 31, 45))).astype(np.float32)
+    flow[:, 3, :5] = ((-0.5, 0.0, 1e-7, 44.0, -3.0), (0.0, -1e-7, 30.0, 0.0, 31.0))  # on / just off the border
+    src = warp_source(i1, scheme, kernel, WARPER)
+    g0 = image_gradient(i0, scheme) if scheme == "interpolated" else None
+    a_ref, c_ref = linearise(i0, src, g0, flow, scheme, kernel)
+    a, c = linearise_numba(i0, src, g0, flow, scheme, kernel)
+    outside = c_ref == 0
+    assert 0.05 < outside.mean() < 0.5 and np.all(c[outside] == 0) and np.all(a[:, outside] == 0)
+    assert np.abs(a - a_ref).max() < 1e-5 and np.abs(c - c_ref).max() < 1e-5
 
 
 def test_bspline_interpolates_its_samples() -> None:

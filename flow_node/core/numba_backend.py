@@ -2,7 +2,8 @@
 :data:`WARPER`, the compiled :class:`flow_node.core.warping.Warper`.
 
 Same semantics as solver.solve_numpy (scaling E / alpha, update order, stopping rule every CHECK_EVERY
-iterations, Bregman linear term ``problem.b``); the kernels are in numba_kernels.py. Differences that do
+iterations, Bregman linear term ``problem.b``); the kernels are in numba_kernels.py (iteration) and
+numba_warp.py (warp, prefilter, linearisation: :func:`linearise_numba`). Differences that do
 not change results beyond float32 rounding: the state arrays are updated in place (made float32
 C-contiguous first if they are not) and the extrapolated variables v_bar / w_bar live in buffers that are
 reused across calls of the same image size.
@@ -21,6 +22,7 @@ import numba
 import numpy as np
 
 from . import numba_kernels as nk
+from . import numba_warp as nw
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 
@@ -28,6 +30,7 @@ _F32 = np.float32
 PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
 _threads = 0  # 0 = all cores; applied on every solve because numba's thread count is per calling thread
 _buffers: dict[tuple[tuple[int, ...], bool], tuple[np.ndarray, ...]] = {}
+_DUMMY3 = np.zeros((2, 1, 1), _F32)
 _DUMMY4 = np.zeros((2, 2, 1, 1), _F32)
 _DUMMY5 = np.zeros((2, 2, 2, 1, 1), _F32)
 
@@ -107,7 +110,7 @@ def sample_numba(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel:
     flat = src.reshape((-1,) + src.shape[-2:])
     out = np.empty((flat.shape[0],) + map_x.shape, _F32)
     numba.set_num_threads(threads())
-    nk.warp_kernel(flat, _f32c(map_x), _f32c(map_y), KERNEL_CODES[kernel], out,
+    nw.warp_kernel(flat, _f32c(map_x), _f32c(map_y), KERNEL_CODES[kernel], out,
                    threads() > 1 and map_x.size >= PARALLEL_MIN_PIXELS)
     return out.reshape(coef.shape[:-2] + map_x.shape)
 
@@ -119,9 +122,22 @@ def bspline_prefilter_numba(img: np.ndarray) -> np.ndarray:
     flat = out.reshape(-1)
     numba.set_num_threads(threads())
     parallel = threads() > 1 and flat.size >= PARALLEL_MIN_PIXELS
-    nk.bspline_lines(flat, h, h * w, w, 1, w, BSPLINE_POLE, min(w, HORIZON), parallel)  # rows
-    nk.bspline_lines(flat, w, h * w, 1, w, h, BSPLINE_POLE, min(h, HORIZON), parallel)  # columns
+    nw.bspline_lines(flat, h, h * w, w, 1, w, BSPLINE_POLE, min(w, HORIZON), parallel)  # rows
+    nw.bspline_columns(out.reshape((-1, h, w)), BSPLINE_POLE, min(h, HORIZON))  # columns, row by row
     return out
+
+
+def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | None, flow0: np.ndarray, scheme: str,
+                    kernel: str = "bspline", warper: Warper | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """operators.linearise with one fused kernel (``warper`` is not used: the kernel samples itself)."""
+    h, w = i0.shape
+    a = np.empty((2, h, w), _F32)
+    c = np.empty((h, w), _F32)
+    interpolated = scheme == "interpolated"
+    numba.set_num_threads(threads())
+    nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),
+                        KERNEL_CODES[kernel], interpolated, a, c, threads() > 1 and h * w >= PARALLEL_MIN_PIXELS)
+    return a, c
 
 
 WARPER = Warper(sample_numba, bspline_prefilter_numba)

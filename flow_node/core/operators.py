@@ -10,6 +10,8 @@ Image derivatives (the paper's Table 2 schemes) are separate from ``grad``: they
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from .warping import NUMPY_WARPER, Warper
@@ -77,6 +79,10 @@ def warp_source(i1: np.ndarray, scheme: str, kernel: str, warper: Warper = NUMPY
     gradient (away from the one-pixel border) at a third of the prefilter's cost."""
     coef = warper.coefficients(i1, kernel)
     return np.concatenate([coef[None], image_gradient(coef, scheme)])
+
+
+# linearise(i0, source1, grad_i0, flow0, scheme, kernel, warper) -> (a, c): :func:`linearise` or a backend's
+Linearise = Callable[..., tuple[np.ndarray, np.ndarray]]
 
 
 def linearise(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | None, flow0: np.ndarray, scheme: str,

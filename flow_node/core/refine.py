@@ -19,7 +19,7 @@ from .bregman import bregman
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
-from .operators import image_gradient, linearise, warp_source
+from .operators import image_gradient, warp_source
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
 
@@ -74,7 +74,7 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     g0 = image_gradient(i0, cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
     iterations = 0
     for _ in range(cfg.warps):
-        a, c = linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
+        a, c = backend.linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
         iterations += backend.solve(Problem(a, c), state, params)
         if cfg.median_filter:
             state.v = median_filter(state.v, cfg.median_filter)

@@ -17,7 +17,7 @@ Kernels (``KERNELS``), separable, four taps per axis at offsets -1, 0, 1, 2 of f
 
 Taps beyond the border read the mirror image (whole-sample symmetric, the boundary the prefilter
 assumes, so the B-spline interpolates up to the last pixel); positions outside the image are masked out
-(:func:`flow_node.core.operators.warp_maps`). The numba kernel (numba_kernels.warp_kernel) implements the
+(:func:`flow_node.core.operators.warp_maps`). The numba kernel (numba_warp.warp_kernel) implements the
 same arithmetic and matches this reference to ~1e-6 (test_warping.py).
 """
 

@@ -1,0 +1,210 @@
+"""numba kernels of the warp: the cubic sample (warping.sample_coefficients), the B-spline prefilter
+(warping.bspline_prefilter) and the whole linearisation of one warp (operators.linearise) in one pass.
+
+Same arithmetic as the numpy references (the oracles, test_warping.py / test_numba_backend.py). A sample
+position's taps and weights are computed once (:func:`taps`) and shared by every channel sampled there
+(:func:`tap_sum`): the linearisation samples I1 and both components of its gradient at x + v0 with the
+same 4 x 4 taps, forms a and c, and masks the pixels whose target leaves the image -- one pass over the
+level instead of a dozen numpy passes and temporaries.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from .numba_kernels import _JIT, _ONE  # first: sets OMP_WAIT_POLICY before numba's threading layer loads
+
+_HALF = np.float32(0.5)
+
+
+@njit(**_JIT)
+def cubic_weights4(t, kernel):  # noqa: ANN001, ANN201
+    """Tap weights at offsets -1, 0, 1, 2 for the fraction t (warping.cubic_weights): kernel 0 = Keys
+    a = -1/2, 1 = cubic B-spline."""
+    s = _ONE - t
+    if kernel == 0:  # Keys a = -1/2 written per tap (the same polynomials, expanded)
+        h = _HALF
+        return (h * t * (-s * s), _ONE + t * t * (np.float32(1.5) * t - np.float32(2.5)),
+                _ONE + s * s * (np.float32(1.5) * s - np.float32(2.5)), h * s * (-t * t))
+    sixth = np.float32(1.0 / 6.0)
+    return (sixth * s * s * s, np.float32(2.0 / 3.0) - t * t * (_ONE - _HALF * t),
+            np.float32(2.0 / 3.0) - s * s * (_ONE - _HALF * s), sixth * t * t * t)
+
+
+@njit(**_JIT)
+def _floor(x):  # noqa: ANN001, ANN201
+    """floor of a float32 as an int64, without math.floor's float64 round trip."""
+    i = np.int64(x)
+    return i - 1 if x < i else i
+
+
+@njit(**_JIT)
+def _mirror(i, n):  # noqa: ANN001, ANN201
+    """warping.mirror_index for one index."""
+    i = -i if i < 0 else i
+    i = 2 * (n - 1) - i if i > n - 1 else i
+    return min(max(i, 0), n - 1)
+
+
+@njit(**_JIT)
+def _tap_indices(i0, n):  # noqa: ANN001, ANN201
+    """The four tap indices i0 - 1 .. i0 + 2, mirrored at the borders (interior: no reflection)."""
+    if i0 >= 1 and i0 + 2 < n:
+        return i0 - 1, i0, i0 + 1, i0 + 2
+    return _mirror(i0 - 1, n), _mirror(i0, n), _mirror(i0 + 1, n), _mirror(i0 + 2, n)
+
+
+@njit(**_JIT)
+def taps(mx, my, h, w, kernel):  # noqa: ANN001, ANN201
+    """Weights and indices of the 4 x 4 taps around (mx, my) in an (h, w) image: (wx, wy, cols, rows)."""
+    xi, yi = _floor(mx), _floor(my)
+    return (cubic_weights4(mx - np.float32(xi), kernel), cubic_weights4(my - np.float32(yi), kernel),
+            _tap_indices(xi, w), _tap_indices(yi, h))
+
+
+@njit(**_JIT)
+def tap_sum(img, ch, wx, wy, cols, rows):  # noqa: ANN001, ANN201
+    """sum of weight * img[ch] over the taps of :func:`taps` (rows outer, as warping.sample_coefficients)."""
+    c0, c1, c2, c3 = cols
+    r0, r1, r2, r3 = rows
+    wx0, wx1, wx2, wx3 = wx
+    wy0, wy1, wy2, wy3 = wy
+    return (wy0 * (wx0 * img[ch, r0, c0] + wx1 * img[ch, r0, c1] + wx2 * img[ch, r0, c2] + wx3 * img[ch, r0, c3])
+            + wy1 * (wx0 * img[ch, r1, c0] + wx1 * img[ch, r1, c1] + wx2 * img[ch, r1, c2] + wx3 * img[ch, r1, c3])
+            + wy2 * (wx0 * img[ch, r2, c0] + wx1 * img[ch, r2, c1] + wx2 * img[ch, r2, c2] + wx3 * img[ch, r2, c3])
+            + wy3 * (wx0 * img[ch, r3, c0] + wx1 * img[ch, r3, c1] + wx2 * img[ch, r3, c2] + wx3 * img[ch, r3, c3]))
+
+
+@njit(**_JIT)
+def _warp_row(img, map_x, map_y, kernel, out, i):  # noqa: ANN001, ANN201
+    """Row i of :func:`warp_kernel`."""
+    h, w = img.shape[1], img.shape[2]
+    for j in range(map_x.shape[1]):
+        wx, wy, cols, rows = taps(map_x[i, j], map_y[i, j], h, w, kernel)
+        for ch in range(img.shape[0]):
+            out[ch, i, j] = tap_sum(img, ch, wx, wy, cols, rows)
+
+
+@njit(parallel=True, **_JIT)
+def warp_kernel(img, map_x, map_y, kernel, out, parallel):  # noqa: ANN001, ANN201
+    """out[c, i, j] = separable cubic sample of img[c] (C, H, W) at (map_x, map_y)[i, j], mirrored taps;
+    rows in parallel when ``parallel`` (else serial: cheaper on small levels)."""
+    if parallel:
+        for i in prange(map_x.shape[0]):
+            _warp_row(img, map_x, map_y, kernel, out, i)
+    else:
+        for i in range(map_x.shape[0]):
+            _warp_row(img, map_x, map_y, kernel, out, i)
+
+
+@njit(**_JIT)
+def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i):  # noqa: ANN001, ANN201
+    """Row i of :func:`linearise_kernel`."""
+    h, w = i0.shape
+    right, bottom = np.float32(w - 1), np.float32(h - 1)
+    for j in range(w):
+        u, v = flow[0, i, j], flow[1, i, j]
+        mx, my = np.float32(j) + u, np.float32(i) + v
+        if not (mx >= 0 and mx <= right and my >= 0 and my <= bottom):  # target outside: no data term
+            a[0, i, j] = 0
+            a[1, i, j] = 0
+            c[i, j] = 0
+            continue
+        wx, wy, cols, rows = taps(mx, my, h, w, kernel)
+        i1w = tap_sum(src, 0, wx, wy, cols, rows)
+        a0 = tap_sum(src, 1, wx, wy, cols, rows)
+        a1 = tap_sum(src, 2, wx, wy, cols, rows)
+        if interpolated:
+            a0 = _HALF * (g0[0, i, j] + a0)
+            a1 = _HALF * (g0[1, i, j] + a1)
+        a[0, i, j] = a0
+        a[1, i, j] = a1
+        c[i, j] = i1w - i0[i, j] - a0 * u - a1 * v
+
+
+@njit(parallel=True, **_JIT)
+def linearise_kernel(i0, src, g0, flow, kernel, interpolated, a, c, parallel):  # noqa: ANN001, ANN201
+    """operators.linearise in one pass: a (2, H, W) and c (H, W) of the data term linearised around flow
+    (2, H, W), from i0 (H, W), the warp source src (3, H, W) = coefficients of [I1, dI1/dx, dI1/dy] and,
+    when ``interpolated``, frame 0's gradient g0 (2, H, W) (else a dummy, not read). Rows in parallel when
+    ``parallel``."""
+    if parallel:
+        for i in prange(i0.shape[0]):
+            _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i)
+    else:
+        for i in range(i0.shape[0]):
+            _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i)
+
+
+@njit(**_JIT)
+def _bspline_line(flat, base, step, length, pole, horizon):  # noqa: ANN001, ANN201
+    """In place: the direct transform of one line (``length`` elements ``step`` apart from ``base``)."""
+    z = pole
+    acc = 0.0
+    zk = 1.0
+    for k in range(horizon):  # mirrored causal start: sum z^k s[k]
+        acc += zk * 6.0 * flat[base + k * step]
+        zk *= z
+    prev = acc
+    flat[base] = prev
+    for k in range(1, length):
+        prev = 6.0 * flat[base + k * step] + z * prev
+        flat[base + k * step] = prev
+    last = base + (length - 1) * step
+    prev = (z / (z * z - 1.0)) * (flat[last] + z * flat[last - step])
+    flat[last] = prev
+    for k in range(length - 2, -1, -1):
+        prev = z * (prev - flat[base + k * step])
+        flat[base + k * step] = prev
+
+
+@njit(parallel=True, **_JIT)
+def bspline_lines(flat, per_plane, plane, line_step, step, length, pole, horizon, parallel):  # noqa: ANN001, ANN201
+    """In place: the cubic B-spline direct transform (warping.bspline_prefilter) of every line of a
+    flattened (N, H, W) array; line l starts at (l // per_plane) * plane + (l % per_plane) * line_step and
+    has ``length`` elements ``step`` apart (rows: step 1; columns: step W). Accumulates in float64; lines in
+    parallel when ``parallel``."""
+    if length == 1:
+        return
+    lines = flat.shape[0] // plane * per_plane
+    if parallel:
+        for line in prange(lines):
+            _bspline_line(flat, (line // per_plane) * plane + (line % per_plane) * line_step, step, length, pole,
+                          horizon)
+    else:
+        for line in range(lines):
+            _bspline_line(flat, (line // per_plane) * plane + (line % per_plane) * line_step, step, length, pole,
+                          horizon)
+
+
+@njit(**_JIT)
+def bspline_columns(img, pole, horizon):  # noqa: ANN001, ANN201
+    """In place: the B-spline direct transform of every column of each plane of img (N, H, W), run over
+    whole rows (unit stride: one strided line per column misses the cache on every element). The same
+    recursion as :func:`_bspline_line`; the carried row is read back as float32."""
+    n, h, w = img.shape
+    if h == 1:
+        return
+    z = np.float32(pole)
+    six = np.float32(6.0)
+    end = np.float32(pole / (pole * pole - 1.0))
+    acc = np.empty(w, np.float64)
+    for p in range(n):
+        plane = img[p]
+        acc[:] = 0.0
+        zk = 1.0
+        for k in range(horizon):  # mirrored causal start
+            for j in range(w):
+                acc[j] += zk * 6.0 * plane[k, j]
+            zk *= pole
+        for j in range(w):
+            plane[0, j] = acc[j]
+        for k in range(1, h):
+            for j in range(w):
+                plane[k, j] = six * plane[k, j] + z * plane[k - 1, j]
+        for j in range(w):
+            plane[h - 1, j] = end * (plane[h - 1, j] + z * plane[h - 2, j])
+        for k in range(h - 2, -1, -1):
+            for j in range(w):
+                plane[k, j] = z * (plane[k + 1, j] - plane[k, j])
