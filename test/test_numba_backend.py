@@ -23,8 +23,9 @@ from flow_node.core.backends import select_backend
 from flow_node.core.config import MODELS, FlowConfig
 from flow_node.core.errors import ConfigError
 from flow_node.core.models import MODEL_SPECS
-from flow_node.core.numba_backend import WARPER, linearise_numba, solve_numba
+from flow_node.core.numba_backend import WARPER, linearise_numba, reliability_numba, solve_numba
 from flow_node.core.operators import linearise
+from flow_node.core.photometric import reliability
 from flow_node.core.solver import CHECK_EVERY, PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.warping import NUMPY_WARPER
 
@@ -201,9 +202,9 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
 
 def test_backend_selection_and_log() -> None:
     with flow_node_log(logging.INFO) as records:
-        assert select_backend("numpy") == ("numpy", solve_numpy, NUMPY_WARPER, linearise)
-        assert select_backend("auto") == ("numba", solve_numba, WARPER, linearise_numba)
-        assert select_backend("numba") == ("numba", solve_numba, WARPER, linearise_numba)
+        assert select_backend("numpy") == ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability)
+        assert select_backend("auto") == ("numba", solve_numba, WARPER, linearise_numba, reliability_numba)
+        assert select_backend("numba") == ("numba", solve_numba, WARPER, linearise_numba, reliability_numba)
     lines = [r.getMessage() for r in records]
     assert len(lines) == 3
     assert lines[0].startswith("flow_node backend: numpy")
@@ -217,7 +218,7 @@ def test_fallback_when_numba_is_missing(monkeypatch: pytest.MonkeyPatch) -> None
     monkeypatch.setitem(sys.modules, "flow_node.core.numba_backend", None)  # import now raises ImportError
     monkeypatch.delattr(core, "numba_backend")
     with flow_node_log(logging.WARNING) as records:
-        assert select_backend("auto") == ("numpy", solve_numpy, NUMPY_WARPER, linearise)
+        assert select_backend("auto") == ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability)
     assert [r.levelno for r in records] == [logging.WARNING]
     assert "numba not importable" in records[0].getMessage()
     with pytest.raises(ConfigError, match="numba"):

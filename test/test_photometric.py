@@ -8,7 +8,9 @@ import pytest
 from synth import constant_flow, interior, pair_from_flow, rotation_flow, texture
 
 from flow_node import FlowConfig, FlowEstimator, aee
-from flow_node.core.photometric import UNRELIABLE, exposure_change, preprocess, reliability, sorted_sample
+from flow_node.core.backends import select_backend
+from flow_node.core.numba_backend import reliability_numba
+from flow_node.core.photometric import UNRELIABLE, exposure_change, line_fit, preprocess, reliability, sorted_sample
 
 H, W = 60, 80
 GT = constant_flow(H, W, 1.2, -0.7) + rotation_flow(H, W, 1.5)
@@ -75,7 +77,9 @@ def test_unchanged_pairs_are_not_exposure_corrected(pair) -> None:
     assert gain == pytest.approx(0.8, abs=0.02) and offset == pytest.approx(0.016, abs=0.01)
 
 
-def test_reliability_tells_matching_flow_from_garbage(pair) -> None:
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_reliability_tells_matching_flow_from_garbage(pair, backend: str) -> None:
+    reliability = select_backend(backend).reliability
     p0, p1 = preprocess(*pair, "normalise")
     assert reliability(p0, p1, GT) < 0.05
     assert reliability(p0, p1, -GT) > UNRELIABLE  # wrong sign
@@ -93,3 +97,24 @@ def test_normalise_maps_the_robust_range_of_the_pair(pair) -> None:
         lo, hi = np.mean([np.percentile(a, (2, 98)), np.percentile(b, (2, 98))], axis=0)
         assert lo == pytest.approx(0.0, abs=0.02) and hi == pytest.approx(1.0, abs=0.02)
     assert np.array_equal(preprocess(i0, i1, "none")[0], i0)
+
+
+def test_line_fit_is_the_least_squares_line() -> None:
+    """The closed-form fit of exposure_change against numpy's least squares (np.polyfit degree 1)."""
+    rng = np.random.default_rng(8)
+    x = np.sort(rng.random(19))
+    y = 1.3 * x - 0.05 + 0.01 * rng.standard_normal(19)
+    assert np.allclose(line_fit(x, y), np.polyfit(x, y, 1), rtol=0, atol=1e-12)
+
+
+def test_numba_reliability_matches_the_numpy_reference(pair) -> None:
+    """The fused count (numba_warp.unexplained_kernel) against photometric.reliability: flows that leave
+    the frame in parts, odd sizes (the stride's last row/column), a residual spread around the threshold."""
+    p0, p1 = preprocess(*pair, "normalise")
+    rng = np.random.default_rng(9)
+    for scale in (0.5, 3.0, 12.0):
+        flow = (GT + scale * rng.standard_normal(GT.shape)).astype(np.float32)
+        for crop in (np.s_[:, :], np.s_[1:, :-1]):
+            ref = reliability(p0[crop], p1[crop], flow[crop])
+            assert 0.0 < ref < 1.0
+            assert reliability_numba(p0[crop], p1[crop], flow[crop]) == pytest.approx(ref, abs=2e-3)

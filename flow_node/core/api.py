@@ -13,7 +13,6 @@ from .backends import select_backend
 from .config import FlowConfig
 from .engine import estimate_pair
 from .errors import InputError, NonFiniteResult
-from .photometric import reliability
 from .refine import SolveStats
 
 log = logging.getLogger("flow_node")
@@ -148,7 +147,7 @@ class FlowEstimator:
         start = time.perf_counter()
         flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
         ensure_finite(flow)
-        unexplained = reliability(*normalised, flow, self._backend.warper.sample)
+        unexplained = self._backend.reliability(*normalised, flow)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
 

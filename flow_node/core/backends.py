@@ -8,6 +8,7 @@ from typing import NamedTuple
 
 from .errors import ConfigError
 from .operators import Linearise, linearise
+from .photometric import Reliability, reliability
 from .solver import LevelSolver, solve_numpy
 from .warping import NUMPY_WARPER, Warper
 
@@ -15,13 +16,15 @@ log = logging.getLogger("flow_node")
 
 
 class Backend(NamedTuple):
-    """A resolved backend: its name, the level solver, the warper and the linearisation of one warp (same
-    semantics in every backend; the default linearisation is the numpy reference on ``warper``)."""
+    """A resolved backend: its name, the level solver, the warper, the linearisation of one warp and the
+    reliability figure (same semantics in every backend; the defaults are the numpy references, the
+    linearisation on ``warper``)."""
 
     name: str
     solve: LevelSolver
     warper: Warper
     linearise: Linearise = linearise
+    reliability: Reliability = reliability
 
 
 NUMPY = Backend("numpy", solve_numpy, NUMPY_WARPER)
@@ -73,4 +76,5 @@ def select_backend(name: str, threads: int = 0) -> Backend:
     used = numba_backend.set_threads(threads)
     log.info("flow_node backend: numba (%d thread%s, kernel cache %s)", used, "" if used == 1 else "s",
              numba_backend.cache_dir())
-    return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER, numba_backend.linearise_numba)
+    return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER, numba_backend.linearise_numba,
+                   numba_backend.reliability_numba)

@@ -108,6 +108,8 @@ class FlowConfig:
     scale_factor: float = _f(0.5, "pyramid downscale factor between levels", lo=0.2, hi=0.95)
     min_size: int = _f(16, "smallest image side allowed on the coarsest level (px)", lo=4, hi=100000)
     warps: int = _f(5, "warps (re-linearisations) per pyramid level", lo=1, hi=100)
+    finest_warps: int = _f(0, "warps on the finest solved level (0 = warps): the level's flow starts from the "
+                           "next coarser level's, and each warp there costs the most", lo=0, hi=100)
     finest_level: int = _f(0, "finest pyramid level solved (0 = full resolution); the flow of that level is "
                            "upsampled to full resolution (like DIS's finest_scale)", lo=0, hi=29)
     median_filter: int = _f(5, "median filter size applied to the flow after each warp (0 = off)",
@@ -292,13 +294,13 @@ PRESETS: dict[str, dict[str, Any]] = {
     # 10-16 bit (tune split, 6 seeds: 16-bit mean 0.183, max 0.98; 8-bit 0.048), 3 x 13 gives 0.027 / 0.028
     # (max 0.063), Middlebury 0.380 (0.382), at no extra time. The measured frontier is in
     # BENCHMARKS.md; neither reaches DIS's time at its accuracy.
-    "realtime": dict(model="l1_tv", alpha=0.04, iterations=13, warps=3, levels=5, finest_level=0,
+    "realtime": dict(model="l1_tv", alpha=0.04, iterations=4, warps=4, finest_warps=1, levels=5, finest_level=0,
                      median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
     # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
     # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
     # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
-    "fastest": dict(model="l1_tv", alpha=0.05, iterations=8, warps=2, levels=5, finest_level=1,
-                    median_filter=3, gradient_scheme="interpolated", tolerance=0.0),
+    "fastest": dict(model="l1_tv", alpha=0.05, iterations=3, warps=4, levels=5, finest_level=1,
+                    median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
 }
 
 

@@ -18,16 +18,20 @@ Importing this module raises ImportError when numba is not installed; backends.p
 
 from __future__ import annotations
 
+import cv2
 import numba
 import numpy as np
 
 from . import numba_kernels as nk
 from . import numba_warp as nw
+from .photometric import RELIABILITY_STRIDE, RESIDUAL_OUTLIER
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 
 _F32 = np.float32
 PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
+# the linearisation costs ~10 primal-dual iterations per pixel in one pass: worth the threads on smaller levels
+LINEARISE_PARALLEL_MIN_PIXELS = 20_000
 _threads = 0  # 0 = all cores; applied on every solve because numba's thread count is per calling thread
 _buffers: dict[tuple[tuple[int, ...], bool], tuple[np.ndarray, ...]] = {}
 _DUMMY3 = np.zeros((2, 1, 1), _F32)
@@ -116,15 +120,18 @@ def sample_numba(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel:
 
 
 def bspline_prefilter_numba(img: np.ndarray) -> np.ndarray:
-    """warping.bspline_prefilter with the numba kernel: B-spline coefficients of img (..., H, W), float32."""
-    out = np.array(img, dtype=_F32, order="C", copy=True)
-    h, w = out.shape[-2:]
-    flat = out.reshape(-1)
-    numba.set_num_threads(threads())
-    parallel = threads() > 1 and flat.size >= PARALLEL_MIN_PIXELS
-    nw.bspline_lines(flat, h, h * w, w, 1, w, BSPLINE_POLE, min(w, HORIZON), parallel)  # rows
-    nw.bspline_columns(out.reshape((-1, h, w)), BSPLINE_POLE, min(h, HORIZON))  # columns, row by row
-    return out
+    """warping.bspline_prefilter with the numba kernel: B-spline coefficients of img (..., H, W), float32.
+
+    Both axes run the column kernel over whole rows (unit stride, vectorised): the row pass on the
+    transposed planes (a recursion along each row is latency-bound, one element at a time)."""
+    shape = np.shape(img)
+    h, w = shape[-2:]
+    planes = np.asarray(img, dtype=_F32).reshape((-1, h, w))
+    rows = np.stack([cv2.transpose(p) for p in planes])  # (N, W, H): rows as columns
+    nw.bspline_columns(rows, BSPLINE_POLE, min(w, HORIZON))
+    out = np.stack([cv2.transpose(p) for p in rows])
+    nw.bspline_columns(out, BSPLINE_POLE, min(h, HORIZON))
+    return out.reshape(shape)
 
 
 def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | None, flow0: np.ndarray, scheme: str,
@@ -135,9 +142,18 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
     c = np.empty((h, w), _F32)
     interpolated = scheme == "interpolated"
     numba.set_num_threads(threads())
+    parallel = threads() > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS
     nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),
-                        KERNEL_CODES[kernel], interpolated, a, c, threads() > 1 and h * w >= PARALLEL_MIN_PIXELS)
+                        KERNEL_CODES[kernel], interpolated, a, c, parallel)
     return a, c
+
+
+def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> float:
+    """photometric.reliability with one fused kernel (same sampling, threshold and stride)."""
+    h, w = i0.shape
+    inside, bad = nw.unexplained_kernel(_f32c(i0), _f32c(i1).reshape((1, h, w)), _f32c(flow), RELIABILITY_STRIDE,
+                                        _F32(RESIDUAL_OUTLIER))
+    return bad / inside if inside else 1.0
 
 
 WARPER = Warper(sample_numba, bspline_prefilter_numba)

@@ -1,5 +1,6 @@
 """numba kernels of the warp: the cubic sample (warping.sample_coefficients), the B-spline prefilter
-(warping.bspline_prefilter) and the whole linearisation of one warp (operators.linearise) in one pass.
+(warping.bspline_prefilter), the whole linearisation of one warp (operators.linearise) in one pass, and the
+count behind photometric.reliability.
 
 Same arithmetic as the numpy references (the oracles, test_warping.py / test_numba_backend.py). A sample
 position's taps and weights are computed once (:func:`taps`) and shared by every channel sampled there
@@ -138,47 +139,6 @@ def linearise_kernel(i0, src, g0, flow, kernel, interpolated, a, c, parallel):  
 
 
 @njit(**_JIT)
-def _bspline_line(flat, base, step, length, pole, horizon):  # noqa: ANN001, ANN201
-    """In place: the direct transform of one line (``length`` elements ``step`` apart from ``base``)."""
-    z = pole
-    acc = 0.0
-    zk = 1.0
-    for k in range(horizon):  # mirrored causal start: sum z^k s[k]
-        acc += zk * 6.0 * flat[base + k * step]
-        zk *= z
-    prev = acc
-    flat[base] = prev
-    for k in range(1, length):
-        prev = 6.0 * flat[base + k * step] + z * prev
-        flat[base + k * step] = prev
-    last = base + (length - 1) * step
-    prev = (z / (z * z - 1.0)) * (flat[last] + z * flat[last - step])
-    flat[last] = prev
-    for k in range(length - 2, -1, -1):
-        prev = z * (prev - flat[base + k * step])
-        flat[base + k * step] = prev
-
-
-@njit(parallel=True, **_JIT)
-def bspline_lines(flat, per_plane, plane, line_step, step, length, pole, horizon, parallel):  # noqa: ANN001, ANN201
-    """In place: the cubic B-spline direct transform (warping.bspline_prefilter) of every line of a
-    flattened (N, H, W) array; line l starts at (l // per_plane) * plane + (l % per_plane) * line_step and
-    has ``length`` elements ``step`` apart (rows: step 1; columns: step W). Accumulates in float64; lines in
-    parallel when ``parallel``."""
-    if length == 1:
-        return
-    lines = flat.shape[0] // plane * per_plane
-    if parallel:
-        for line in prange(lines):
-            _bspline_line(flat, (line // per_plane) * plane + (line % per_plane) * line_step, step, length, pole,
-                          horizon)
-    else:
-        for line in range(lines):
-            _bspline_line(flat, (line // per_plane) * plane + (line % per_plane) * line_step, step, length, pole,
-                          horizon)
-
-
-@njit(**_JIT)
 def bspline_columns(img, pole, horizon):  # noqa: ANN001, ANN201
     """In place: the B-spline direct transform of every column of each plane of img (N, H, W), run over
     whole rows (unit stride: one strided line per column misses the cache on every element). The same
@@ -208,3 +168,22 @@ def bspline_columns(img, pole, horizon):  # noqa: ANN001, ANN201
         for k in range(h - 2, -1, -1):
             for j in range(w):
                 plane[k, j] = z * (plane[k + 1, j] - plane[k, j])
+
+
+@njit(**_JIT)
+def unexplained_kernel(i0, i1, flow, stride, threshold):  # noqa: ANN001, ANN201
+    """photometric.reliability's counts in one pass: over every ``stride``-th pixel of i0 (H, W) whose target
+    x + flow (flow (H, W, 2)) stays inside, how many there are and how many have |I1(x + flow) - I0(x)| >
+    ``threshold`` (I1 (1, H, W) sampled with the Keys kernel, no prefilter). -> (inside, unexplained)."""
+    h, w = i0.shape
+    right, bottom = np.float32(w - 1), np.float32(h - 1)
+    inside = 0
+    bad = 0
+    for i in range(0, h, stride):
+        for j in range(0, w, stride):
+            mx, my = np.float32(j) + flow[i, j, 0], np.float32(i) + flow[i, j, 1]
+            if mx >= 0 and mx <= right and my >= 0 and my <= bottom:
+                wx, wy, cols, rows = taps(mx, my, h, w, 0)
+                inside += 1
+                bad += abs(tap_sum(i1, 0, wx, wy, cols, rows) - i0[i, j]) > threshold
+    return inside, bad

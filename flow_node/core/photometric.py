@@ -33,6 +33,8 @@ frames. The node WARNs above UNRELIABLE (docs/node.md).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -83,10 +85,18 @@ def exposure_change(s0: np.ndarray, s1: np.ndarray) -> tuple[float, float]:
     ok = (np.minimum(q0, q1) > CLIP_MARGIN) & (np.maximum(q0, q1) < 1.0 - CLIP_MARGIN)
     if ok.sum() < 3 or np.ptp(q1[ok]) <= MIN_SPAN:
         return 1.0, 0.0
-    gain, offset = np.polyfit(q1[ok], q0[ok], 1)
+    gain, offset = line_fit(q1[ok], q0[ok])
     if abs(gain - 1.0) < EXPOSURE_DEAD_ZONE:
         return 1.0, 0.0
     return float(gain), float(offset)
+
+
+def line_fit(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares (slope, intercept) of y ~ slope * x + intercept in closed form (np.polyfit's degree-1
+    answer without its SVD: ~30x cheaper on the 19 quantiles here). x must not be constant."""
+    xm, ym = x.mean(), y.mean()
+    slope = float(np.dot(x - xm, y - ym) / np.dot(x - xm, x - xm))
+    return slope, float(ym - slope * xm)
 
 
 def quantisation_step(ordered: np.ndarray) -> float:
@@ -181,15 +191,18 @@ def solver_images(n0: np.ndarray, n1: np.ndarray, mode: str) -> tuple[np.ndarray
     return n0, n1
 
 
+# reliability(i0, i1, flow) -> unexplained fraction: :func:`reliability` or a backend's fused kernel
+Reliability = Callable[[np.ndarray, np.ndarray, np.ndarray], float]
+
+
 def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients) -> float:
     """Fraction of pixels the flow does not explain: |I1(x + flow) - I0(x)| > RESIDUAL_OUTLIER on every
     RELIABILITY_STRIDE-th pixel whose target stays inside the frame (i0, i1 preprocessed (H, W); flow
     (H, W, 2) px). 0 = every sampled pixel explained, 1 = none. Uses the Keys kernel (no prefilter)."""
     h, w = i0.shape
     s = RELIABILITY_STRIDE
-    ys, xs = np.mgrid[0:h:s, 0:w:s].astype(np.float32)
-    map_x = xs + flow[::s, ::s, 0]
-    map_y = ys + flow[::s, ::s, 1]
+    map_x = np.arange(0, w, s, dtype=np.float32)[None, :] + flow[::s, ::s, 0]
+    map_y = np.arange(0, h, s, dtype=np.float32)[:, None] + flow[::s, ::s, 1]
     inside = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
     if not inside.any():
         return 1.0
