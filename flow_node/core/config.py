@@ -110,6 +110,8 @@ class FlowConfig:
     warps: int = _f(5, "warps (re-linearisations) per pyramid level", lo=1, hi=100)
     finest_warps: int = _f(0, "warps on the finest solved level (0 = warps): the level's flow starts from the "
                            "next coarser level's, and each warp there costs the most", lo=0, hi=100)
+    finest_iterations: int = _f(0, "primal-dual iterations per warp on the finest solved level (0 = iterations)",
+                                lo=0, hi=100000)
     finest_level: int = _f(0, "finest pyramid level solved (0 = full resolution); the flow of that level is "
                            "upsampled to full resolution (like DIS's finest_scale)", lo=0, hi=29)
     median_filter: int = _f(5, "median filter size applied to the flow after each warp (0 = off)",
@@ -281,24 +283,23 @@ PRESETS: dict[str, dict[str, Any]] = {
     "balanced": dict(model="l1_tv", alpha=0.03, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0),
-    # realtime/fastest (re-tuned for issue 11): solving only down to half/quarter size (finest_level 1/2, like
-    # DIS) loses sub-pixel fine texture entirely (realtime 0.18-0.21, fastest 0.82-1.06 AEE on the suite's
-    # fine textures against DIS medium 0.053 / ultrafast 0.16). realtime now solves at full resolution, which
-    # about meets DIS medium's AEE on fine textures (tune split: 0.060 at alpha 0.03, 0.048 at 0.05; DIS
-    # medium ~0.05 per pair) and Middlebury <= 0.45 (0.408 at 0.03, 0.452 at 0.05: alpha 0.04 between them;
-    # 4 levels instead of 5: 0.68, Urban's motions need the fifth) at ~3x DIS medium's time; fastest takes
-    # the former realtime's place (half size): 0.19 on fine textures (DIS ultrafast 0.16) at ~4x its time,
-    # Middlebury 0.59. realtime 20 iterations per warp (was 10): at 10 it is unconverged (its fine-texture AEE
-    # was 0.06 at 8 bit and 0.11 at 10-16 bit on a rotation; 0.022 at 20) for +15 % time; then 3 warps x 13
-    # (the same iterations per level): 2 x 20 still converged to a wrong flow on the finest texture band at
-    # 10-16 bit (tune split, 6 seeds: 16-bit mean 0.183, max 0.98; 8-bit 0.048), 3 x 13 gives 0.027 / 0.028
-    # (max 0.063), Middlebury 0.380 (0.382), at no extra time. The measured frontier is in
-    # BENCHMARKS.md; neither reaches DIS's time at its accuracy.
-    "realtime": dict(model="l1_tv", alpha=0.04, iterations=4, warps=4, finest_warps=1, levels=5, finest_level=0,
-                     median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
+    # realtime/fastest (re-tuned for speed, issue 11; BENCHMARKS.md "realtime and fastest at DIS's time"). With the
+    # fused numba linearisation one warp costs about 10-13 primal-dual iterations at the same size, and on the
+    # suite's fine textures many warps of few iterations beat few long ones (tune split, realtime candidates:
+    # 2 warps x 6 iterations 0.031 AEE, 2 x 10 0.049, 1 x 20 0.098; the iterations converge to the linearised
+    # problem's minimiser, which on a texture of 3-6 px period is a poor one far from the flow). Hence
+    # realtime: 4 warps x 6 iterations on the coarse levels and one warp of 16 iterations at full resolution
+    # (the level that costs: finest_warps / finest_iterations), 0.023 AEE on fine textures at ~2x DIS medium's
+    # time (3 x 13 everywhere: 0.021 at 3.3-3.8x); Middlebury (8 pairs) 0.43 (3 x 13: 0.38; 4 x 4 with a
+    # 4-iteration finest warp: 0.48, the real frames want iterations at full size). fastest: half size
+    # (finest_level 1, as before) with 4 warps x 3 iterations and the 5x5 median (was 2 x 8, 3x3): fine
+    # textures 0.19 -> 0.033-0.036 AEE (DIS medium 0.05, ultrafast 0.16) at ~1-1.3x DIS medium's time,
+    # Middlebury unchanged (0.51 on the tune run's 3 pairs). Neither reaches its time target (BENCHMARKS.md).
     # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
     # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
     # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
+    "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=1, finest_iterations=16,
+                     levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
     "fastest": dict(model="l1_tv", alpha=0.05, iterations=3, warps=4, levels=5, finest_level=1,
                     median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
 }

@@ -55,25 +55,29 @@ def median_filter(v: np.ndarray, size: int) -> np.ndarray:
     return out
 
 
-def level_params(cfg: FlowConfig, level: int) -> SolveParams:
-    """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``."""
+def level_params(cfg: FlowConfig, level: int, finest: bool = False) -> SolveParams:
+    """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``; on the ``finest``
+    solved level ``cfg.finest_iterations`` per warp when set."""
+    iterations = cfg.finest_iterations if finest and cfg.finest_iterations else cfg.iterations
     return SolveParams(MODEL_SPECS[cfg.model], cfg.alpha * cfg.level_alpha_factor**level, cfg.alpha1,
-                       cfg.tv_norm, cfg.iterations, cfg.tolerance)
+                       cfg.tv_norm, iterations, cfg.tolerance)
 
 
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState,
                 bregman_steps: int = 0) -> tuple[int, int]:
-    """``cfg.warps`` times (``cfg.finest_warps`` on the finest solved level, when set): linearise around the
+    """``cfg.warps`` times (``cfg.finest_warps`` times with ``cfg.finest_iterations`` each on the finest solved
+    level, when set): linearise around the
     current flow (the backend's fused warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside
     pixels masked), run the backend's solver and median-filter the flow; then ``bregman_steps`` Bregman steps
     on the last linearisation. ``state`` lives on ``level`` and is updated in place. Returns (iterations,
     Bregman iterations)."""
-    params = level_params(cfg, level)
+    finest = level == finest_level(pyr, cfg)
+    params = level_params(cfg, level, finest)
     i0, i1 = pyr.i0[level], pyr.i1[level]
     src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
     g0 = image_gradient(i0, cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
     iterations = 0
-    warps = cfg.finest_warps if cfg.finest_warps and level == finest_level(pyr, cfg) else cfg.warps
+    warps = cfg.finest_warps if finest and cfg.finest_warps else cfg.warps
     for _ in range(warps):
         a, c = backend.linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
         iterations += backend.solve(Problem(a, c), state, params)
