@@ -195,6 +195,24 @@ def test_finest_level_solves_coarser_and_upsamples_to_full_size() -> None:
     assert times["half"] < times["full"], times
 
 
+@pytest.mark.parametrize("finest_level", [0, 1])
+def test_finest_warps_and_iterations_apply_to_the_finest_solved_level_only(finest_level: int) -> None:
+    """finest_warps x finest_iterations on the finest solved level, warps x iterations on the others (tolerance
+    0: every iteration runs), and the flow still follows the motion."""
+    from flow_node import FlowEstimator
+
+    gt = constant_flow(H, W, 0.6, -0.35)
+    i0, i1 = pair_from_flow(texture(H, W, 1), gt)
+    cfg = small_config("l1_tv", levels=3, warps=3, iterations=5, finest_warps=1, finest_iterations=17,
+                       finest_level=finest_level)
+    res = FlowEstimator(cfg).estimate(i0, i1)
+    expected = [0] * finest_level + [17] + [15] * (2 - finest_level)
+    assert res.stats.iterations == expected
+    assert aee(interior(res.flow), interior(gt)) < 0.2  # |gt| 0.69; few iterations: not converged to BOUND
+    plain = FlowEstimator(cfg.replace(finest_warps=0, finest_iterations=0)).estimate(i0, i1)
+    assert plain.stats.iterations == [0] * finest_level + [15] * (3 - finest_level)
+
+
 def test_finest_level_is_clamped_to_the_levels_the_image_has() -> None:
     gt = constant_flow(24, 32, 0.5, 0.25)
     i0, i1 = pair_from_flow(texture(24, 32, 1), gt)
