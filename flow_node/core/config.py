@@ -288,12 +288,12 @@ PRESETS: dict[str, dict[str, Any]] = {
     # and on the suite's fine textures many warps of few iterations beat few long ones (tune split, realtime
     # candidates: 2 warps x 6 iterations 0.031 AEE, 2 x 10 0.049, 1 x 20 0.098: the iterations converge to the
     # linearised problem's minimiser, a poor one on a texture of 3-6 px period). Hence realtime: 4 warps x 6
-    # iterations on the coarse levels and 2 x 12 at full resolution (the level that costs; finest_warps /
-    # finest_iterations): fine textures 0.017-0.019 AEE at ~2.5-2.9x DIS medium's time (3 x 13 on every
-    # level: 0.021 at 3.3-3.8x). The long warps at full size are what real frames, low contrast and noise
-    # want (Middlebury, 8 pairs: 0.48 with one 4-iteration warp there, 0.42 with one of 24, 0.41 with 2 x 12;
-    # 3 x 13: 0.38); the second warp there is what 10-16-bit content of the finest texture band needs (tune
-    # split, 24 pairs: 1 x 24 0.020 at 8 bit but 0.031 at 10 bit; 2 x 12 0.020 / 0.020).
+    # iterations on the coarse levels and 2 x 16 at full resolution (the level that costs; finest_warps /
+    # finest_iterations): fine textures 0.015-0.016 AEE on the tune split at ~2.5-3x DIS medium's time (3 x 13
+    # on every level: 0.021 at 3.3-3.8x). The long warps at full size are what real frames, low contrast and
+    # noise want (Middlebury, 8 pairs: 0.48 with one 4-iteration warp there, 0.42 with one of 24, 0.41 with
+    # 2 x 12, 0.40 with 2 x 16; 3 x 13: 0.38); the second warp there is what 10-16-bit content of the finest
+    # texture band needs (tune split, 24 pairs: 1 x 24 0.020 at 8 bit but 0.031 at 10 bit; 2 x 16 0.017 / 0.014).
     # fastest: half size (finest_level 1, as before) with 4 warps x 3 iterations and the 5x5 median (was 2 x 8
     # with 3x3): fine textures 0.19 -> 0.033-0.036 AEE (DIS medium 0.05, ultrafast 0.16) at ~1-1.3x DIS
     # medium's time, Middlebury unchanged; a longer last warp there trades fine textures for low contrast
@@ -301,7 +301,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
     # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
     # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
-    "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=12,
+    "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
     "fastest": dict(model="l1_tv", alpha=0.05, iterations=3, warps=4, levels=5, finest_level=1,
                     median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
