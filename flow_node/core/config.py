@@ -283,10 +283,10 @@ PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0),
-    # balanced: 4 warps x 8 iterations (was 2 x 15), the same trade at ~1.4x its former time: Middlebury
-    # 0.330 -> 0.319 (5 x 6: 0.318 at ~1.9x), tune split noise 0.054 -> 0.053 (DIS medium 0.057), every
-    # synthetic regime as good or better; alpha 0.035 is worse on Middlebury (0.329).
-    "balanced": dict(model="l1_tv", alpha=0.03, iterations=8, warps=4, levels=15, scale_factor=0.8,
+    # balanced: 5 warps x 6 iterations (was 2 x 15), the same trade at ~1.5x its former time: Middlebury
+    # 0.330 -> 0.318; tune split noise 0.056 -> 0.054 (DIS medium 0.055: it now wins there), bit depths
+    # 0.0117 -> 0.0098. 4 x 8 (Middlebury 0.319) was worse at 10-16 bit (0.0124); alpha 0.035: Middlebury 0.329.
+    "balanced": dict(model="l1_tv", alpha=0.03, iterations=6, warps=5, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0),
     # realtime/fastest (re-tuned for issue 11): solving only down to half/quarter size (finest_level 1/2, like
