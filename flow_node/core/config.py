@@ -276,10 +276,11 @@ PRESETS: dict[str, dict[str, Any]] = {
     # quality: 10 warps x 12 iterations per level (was 2 x 30; issue 11 "Middlebury quality <= 0.30"): on
     # Middlebury re-linearising often beats iterating long (same 0.80 pyramid): 2x30 0.326, 2x60 0.325,
     # 3x30 0.313, 5x30 0.306, 6x20 0.301, 8x15 0.300, 10x12 0.296, 12x10 0.292 (at ~3.5x the time);
-    # level_alpha_factor < 1 (0.315 at 0.8) breaks fine textures, alpha 0.025/0.035, scale 0.85, median 3,
-    # keys warp, l1_tv_l2, anisotropic TV and Bregman iterations were all worse. On the suite's tune split
-    # it is as good or better on every synthetic regime (noise 0.051 -> 0.052, DIS medium 0.057) at ~2.5x
-    # the time of 2 x 30 (still ~3-4x faster than the TV-L1 peers it beats).
+    # level_alpha_factor < 1 (0.315 at 0.8) breaks fine textures; on top of 6-10 warps alpha 0.025/0.032/
+    # 0.035, scale 0.85, and on top of 4 median 3, keys warp, l1_tv_l2, anisotropic TV and Bregman iterations
+    # were worse. Suite (tune split, then report): as good or better on every regime but sensor noise
+    # (report 0.0537 -> 0.0547, DIS medium 0.0563) at ~2.5x the time of 2 x 30 (the TV-L1 peers: 3x more).
+    # Commands in BENCHMARKS.md, issue 11, "Middlebury quality and the paper protocol".
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0),
