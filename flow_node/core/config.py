@@ -284,7 +284,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0),
-    # balanced: 5 warps x 6 iterations (was 2 x 15), the same trade at ~1.5x its former time: Middlebury
+    # balanced: 5 warps x 6 iterations (was 2 x 15), the same trade at ~1.6x its former time: Middlebury
     # 0.330 -> 0.318; tune split noise 0.056 -> 0.054 (DIS medium 0.055: it now wins there), bit depths
     # 0.0117 -> 0.0098. 4 x 8 (Middlebury 0.319) was worse at 10-16 bit (0.0124); alpha 0.035: Middlebury 0.329.
     "balanced": dict(model="l1_tv", alpha=0.03, iterations=6, warps=5, levels=15, scale_factor=0.8,
