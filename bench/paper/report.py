@@ -17,6 +17,14 @@ L2 = ("l2_l2", "l2_tv", "l2_tv_bregman")
 KINDS = ("static", "fixed", "dynamic")  # paper weights mapped; one refitted set; best per sequence
 
 
+# How the second frame was rendered (results.json "renderer"; runs before it existed used cubic).
+RENDERER_TEXT = {
+    "cubic": ("bicubic interpolation (OpenCV INTER_CUBIC, as the paper; `--renderer bandlimited` renders it "
+              "exactly for frame 1 read as a band-limited image instead, bench/paper/render.py)"),
+    "bandlimited": ("evaluating frame 1 read as a band-limited image (mirror-extended spectrum, "
+                    "bench/paper/render.py: exact to ~1e-6 of the amplitude, no kernel shared with the engine)"),
+}
+
 def _mean(per: dict[str, dict[str, float]], metric: str) -> float:
     return float(np.mean([v[metric] for v in per.values()]))
 
@@ -243,7 +251,8 @@ def render(res: dict[str, Any]) -> str:
         "* The second frame is synthesised so that the scaled ground truth g is the true flow in our "
         "convention, I1(x + g(x)) = I0(x). Sampling I0 at x + g(x) (the literal \"cubic interpolation of "
         "I1(x + v)\") would give the flow -g. We solve the inverse-flow fixed point h(y) = g(y - h(y)) "
-        "(30 bilinear iterations) and set I1(y) = I0(y - h(y)) by bicubic interpolation. The consistency "
+        "(30 bilinear iterations) and set I1(y) = I0(y - h(y)) by "
+        + RENDERER_TEXT[res.get("renderer", "cubic")] + ". The consistency "
         "column is mean |I1(x + g) - I0| (bicubic); for the literal backward warp it is 3.5-7x larger "
         "(checked once: Dimetrodon 0.0124 vs 0.0033, and |I1(x - g) - I0| of that frame matches ours).",
         "* Unknown ground truth is filled from the nearest known pixel for the synthesis only and excluded "
