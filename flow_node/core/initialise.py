@@ -5,6 +5,8 @@ Sources (``FlowConfig.initialisation``; the temporal one is added by a stream, `
 * ``none`` -- the pyramid alone (the paper's scheme);
 * ``dis_ultrafast`` / ``dis_fast`` / ``dis_medium`` -- OpenCV's DIS optical flow (Kroeger et al. 2016,
   ``cv2.DISOpticalFlow``) with that preset: dense inverse search over patches on its own pyramid;
+* ``dis_fine`` -- DIS medium searching down to full resolution (its finest scale 0; the presets stop at
+  half size or coarser): about 3x DIS medium's time, and on ``../shared/data/large`` the better candidate;
 * ``orb`` / ``sift`` -- sparse descriptor matches (OpenCV detectors, mutual nearest
   neighbours with Lowe's ratio test, then a local-consistency filter), densified edge-aware
   (:mod:`flow_node.core.densify`, the idea of EpicFlow);
@@ -24,8 +26,11 @@ import numpy as np
 from .config import FlowConfig
 from .densify import densify, forward_propagate, splat_points
 
-DIS_PRESETS = {"dis_ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, "dis_fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
-               "dis_medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}
+# source -> (OpenCV DIS preset, finest scale or None for the preset's own)
+DIS_PRESETS = {"dis_ultrafast": (cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, None),
+               "dis_fast": (cv2.DISOPTICAL_FLOW_PRESET_FAST, None),
+               "dis_medium": (cv2.DISOPTICAL_FLOW_PRESET_MEDIUM, None),
+               "dis_fine": (cv2.DISOPTICAL_FLOW_PRESET_MEDIUM, 0)}
 MATCHERS = ("orb", "sift")  # AKAZE is not in OpenCV 5's main modules (opencv-python-headless)
 RATIO = 0.8  # Lowe's ratio test
 MAX_FEATURES = 3000
@@ -76,7 +81,10 @@ def dis_candidate(i0: np.ndarray, i1: np.ndarray, preset: str, min_motion: float
     """DIS as a candidate; when its motion will get it fused (:func:`moves_far`), also the backward flow
     for the consistency check (otherwise that second DIS run is saved)."""
     u0, u1 = to_u8(i0), to_u8(i1)
-    algo = cv2.DISOpticalFlow_create(DIS_PRESETS[preset])  # calc without an initial flow: runs independent
+    code, finest = DIS_PRESETS[preset]
+    algo = cv2.DISOpticalFlow_create(code)  # calc without an initial flow: runs independent
+    if finest is not None:
+        algo.setFinestScale(finest)
     fwd = np.moveaxis(algo.calc(u0, u1, None), -1, 0)
     bwd = np.moveaxis(algo.calc(u1, u0, None), -1, 0) if moves_far(fwd, min_motion) else None
     return Candidate(preset, fwd, bwd)
