@@ -79,13 +79,16 @@ DIS_MIN_SIDE = 16
 
 def dis_candidate(i0: np.ndarray, i1: np.ndarray, preset: str, min_motion: float) -> Candidate:
     """DIS as a candidate; when its motion will get it fused (:func:`moves_far`), also the backward flow
-    for the consistency check (otherwise that second DIS run is saved)."""
+    for the consistency check (otherwise that second DIS run is saved). A DIS searching finer than its
+    preset (``dis_fine``) runs only when the preset's own run already moves far: small motions pay for
+    one DIS medium run, not for the full-resolution search."""
     u0, u1 = to_u8(i0), to_u8(i1)
     code, finest = DIS_PRESETS[preset]
     algo = cv2.DISOpticalFlow_create(code)  # calc without an initial flow: runs independent
-    if finest is not None:
-        algo.setFinestScale(finest)
     fwd = np.moveaxis(algo.calc(u0, u1, None), -1, 0)
+    if finest is not None and moves_far(fwd, min_motion):
+        algo.setFinestScale(finest)
+        fwd = np.moveaxis(algo.calc(u0, u1, None), -1, 0)
     bwd = np.moveaxis(algo.calc(u1, u0, None), -1, 0) if moves_far(fwd, min_motion) else None
     return Candidate(preset, fwd, bwd)
 
