@@ -140,7 +140,7 @@ def test_initialisation_recovers_a_40px_shift_the_pyramid_loses(init, size) -> N
     with_init = FlowEstimator(SHORT.replace(initialisation=init)).estimate_grey(i0, i1)
     assert vis_aee(none.flow, gt) > 10.0  # the short pyramid alone is lost (measured ~39)
     assert vis_aee(with_init.flow, gt) < 0.1  # measured 0.001-0.02
-    assert with_init.stats.init == init and with_init.stats.init_share > 0.3
+    assert with_init.stats.init.split("+")[0] == init and with_init.stats.init_share > 0.3
 
 
 def test_garbage_initialisation_does_not_make_a_pair_worse() -> None:
