@@ -32,7 +32,8 @@ from .common import REPO, Pair, load_middlebury, machine, to_u8, write_json
 DEFAULT_LARGE = REPO.parent / "shared" / "data" / "large"
 DEFAULT_MIDDLEBURY = REPO.parent / "shared" / "data" / "middlebury"
 RESULTS = REPO / "bench" / "results"
-DEFAULT_VARIANTS = ("quality:none", "quality:dis_medium", "quality:dis_fast", "quality:sift", "quality:orb",
+DEFAULT_VARIANTS = ("quality:none", "quality:dis_fine", "quality:dis_medium", "quality:dis_fast", "quality:sift",
+                    "quality:orb",
                     "balanced:none", "balanced:dis_fast", "realtime:none", "realtime:dis_ultrafast",
                     "realtime:dis_fast", "fastest:none", "fastest:dis_ultrafast")
 

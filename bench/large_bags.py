@@ -38,8 +38,9 @@ def configs() -> dict[str, FlowConfig]:
     q, r = FlowConfig.preset("quality"), FlowConfig.preset("realtime")
     return {
         "quality:none": q.replace(initialisation="none"),
+        "quality:dis_fine": q.replace(initialisation="dis_fine"),
+        "quality:dis_fine+temporal": q.replace(initialisation="dis_fine", temporal_init=1),
         "quality:dis_medium": q.replace(initialisation="dis_medium"),
-        "quality:dis_medium+temporal": q.replace(initialisation="dis_medium", temporal_init=1),
         "quality:temporal": q.replace(initialisation="none", temporal_init=1),
         "quality:temporal,levels=8": q.replace(initialisation="none", temporal_init=1, levels=8),
         "realtime:none": r.replace(initialisation="none"),

@@ -21,7 +21,7 @@ from flow_node.core.config import FlowConfig
 from flow_node.core.densify import densify, forward_propagate, push_pull
 from flow_node.core.engine import estimate_pair, start_level
 from flow_node.core.fusion import confidence, data_cost, fuse
-from flow_node.core.initialise import initialise
+from flow_node.core.initialise import forward_backward_consistent, initialise
 from flow_node.core.metrics import confidence_auc
 from flow_node.core.pyramid import make_pyramid
 from flow_node.pipeline.stream import FlowStream, StreamSettings
@@ -94,8 +94,45 @@ def test_fusion_takes_the_candidate_of_least_data_cost(pair) -> None:
     assert np.median(cost_t[both]) < 0.2 * np.median(cost_w[both])
 
 
+def test_a_wrong_candidate_does_not_win_where_the_background_is_occluded() -> None:
+    """A textured box jumps 60 px over a flat background. The background it covers in frame 1 is occluded:
+    its true flow (zero) has no match there, so a candidate sending it onto flat background elsewhere costs
+    far less than the truth. That candidate fails its forward-backward check there, so fusion continues the
+    neighbours' flow (the still background) instead; on the box, where the reference (the pyramid) lost
+    the motion and the candidate is right and consistent, the candidate wins."""
+    w, h = 200, 160
+    flat = Texture(np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.ones(3))
+    box = Layer(Texture.random(np.random.default_rng(5), fmax=1 / 6), AffineMotion((50.0, 80.0), (60.0, 0.0)),
+                (50.0, 80.0, 20.0, 20.0, "box"))
+    scene = Scene("jump", (w, h), (Layer(flat, AffineMotion(((w - 1) / 2, (h - 1) / 2))), box))
+    i0, i1 = grey(scene.render(0)), grey(scene.render(1))
+    truth = np.moveaxis(scene.ground_truth(1).astype(np.float32), -1, 0)
+    ys, xs = np.mgrid[0:h, 0:w]
+    box0 = (np.abs(xs - 50) <= 20) & (np.abs(ys - 80) <= 20)
+    occluded = (np.abs(xs - 110) <= 20) & (np.abs(ys - 80) <= 20)  # the box in frame 1 (no overlap with box0)
+    assert np.abs(truth[:, box0] - [[60.0], [0.0]]).max() == 0 and np.abs(truth[:, occluded]).max() == 0
+    reference = truth.copy()
+    reference[:, box0] = 0.0  # the pyramid lost the box
+    candidate = truth.copy()
+    candidate[1, occluded] = -55.0  # onto the flat background above the box
+    backward = np.zeros_like(truth)
+    backward[0, occluded] = -60.0  # the true flow frame 1 -> frame 0
+    ok = forward_backward_consistent(candidate, backward)
+    assert not ok[occluded].any() and ok[box0].all()
+    inner = occluded & (np.abs(xs - 110) <= 12) & (np.abs(ys - 80) <= 12)
+    cost_truth, cost_wrong = data_cost(i0, i1, truth), data_cost(i0, i1, candidate)
+    assert np.median(cost_wrong[inner]) < 0.3 * np.median(cost_truth[inner])  # the cost would pick it
+    fused, choice = fuse(i0, i1, [reference, candidate], [None, ok])
+    by_cost, _ = fuse(i0, i1, [reference, candidate], [None, ok], propagate=False)
+    err_fused, err_cost = (np.hypot(*(f - truth)) for f in (fused, by_cost))
+    assert err_cost[inner].min() > 50.0  # without the rule the wrong flow wins on the occluded pixels
+    assert err_fused[occluded].max() == 0.0  # with it, the background's own flow
+    assert err_fused[box0].max() == 0.0 and np.all(choice[box0] == 1)
+
+
 # ------------------------------------------------------------------------------------------ initialisation
-@pytest.mark.parametrize("init,size", [("sift", SIZE), ("orb", SIZE), ("dis_medium", (240, 180))])
+@pytest.mark.parametrize("init,size", [("sift", SIZE), ("orb", SIZE), ("dis_medium", (240, 180)),
+                                       ("dis_fine", (240, 180))])
 def test_initialisation_recovers_a_40px_shift_the_pyramid_loses(init, size) -> None:
     """(DIS's own pyramid is too short for 40 px on 160x120 -- measured 39 px AEE -- so it gets 240x180.)"""
     i0, i1, gt = shifted_pair(0, SHIFT, size)
@@ -103,7 +140,7 @@ def test_initialisation_recovers_a_40px_shift_the_pyramid_loses(init, size) -> N
     with_init = FlowEstimator(SHORT.replace(initialisation=init)).estimate_grey(i0, i1)
     assert vis_aee(none.flow, gt) > 10.0  # the short pyramid alone is lost (measured ~39)
     assert vis_aee(with_init.flow, gt) < 0.1  # measured 0.001-0.02
-    assert with_init.stats.init == init and with_init.stats.init_share > 0.3
+    assert with_init.stats.init.split("+")[0] == init and with_init.stats.init_share > 0.3
 
 
 def test_garbage_initialisation_does_not_make_a_pair_worse() -> None:

@@ -22,7 +22,7 @@ MODELS = ("l2_l2", "l2_tv", "l1_tv", "l1_tv_l2", "l1_tv_tv")
 TV_NORMS = ("isotropic", "anisotropic")
 GRADIENT_SCHEMES = ("forward", "central", "interpolated")
 BACKENDS = ("auto", "numpy", "numba")
-INITIALISATIONS = ("none", "dis_ultrafast", "dis_fast", "dis_medium", "orb", "sift")
+INITIALISATIONS = ("none", "dis_ultrafast", "dis_fast", "dis_medium", "dis_fine", "orb", "sift")
 
 
 class _Calibrated(float):
@@ -121,7 +121,8 @@ class FlowConfig:
     warp_kernel: str = _f("bspline", "cubic kernel of the warp: bspline (prefiltered cubic B-spline) or keys "
                           "(Keys a = -1/2, Catmull-Rom); both reproduce linear ramps", choices=WARP_KERNELS)
     initialisation: str = _f("none", "flow the refinement starts from, fused per pixel with the pyramid's own: "
-                             "none, OpenCV DIS (dis_ultrafast/dis_fast/dis_medium) or sparse descriptor "
+                             "none, OpenCV DIS (dis_ultrafast/dis_fast/dis_medium; dis_fine = medium down to full "
+                             "resolution) or sparse descriptor "
                              "matches densified edge-aware (orb/sift)", choices=INITIALISATIONS)
     init_scale: float = _f(0.25, "with an initialisation, refinement restarts on the coarsest pyramid level "
                            "with at least this fraction of the input resolution", lo=0.0, hi=1.0, lo_open=True)
@@ -323,10 +324,11 @@ PRESETS: dict[str, dict[str, Any]] = {
 
 
 # Large displacements (issue 12, BENCHMARKS.md "Large displacements"): every preset starts from OpenCV DIS
-# where a pair moves more than init_min_motion; the DIS preset is the one of similar cost. On
-# ../shared/data/large this takes quality from 12.4 to 9.8 mean AEE and realtime from 13.9 to 10.7;
-# Middlebury (motions under 24 px) is unchanged by construction.
-PRESET_INITIALISATION = {"quality": "dis_medium", "balanced": "dis_fast", "realtime": "dis_ultrafast",
+# where a pair moves more than init_min_motion; the DIS preset is the one of similar cost, quality's is DIS
+# medium down to full resolution (dis_fine: ~3x DIS medium's time, on ../shared/data/large 60.7 summed
+# AEE over the 7 pairs against 61.7 with dis_medium, both with the occlusion-aware fusion). Middlebury
+# (motions under 24 px) is unchanged by construction.
+PRESET_INITIALISATION = {"quality": "dis_fine", "balanced": "dis_fast", "realtime": "dis_ultrafast",
                          "fastest": "dis_ultrafast"}
 for _name, _init in PRESET_INITIALISATION.items():
     PRESETS[_name]["initialisation"] = _init

@@ -18,9 +18,10 @@ Without a candidate -- or when no computed candidate says the pair moves further
 flow (the paper's scheme). With candidates it runs from the coarsest level down to just above the *start
 level* -- the coarsest level with at least ``cfg.init_scale`` of the input resolution, where the
 initialisation is trusted -- and there the pyramid's estimate and every candidate (resampled to that level)
-are fused per pixel by data cost; the refinement then continues from the fused flow to the finest solved
-level, where its result and the candidates are fused once more (an initialisation the refinement drifted
-away from wrongly is recovered there).
+are fused per pixel by data cost (a pixel won by a candidate failing its forward-backward check -- an
+occluded one, typically -- continues its decided neighbours' flow instead); the refinement then continues
+from the fused flow to the finest solved level, where its result and the candidates are fused once more (an
+initialisation the refinement drifted away from wrongly is recovered there).
 """
 
 from __future__ import annotations

@@ -5,9 +5,13 @@ Images are float32 (h, w) grey; flows are channel-first (2, h, w) in pixels of t
 a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the brightness and gradient
 mismatch after warping frame 1 back along the flow, over the pixels whose x + flow(x) stays inside the
 image. Fusion takes, per pixel, the candidate of least cost, with the pyramid's own estimate (the first
-candidate) weighted by FUSION_MARGIN and forward-backward confirmed candidate pixels by CONSISTENT_COST;
-where no candidate has data, the nearest decided pixel's choice. An initialisation that is wrong somewhere
-costs clearly more there and is not used there: it cannot make a pair much worse than the pyramid alone.
+candidate) weighted by a margin and forward-backward confirmed candidate pixels by CONSISTENT_COST. Two
+kinds of pixel are not decided by their cost but continue the flow of the nearest decided pixel: those where
+no candidate has data, and those won by a candidate that fails its forward-backward check (occluded
+pixels, whose true flow has no match in frame 1 so any wrong flow onto similar grey values costs less than
+the truth, and wrong vectors: the cost there is no evidence). An initialisation that is wrong somewhere
+costs clearly more there, or fails its check, and is not used there: it cannot make a pair much worse than
+the pyramid alone.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ FUSION_MARGIN = 1.3  # a candidate is taken where it costs less than this times 
 FINAL_MARGIN = 1.3  # after the refinement: a candidate is taken where it costs less than this times the refined flow
 FINAL_ONLY_CONSISTENT = False  # True: ... and only where forward-backward consistent
 CONSISTENT_COST = 0.5  # cost factor of a forward-backward consistent candidate pixel
+PROPAGATE_INCONSISTENT = True  # a pixel won by a candidate failing its check takes the nearest decided choice
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
 
@@ -71,13 +76,18 @@ def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | No
 
 def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
          consistent: list[np.ndarray | None] | None = None,
-         margin: float = FUSION_MARGIN, only_consistent: bool = False) -> tuple[np.ndarray, np.ndarray]:
+         margin: float = FUSION_MARGIN, only_consistent: bool = False,
+         propagate: bool = PROPAGATE_INCONSISTENT) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel fusion of flow candidates (each (2, h, w)); candidates[0] is the reference (the pyramid's
     own flow); another candidate is taken where it costs less than ``margin`` times the reference.
     ``consistent`` (per candidate, (h, w) bool or None) marks pixels where a forward-backward check
     confirmed a candidate: its cost counts CONSISTENT_COST times there (in flat or reflective areas a wrong
     flow can match the grey values as well as the right one; a consistency check is independent evidence),
-    or, with ``only_consistent``, the candidate is considered nowhere else.
+    or, with ``only_consistent``, the candidate is considered nowhere else. With ``propagate``, a pixel a
+    candidate wins while failing its check is undecided, like one where no candidate has data: it takes
+    the candidate continuing the flow of the nearest decided pixel (:func:`fill_undecided`) -- the cost of
+    an occluded pixel favours any wrong flow that lands on similar grey values; its neighbours' flow is
+    the better guess.
     Returns the fused flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
     stacks = (planes(i0), planes(i1))
     costs = np.stack([data_cost(i0, i1, c, stacks=stacks) for c in candidates])
@@ -88,23 +98,41 @@ def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
         elif ok is not None:
             costs[k][ok] *= CONSISTENT_COST
     choice = np.argmin(costs, axis=0)
-    choice = fill_undecided(choice, ~np.isfinite(costs).any(axis=0))
+    undecided = ~np.isfinite(costs).any(axis=0)
+    for k, ok in enumerate(consistent or []):
+        if ok is not None and propagate:
+            undecided |= (choice == k) & ~ok
     stack = np.stack(candidates)
+    choice = fill_undecided(choice, undecided, stack)
     fused = np.take_along_axis(stack, choice[None, None], axis=0)[0]
     return fused.astype(np.float32, copy=False), choice
 
 
-def fill_undecided(choice: np.ndarray, undecided: np.ndarray) -> np.ndarray:
-    """Where every candidate leaves the image (``undecided`` (h, w) bool) no data decides: take the choice
-    (h, w) int of the nearest decided pixel, so the flow there continues its neighbours' instead of
-    defaulting to the reference (which the regulariser and the median filter would spread inwards)."""
+def fill_undecided(choice: np.ndarray, undecided: np.ndarray, stack: np.ndarray | None = None) -> np.ndarray:
+    """Where no data decides (``undecided`` (h, w) bool: every candidate leaves the image, or the winner
+    failed its forward-backward check), continue the neighbours' flow instead of defaulting to the
+    reference (which the regulariser and the median filter would spread inwards). With the candidates
+    ``stack`` (K, 2, h, w), an undecided pixel takes the candidate whose flow there is nearest to the
+    fused flow of the nearest decided pixel (on an occluded background that is the background's motion,
+    whichever candidate the neighbours chose); without it, the nearest decided pixel's choice (h, w) int.
+    All undecided: the choice stands."""
     if not undecided.any() or undecided.all():
         return choice
     _, labels = cv2.distanceTransformWithLabels(undecided.astype(np.uint8), cv2.DIST_L2, 5,
                                                 labelType=cv2.DIST_LABEL_PIXEL)
     lut = np.zeros(labels.max() + 1, choice.dtype)
     lut[labels[~undecided]] = choice[~undecided]
-    return lut[labels]
+    if stack is None:
+        return lut[labels]
+    near = np.zeros(labels.max() + 1, np.int64)
+    near[labels[~undecided]] = np.flatnonzero(~undecided.reshape(-1))
+    src = near[labels[undecided]]  # flat index of each undecided pixel's nearest decided pixel
+    flat = stack.reshape(stack.shape[0], 2, -1)
+    target = np.take_along_axis(flat[:, :, src], choice.reshape(-1)[src][None, None], axis=0)[0]  # (2, n)
+    dist = np.sum((flat[:, :, np.flatnonzero(undecided.reshape(-1))] - target[None]) ** 2, axis=1)  # (K, n)
+    out = choice.copy()
+    out[undecided] = np.argmin(dist, axis=0)
+    return out
 
 
 def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
