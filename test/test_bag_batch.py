@@ -117,28 +117,17 @@ def test_an_unreachable_scheduler_is_a_one_line_error():
             pass
 
 
-def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
-    out = tmp_path / "out"
-    environ = dict(os.environ)
-    assert flow_bag(["eval", str(bags), "--output", str(out), *FAST]) == 1  # one bag failed
-    assert dict(os.environ) == environ  # Dask's nanny writes the workers' environment into its parent
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("flow_bag eval: error: 1 of 4 bags failed (first: corrupt: ")
-    report = batch_report(out)
+def assert_as_single_bag_eval(bags: Path, out: Path, report: dict, tmp_path: Path) -> None:
+    """Each good bag's output in the batch ``out`` is what single-bag eval writes: same report (but
+    timings), same flow bytes, same files (and the cache key); the corrupt one failed with its reason."""
     assert report["counts"] == {"bags": 4, "done": 3, "skipped": 0, "failed": 1}
-    assert report["scheduler"].startswith("embedded LocalCluster")
     (failure,) = report["failures"]
     assert failure["bag"] == "corrupt" and "corrupt" in failure["reason"] and "\n" not in failure["reason"]
     assert not (out / "bags" / "corrupt").exists()
-    assert all(r["pid"] != os.getpid() for r in report["bags"])  # ran in the cluster's worker processes
-    for name in ("aee_per_bag.png", "time_per_frame.png"):
-        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "## Failed bags" in (out / "report.md").read_text()
-
-    # Each bag's output is what single-bag eval writes: same report (but timings), same flow bytes.
     for name in ("translation", "rotation", "robot2/zoom"):
         single = tmp_path / "single" / name
-        assert flow_bag(["eval", str(bags / name), "--output", str(single), *FAST]) == 0
+        if not single.exists():
+            assert flow_bag(["eval", str(bags / name), "--output", str(single), *FAST]) == 0
         mine = out / "bags" / name.replace("/", "__")
         assert untimed(json.loads((mine / "report.json").read_text())) == \
             untimed(json.loads((single / "report.json").read_text()))
@@ -148,6 +137,40 @@ def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
     assert all(rows[n]["pairs_with_gt"] == 3 and rows[n]["aee_mean"] < AEE_BOUND
                for n in ("translation", "rotation", "robot2__zoom"))
 
+
+def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
+    out = tmp_path / "out"
+    environ = dict(os.environ)
+    assert flow_bag(["eval", str(bags), "--output", str(out), "--workers", "2", *FAST]) == 1  # one bag failed
+    assert dict(os.environ) == environ  # Dask's nanny writes the workers' environment into its parent
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("flow_bag eval: error: 1 of 4 bags failed (first: corrupt: ")
+    report = batch_report(out)
+    assert report["scheduler"] == "embedded LocalCluster, 2 workers"
+    assert all(r["pid"] != os.getpid() for r in report["bags"])  # ran in the cluster's worker processes
+    for name in ("aee_per_bag.png", "time_per_frame.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "## Failed bags" in (out / "report.md").read_text()
+    assert_as_single_bag_eval(bags, out, report, tmp_path)
+
+
+def test_one_worker_is_a_thread_of_this_process(bags, tmp_path, monkeypatch):
+    """--workers 1: the embedded cluster's one worker is a thread of the client's process (no process to
+    spawn); the same tasks, events and results through the scheduler, and outputs as single-bag eval's."""
+    from flow_node.bag.progress import BatchProgress
+
+    seen: set[str] = set()
+    on_event = BatchProgress.on_event
+    monkeypatch.setattr(BatchProgress, "on_event", lambda self, e: (seen.add(e[1]["name"]), on_event(self, e)))
+    out = tmp_path / "out"
+    environ = dict(os.environ)
+    assert flow_bag(["eval", str(bags), "--output", str(out), "--workers", "1", *FAST]) == 1
+    assert dict(os.environ) == environ
+    report = batch_report(out)
+    assert report["scheduler"] == "embedded LocalCluster, 1 workers"
+    assert {r["pid"] for r in report["bags"] if r["status"] != "failed"} == {os.getpid()}
+    assert seen == {"translation", "rotation", "robot2__zoom"}  # per-frame progress came as Dask events
+    assert_as_single_bag_eval(bags, out, report, tmp_path)
 
 
 def test_rerun_skips_evaluated_bags_and_a_changed_parameter_reruns_them(bags, tmp_path):
