@@ -276,7 +276,7 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
     s, then waiting up to ``worker_timeout`` s for a worker), or to an embedded LocalCluster of ``workers``
     single-threaded workers (default: one per core): worker processes, or for one worker a worker thread in
     this process (:func:`local_cluster`). ClusterError if neither works; closed on exit."""
-    from distributed import Client
+    from distributed import Client, Worker
 
     cluster = client = None
     environ = dict(os.environ)
@@ -297,6 +297,13 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
         raise ClusterError(f"cannot start or reach {where}: {one_line(exc, None)}") from exc
     try:
         yield client
+    except BaseException:
+        # Ctrl-C: a worker thread of this process cannot be stopped, so the close does not wait for its task
+        # (its output stays an unfinished hidden folder, as when a worker process is killed)
+        for worker in cluster.workers.values() if cluster is not None else ():
+            if isinstance(worker, Worker):
+                cluster.sync(worker.close, executor_wait=False)
+        raise
     finally:
         client.close()
         if cluster is not None:
