@@ -181,6 +181,8 @@ def fixed_costs() -> dict[str, Any]:
     """``import distributed`` in a fresh interpreter, and the embedded cluster's start and close with 1 and 2
     workers (dask_client, as flow_bag eval runs it); 3 of each. Run after the other measurements: a closed
     LocalCluster leaves threads in this process."""
+    import distributed  # noqa: F401 - the first cluster start below must not time this import
+
     imports = [float(subprocess.run([sys.executable, "-c", "import time; t = time.perf_counter(); import distributed; "
                                      "print(time.perf_counter() - t)"], capture_output=True, text=True,
                                     check=True).stdout) for _ in range(3)]

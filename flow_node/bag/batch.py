@@ -4,7 +4,8 @@ Inputs are bag folders, folders holding bags (searched recursively), glob patter
 bags (one path a line, ``#`` comments, relative to the list's folder). Every bag is one Dask task running
 :func:`evaluate_bag`: the single-bag :func:`~flow_node.bag.evaluate.run_eval` into ``OUT/bags/<name>/``, so
 each bag gets exactly what ``flow_bag eval BAG --output OUT/bags/<name>`` writes. The scheduler is an embedded
-``distributed.LocalCluster`` (one single-threaded worker process per core) or, with ``scheduler``, an
+``distributed.LocalCluster`` (one single-threaded worker process per core; one worker is a thread of this
+process) or, with ``scheduler``, an
 existing cluster; both go through the same ``Client.submit`` / ``as_completed`` path. Workers must see the
 bags and ``OUT`` under the same paths (a shared file system) and have flow_node installed.
 
@@ -18,9 +19,11 @@ from __future__ import annotations
 
 import glob
 import hashlib
+import importlib
 import json
 import os
 import socket
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -358,8 +361,6 @@ def run_batch(inputs: Sequence[str], output: str | Path, configs: Sequence[FlowC
               scheduler: str | None = None, workers: int | None = None) -> list[BagOutcome]:
     """Evaluate every bag of ``inputs`` on Dask into ``output``/bags/, then write the batch report
     (``output``/report.json, report.md, PNGs). Returns the outcomes in input order."""
-    from .batch_report import write_batch_report
-
     out = Path(output)
     if out.exists() and not out.is_dir():
         raise BagError(f"output {out} exists and is not a folder")
@@ -369,10 +370,17 @@ def run_batch(inputs: Sequence[str], output: str | Path, configs: Sequence[FlowC
     progress = BatchProgress(len(jobs), opts.progress)
     try:
         with dask_client(scheduler, workers) as client:
+            # the report's imports (matplotlib: ~1 s) while the workers compute, not after them
+            report_import = threading.Thread(target=importlib.import_module, args=(f"{__package__}.batch_report",),
+                                             daemon=True)
+            report_import.start()
             outcomes = run_jobs(client, jobs, progress)
             workers_seen = len(client.nthreads())
     finally:
         progress.close()
+    report_import.join()
+    from .batch_report import write_batch_report
+
     where = f"{scheduler or 'embedded LocalCluster'}, {workers_seen} workers"
     write_batch_report(outcomes, out, configs, time.monotonic() - start, where)
     return outcomes
