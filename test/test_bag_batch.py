@@ -265,3 +265,23 @@ def test_single_bag_eval_and_the_node_do_not_import_dask(bags, tmp_path):
             "print(rc, sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["0", "[]"]
+
+
+def test_worker_processes_skip_the_final_collections():
+    """The embedded cluster's worker processes load the preload dask_worker.py (through Dask's config, via
+    the nanny), whose teardown freezes the GC so that the process exits without walking every object."""
+    import gc
+
+    from distributed import Client
+
+    from flow_node.bag import dask_worker
+    from flow_node.bag.batch import local_cluster
+
+    with local_cluster(2) as cluster, Client(cluster) as client:
+        loaded = client.run(lambda: ("flow_node.bag.dask_worker" in sys.modules, gc.get_freeze_count()))
+    assert list(loaded.values()) == [(True, 0), (True, 0)]
+    try:
+        dask_worker.dask_teardown(None)
+        assert gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()

@@ -316,7 +316,8 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
 
 def local_cluster(workers: int) -> Any:
     """The embedded ``LocalCluster``. Several workers: one single-threaded process each (the engine's numba
-    kernels hold the GIL), started by Dask's nanny with WORKER_ENV. One worker: a worker thread in this
+    kernels hold the GIL), started by Dask's nanny with WORKER_ENV and the preload dask_worker.py (a fast
+    exit). One worker: a worker thread in this
     process (``processes=False``), the one batch layout in which no two bags compute at once anyway. It
     spares the fixed cost of a worker process (docs/bags.md, BENCHMARKS.md): spawning it, importing
     distributed, flow_node, OpenCV and numba a second time, loading the JIT cache there, and waiting for it
@@ -326,7 +327,8 @@ def local_cluster(workers: int) -> Any:
 
     if workers == 1:
         return LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0")
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}):
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV,
+                          "distributed.worker.preload": [f"{__package__}.dask_worker"]}):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                             dashboard_address=":0")
 
