@@ -117,7 +117,16 @@ def test_an_unreachable_scheduler_is_a_one_line_error():
             pass
 
 
-def assert_as_single_bag_eval(bags: Path, out: Path, report: dict, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def singles(bags, tmp_path_factory) -> Path:
+    """Single-bag eval's output of each good bag, in ``singles/<name>``."""
+    root = tmp_path_factory.mktemp("single")
+    for name in ("translation", "rotation", "robot2/zoom"):
+        assert flow_bag(["eval", str(bags / name), "--output", str(root / name), *FAST]) == 0
+    return root
+
+
+def assert_as_single_bag_eval(singles: Path, out: Path, report: dict) -> None:
     """Each good bag's output in the batch ``out`` is what single-bag eval writes: same report (but
     timings), same flow bytes, same files (and the cache key); the corrupt one failed with its reason."""
     assert report["counts"] == {"bags": 4, "done": 3, "skipped": 0, "failed": 1}
@@ -125,9 +134,7 @@ def assert_as_single_bag_eval(bags: Path, out: Path, report: dict, tmp_path: Pat
     assert failure["bag"] == "corrupt" and "corrupt" in failure["reason"] and "\n" not in failure["reason"]
     assert not (out / "bags" / "corrupt").exists()
     for name in ("translation", "rotation", "robot2/zoom"):
-        single = tmp_path / "single" / name
-        if not single.exists():
-            assert flow_bag(["eval", str(bags / name), "--output", str(single), *FAST]) == 0
+        single = singles / name
         mine = out / "bags" / name.replace("/", "__")
         assert untimed(json.loads((mine / "report.json").read_text())) == \
             untimed(json.loads((single / "report.json").read_text()))
@@ -138,7 +145,7 @@ def assert_as_single_bag_eval(bags: Path, out: Path, report: dict, tmp_path: Pat
                for n in ("translation", "rotation", "robot2__zoom"))
 
 
-def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
+def test_batch_on_the_embedded_cluster(bags, singles, tmp_path, capsys):
     out = tmp_path / "out"
     environ = dict(os.environ)
     assert flow_bag(["eval", str(bags), "--output", str(out), "--workers", "2", *FAST]) == 1  # one bag failed
@@ -151,10 +158,10 @@ def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
     for name in ("aee_per_bag.png", "time_per_frame.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "## Failed bags" in (out / "report.md").read_text()
-    assert_as_single_bag_eval(bags, out, report, tmp_path)
+    assert_as_single_bag_eval(singles, out, report)
 
 
-def test_one_worker_is_a_thread_of_this_process(bags, tmp_path, monkeypatch):
+def test_one_worker_is_a_thread_of_this_process(bags, singles, tmp_path, monkeypatch):
     """--workers 1: the embedded cluster's one worker is a thread of the client's process (no process to
     spawn); the same tasks, events and results through the scheduler, and outputs as single-bag eval's."""
     from flow_node.bag.progress import BatchProgress
@@ -170,7 +177,7 @@ def test_one_worker_is_a_thread_of_this_process(bags, tmp_path, monkeypatch):
     assert report["scheduler"] == "embedded LocalCluster, 1 workers"
     assert {r["pid"] for r in report["bags"] if r["status"] != "failed"} == {os.getpid()}
     assert seen == {"translation", "rotation", "robot2__zoom"}  # per-frame progress came as Dask events
-    assert_as_single_bag_eval(bags, out, report, tmp_path)
+    assert_as_single_bag_eval(singles, out, report)
 
 
 def test_rerun_skips_evaluated_bags_and_a_changed_parameter_reruns_them(bags, tmp_path):
