@@ -2,7 +2,7 @@
 
     .venv/bin/python -m bench.batch [--size 160x120:24 --size 320x240:12] [--distinct 8] [--frames 50]
                                     [--preset realtime] [--repeats 3] [--variants loop,dask-1,dask-2]
-                                    [--per-bag] [--out bench/results/batch.json]
+                                    [--per-bag process|thread] [--out bench/results/batch.json]
 
 For every ``--size WxH:BAGS``: writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds
 0..) of ``--frames`` frames and copies them up to BAGS bags. Every run writes into a fresh output (nothing
@@ -17,9 +17,10 @@ cached). Measurements:
    over repeats the result. Bags per minute from the median process time.
 2. **Fixed costs** beside it (median of 3): ``import distributed`` in a fresh interpreter, and starting and
    closing the embedded cluster of 1 and of 2 workers.
-3. With ``--per-bag``, **the Dask layer paired bag by bag**: with ``dask scheduler`` and one ``dask worker``
-   running (separate processes), every bag is evaluated twice in turn (who goes first alternates): once by
-   ``evaluate_bag`` in this process, once submitted to the worker and waited for.
+3. With ``--per-bag process|thread``, **the Dask layer paired bag by bag**: with ``dask scheduler`` and one
+   ``dask worker`` running (separate processes), or the embedded cluster's worker thread in this process,
+   every bag is evaluated twice in turn (who goes first alternates): once by ``evaluate_bag`` in this
+   process, once submitted to the worker and waited for. ``--repeats 0`` runs only this.
 
 All processes run in ``WORKER_ENV`` (one numeric thread, glibc keeping freed memory): this process
 re-executes itself with it. The machine may be shared: compare the paired ratios, not absolute times.
@@ -172,11 +173,26 @@ def external_worker(work: Path) -> Iterator[str]:
                 proc.kill()
 
 
-def paired_layer_cost(bags: Path, work: Path, preset: str) -> dict[str, Any]:
-    """Per bag: seconds evaluated here vs submitted to one Dask worker, alternating."""
+@contextmanager
+def one_worker(where: str, work: Path) -> Iterator[Any]:
+    """A client of one worker: a separate `dask worker` process ('process'), or the embedded cluster's
+    worker thread in this process ('thread', as ``flow_bag eval --workers 1`` runs it)."""
+    if where == "thread":
+        with dask_client(None, 1) as client:
+            yield client
+    else:
+        with external_worker(work) as address, dask_client(address) as client:
+            yield client
+
+
+def paired_layer_cost(bags: Path, work: Path, preset: str, where: str) -> dict[str, Any]:
+    """Per bag: seconds evaluated here vs submitted to one Dask worker (``one_worker(where)``), alternating.
+    With 'thread' the cluster idles in this process while the bag is evaluated directly, so what the pair
+    measures is the cost of running as a task (submission, events, results, the event loop's share of the
+    GIL while the task runs), not the periodic bookkeeping of an idle cluster."""
     jobs = make_jobs(find_bags([str(bags)]), work / "loop", [FlowConfig.preset(preset)], EvalOptions(progress=False))
     pairs = []
-    with external_worker(work) as address, dask_client(address) as client:
+    with one_worker(where, work) as client:
         evaluate_bag(_relocated(jobs[0], work / "warm-loop"))  # JIT cache and imports warm on both sides
         client.submit(evaluate_bag, _relocated(jobs[0], work / "warm-dask"), pure=False).result()
         for k, job in enumerate(jobs):
@@ -235,11 +251,13 @@ def measure_size(tmp: Path, size: tuple[int, int, int], args: argparse.Namespace
         for v in order(r, tuple(args.variants.split(","))):
             runs.append(run_variant(v, bags, tmp / "out", args.preset) | {"repeat": r})
             print(json.dumps(runs[-1] | {"size": f"{w}x{h}"}), flush=True)
-    result = {"size": f"{w}x{h}", "bags": count, "runs": runs, "summary": summarise(runs, args.repeats)}
+    result = {"size": f"{w}x{h}", "bags": count, "runs": runs,
+              "summary": summarise(runs, args.repeats) if runs else None}
     if args.per_bag:
-        result["per_bag"] = paired_layer_cost(bags, tmp / "paired", args.preset)
+        result["per_bag"] = paired_layer_cost(bags, tmp / "paired", args.preset, args.per_bag)
     shutil.rmtree(bags)
-    print(json.dumps(result["summary"]), flush=True)
+    per_bag = {k: v for k, v in result.get("per_bag", {}).items() if k != "pairs"}
+    print(json.dumps(result["summary"]), json.dumps(per_bag), flush=True)
     return result
 
 
@@ -252,7 +270,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--preset", default="realtime")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--variants", default=",".join(VARIANTS), help="a subset of loop,dask-1,dask-2, in that order")
-    p.add_argument("--per-bag", action="store_true", help="also the per-bag pairs on a separate dask worker")
+    p.add_argument("--per-bag", choices=("process", "thread"),
+                   help="also the per-bag pairs: a separate dask worker process, or the embedded worker thread")
     p.add_argument("--out", default=str(REPO / "bench" / "results" / "batch.json"))
     p.add_argument("--loop-run", nargs=2, metavar=("BAGS", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
