@@ -24,7 +24,7 @@ cached). Measurements:
 
 All processes run in ``WORKER_ENV`` (one numeric thread, glibc keeping freed memory): this process
 re-executes itself with it. The machine may be shared: compare the paired ratios, not absolute times.
-With the defaults it takes about 10 minutes on an idle 2-core machine.
+With the defaults it takes about 12-15 minutes on a quiet 2-core machine.
 """
 
 from __future__ import annotations
