@@ -5,8 +5,8 @@ bags (one path a line, ``#`` comments, relative to the list's folder). Every bag
 :func:`evaluate_bag`: the single-bag :func:`~flow_node.bag.evaluate.run_eval` into ``OUT/bags/<name>/``, so
 each bag gets exactly what ``flow_bag eval BAG --output OUT/bags/<name>`` writes. The scheduler is an embedded
 ``distributed.LocalCluster`` (one single-threaded worker process per core; one worker is a thread of this
-process) or, with ``scheduler``, an
-existing cluster; both go through the same ``Client.submit`` / ``as_completed`` path. Workers must see the
+process) or, with ``scheduler``, an existing cluster; both go through the same ``Client.submit`` /
+``as_completed`` path. Workers must see the
 bags and ``OUT`` under the same paths (a shared file system) and have flow_node installed.
 
 A bag that fails is reported with its one-line reason; the others go on. A bag whose content (hash of its
@@ -317,11 +317,11 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
 def local_cluster(workers: int) -> Any:
     """The embedded ``LocalCluster``. Several workers: one single-threaded process each (the engine's numba
     kernels hold the GIL), started by Dask's nanny with WORKER_ENV and the preload dask_worker.py (a fast
-    exit). One worker: a worker thread in this
-    process (``processes=False``), the one batch layout in which no two bags compute at once anyway. It
-    spares the fixed cost of a worker process (docs/bags.md, BENCHMARKS.md): spawning it, importing
-    distributed, flow_node, OpenCV and numba a second time, loading the JIT cache there, and waiting for it
-    to exit; tasks, events and results go through the same scheduler and Client calls (in-process comm)."""
+    exit). One worker: a worker thread in this process (``processes=False``), the one batch layout in which
+    no two bags compute at once anyway. It spares the fixed cost of a worker process (docs/bags.md,
+    BENCHMARKS.md): spawning it, importing distributed, flow_node, OpenCV and numba a second time, loading
+    the JIT cache there, and waiting for it to exit; tasks, events and results go through the same
+    scheduler and Client calls (in-process comm)."""
     import dask
     from distributed import LocalCluster
 

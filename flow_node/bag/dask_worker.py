@@ -1,15 +1,11 @@
 """Preload of the embedded cluster's worker processes (Dask's ``distributed.worker.preload``, set by
-:func:`flow_node.bag.batch.local_cluster`): Dask calls ``dask_setup`` when a worker starts and
-``dask_teardown`` when it closes, right before its process exits."""
+:func:`flow_node.bag.batch.local_cluster`): Dask calls its ``dask_teardown`` when a worker closes,
+right before the worker's process exits."""
 
 from __future__ import annotations
 
 import gc
 from typing import Any
-
-
-def dask_setup(worker: Any) -> None:
-    """Nothing to prepare: the first task imports the engine and loads the JIT cache."""
 
 
 def dask_teardown(worker: Any) -> None:

@@ -58,7 +58,7 @@ class BatchProgress:
             bar = self._bars.get(name)
             if bar is None:
                 bar = self._bars[name] = tqdm(total=msg["total"], unit="frame", desc=name, leave=False,
-                                                    dynamic_ncols=True)
+                                              dynamic_ncols=True)
             bar.update(msg["done"] - bar.n)
 
     def finish(self, outcome: BagOutcome) -> None:
