@@ -1,26 +1,30 @@
-"""Batch evaluation on Dask: throughput with 1 and 2 workers, and the Dask layer against a plain loop.
+"""Batch evaluation on Dask: the Dask layer against a plain loop on one worker, and throughput with 1 and 2 workers.
 
-    .venv/bin/python -m bench.batch [--bags 24] [--distinct 8] [--frames 50] [--size 160x120]
-                                    [--preset realtime] [--repeats 3] [--out bench/results/batch.json]
+    .venv/bin/python -m bench.batch [--size 160x120:24 --size 320x240:12] [--distinct 8] [--frames 50]
+                                    [--preset realtime] [--repeats 3] [--variants loop,dask-1,dask-2]
+                                    [--per-bag process|thread] [--out bench/results/batch.json]
 
-Writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds 0..) and copies them up to
-``--bags``. Every run writes into a fresh output (nothing cached). Two measurements:
+For every ``--size WxH:BAGS``: writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds
+0..) of ``--frames`` frames and copies them up to BAGS bags. Every run writes into a fresh output (nothing
+cached). Measurements:
 
-1. **Throughput**, whole processes: ``flow_bag eval FOLDER --workers N`` (embedded LocalCluster, N = 1, 2)
-   and ``loop`` (one process running ``evaluate_bag`` for every job in a plain for loop: the same per-bag
-   work without Dask), each a fresh interpreter timed from start to exit (imports, cluster start and stop,
-   JIT cache loads included); interleaved, the order rotated every repeat. Bags per minute.
-2. **The Dask layer's cost, paired bag by bag**: with ``dask scheduler`` and one ``dask worker`` running
-   (separate processes, so that no scheduler thread shares this process's GIL), every bag is evaluated
-   twice in turn (who goes first alternates): once by ``evaluate_bag`` in this process, once submitted to
-   the worker and waited for (``Client.submit(...).result()``: pickling, scheduling, the worker's thread,
-   the outcome's transfer). The two runs of a bag are seconds apart, so the machine's
-   load (shared by other jobs) is the same for both; the median of the per-bag ratios is the cost per
-   bag. The fixed cost of a batch is measured beside it: ``import distributed`` in a fresh interpreter,
-   and starting and closing the cluster (median of 3). Both processes run in ``WORKER_ENV`` (one numeric
-   thread, glibc keeping freed memory): this process re-executes itself with it.
+1. **Whole processes, paired**: ``loop`` (one process running ``evaluate_bag`` for every job in a plain
+   for loop, then the same batch report: the same per-bag work without Dask) and ``flow_bag eval FOLDER
+   --workers N -q`` (embedded LocalCluster, N = 1, 2), each a fresh interpreter timed from start to exit
+   (imports, cluster start and stop, JIT cache loads, report included). Per repeat the order is
+   loop, dask-1, dask-2 then dask-2, dask-1, loop (A/B/C, C/B/A), so loop and dask-1 always run back to back:
+   the ratio dask-1 / loop of each repeat is the Dask layer's whole cost on one worker, and its median
+   over repeats the result. Bags per minute from the median process time.
+2. **Fixed costs** beside it (median of 3): ``import distributed`` in a fresh interpreter, and starting and
+   closing the embedded cluster of 1 and of 2 workers.
+3. With ``--per-bag process|thread``, **the Dask layer paired bag by bag**: with ``dask scheduler`` and one
+   ``dask worker`` running (separate processes), or the embedded cluster's worker thread in this process,
+   every bag is evaluated twice in turn (who goes first alternates): once by ``evaluate_bag`` in this
+   process, once submitted to the worker and waited for. ``--repeats 0`` runs only this.
 
-The machine is shared: compare the paired ratios, not absolute times.
+All processes run in ``WORKER_ENV`` (one numeric thread, glibc keeping freed memory): this process
+re-executes itself with it. The machine may be shared: compare the paired ratios, not absolute times.
+With the defaults it takes about 12-15 minutes on a quiet 2-core machine.
 """
 
 from __future__ import annotations
@@ -48,7 +52,7 @@ from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.config import FlowConfig
 
 REPO = Path(__file__).resolve().parent.parent
-VARIANTS = ("loop", "dask-1", "dask-2")
+VARIANTS = ("loop", "dask-1", "dask-2")  # order() pairs them
 
 
 def make_bags(folder: Path, count: int, distinct: int, frames: int, size: tuple[int, int]) -> None:
@@ -93,19 +97,42 @@ def run_variant(variant: str, bags: Path, out: Path, preset: str) -> dict[str, A
             "bags_per_minute": 60.0 * report["counts"]["done"] / wall, "scheduler": report["scheduler"]}
 
 
+def order(repeat: int, variants: tuple[str, ...] = VARIANTS) -> tuple[str, ...]:
+    """A/B/C then C/B/A: loop and dask-1 always back to back, and so are dask-1 and dask-2."""
+    return variants if repeat % 2 == 0 else variants[::-1]
+
+
+def _ratios(by: dict[str, list[dict[str, Any]]], a: str, b: str, repeats: int) -> list[float]:
+    return [by[a][k]["process_seconds"] / by[b][k]["process_seconds"] for k in range(repeats)]
+
+
 def summarise(runs: list[dict[str, Any]], repeats: int) -> dict[str, Any]:
-    """Medians per variant, bags per minute, the 2-worker speed-up (paired per repeat and of the medians)."""
-    by = {v: [r for r in runs if r["variant"] == v] for v in VARIANTS}
+    """Medians per variant, bags per minute, the paired ratios dask-1 / loop and dask-1 / dask-2 per repeat
+    and their medians; and per run the seconds outside the tasks (process time minus the tasks' summed
+    time: imports, cluster, scheduling, report, exit), whose paired difference dask-1 - loop is the Dask
+    layer's cost without the noise of a shared machine's varying speed inside the bags' work (but
+    without what the layer may cost inside a task, e.g. the scheduler's thread taking the GIL)."""
+    variants = [v for v in VARIANTS if any(r["variant"] == v for r in runs)]
+    by = {v: [r for r in runs if r["variant"] == v] for v in variants}
     med = {v: statistics.median(r["process_seconds"] for r in rs) for v, rs in by.items()}
-    return {
-        "median_process_seconds": med,
-        "bags_per_minute": {v: 60.0 * by[v][0]["bags"] / med[v] for v in VARIANTS},
-        "speedup_2_over_1_workers_per_repeat": [by["dask-1"][k]["process_seconds"] / by["dask-2"][k]["process_seconds"]
-                                                for k in range(repeats)],
-        "speedup_2_over_1_workers": med["dask-1"] / med["dask-2"],
-        "dask1_over_loop_per_repeat": [by["dask-1"][k]["process_seconds"] / by["loop"][k]["process_seconds"]
-                                       for k in range(repeats)],
-    }
+    out: dict[str, Any] = {"median_process_seconds": med,
+                           "bags_per_minute": {v: 60.0 * by[v][0]["bags"] / med[v] for v in variants},
+                           "seconds_outside_tasks": {v: [r["process_seconds"] - r["task_seconds_sum"] for r in rs]
+                                                     for v, rs in by.items() if v != "dask-2"}}
+    if "dask-1" in by and "loop" in by:
+        over_loop = _ratios(by, "dask-1", "loop", repeats)
+        outside = [a - b for a, b in zip(out["seconds_outside_tasks"]["dask-1"], out["seconds_outside_tasks"]["loop"],
+                                         strict=True)]
+        out |= {"dask1_over_loop_per_repeat": over_loop, "dask1_over_loop_median": statistics.median(over_loop),
+                "dask1_minus_loop_outside_tasks_per_repeat": outside,
+                "dask1_minus_loop_outside_tasks_median": statistics.median(outside),
+                "dask1_minus_loop_outside_tasks_over_loop_median": statistics.median(
+                    d / r["process_seconds"] for d, r in zip(outside, by["loop"], strict=True))}
+    if "dask-1" in by and "dask-2" in by:
+        speedup = _ratios(by, "dask-1", "dask-2", repeats)
+        out |= {"speedup_2_over_1_workers_per_repeat": speedup,
+                "speedup_2_over_1_workers_median": statistics.median(speedup)}
+    return out
 
 
 def _timed(fn: Any) -> float:
@@ -146,12 +173,26 @@ def external_worker(work: Path) -> Iterator[str]:
                 proc.kill()
 
 
-def paired_layer_cost(bags: Path, work: Path, preset: str) -> dict[str, Any]:
-    """Per bag: seconds evaluated here vs submitted to one Dask worker, alternating; and the fixed costs of
-    a batch (import of distributed, embedded cluster start and close)."""
+@contextmanager
+def one_worker(where: str, work: Path) -> Iterator[Any]:
+    """A client of one worker: a separate `dask worker` process ('process'), or the embedded cluster's
+    worker thread in this process ('thread', as ``flow_bag eval --workers 1`` runs it)."""
+    if where == "thread":
+        with dask_client(None, 1) as client:
+            yield client
+    else:
+        with external_worker(work) as address, dask_client(address) as client:
+            yield client
+
+
+def paired_layer_cost(bags: Path, work: Path, preset: str, where: str) -> dict[str, Any]:
+    """Per bag: seconds evaluated here vs submitted to one Dask worker (``one_worker(where)``), alternating.
+    With 'thread' the cluster idles in this process while the bag is evaluated directly, so what the pair
+    measures is the cost of running as a task (submission, events, results, the event loop's share of the
+    GIL while the task runs), not the periodic bookkeeping of an idle cluster."""
     jobs = make_jobs(find_bags([str(bags)]), work / "loop", [FlowConfig.preset(preset)], EvalOptions(progress=False))
     pairs = []
-    with external_worker(work) as address, dask_client(address) as client:
+    with one_worker(where, work) as client:
         evaluate_bag(_relocated(jobs[0], work / "warm-loop"))  # JIT cache and imports warm on both sides
         client.submit(evaluate_bag, _relocated(jobs[0], work / "warm-dask"), pure=False).result()
         for k, job in enumerate(jobs):
@@ -161,41 +202,77 @@ def paired_layer_cost(bags: Path, work: Path, preset: str) -> dict[str, Any]:
             first, second = (loop, dask) if k % 2 == 0 else (dask, loop)
             t1, t2 = _timed(first), _timed(second)
             pairs.append({"bag": job.name, "loop": t1 if k % 2 == 0 else t2, "dask": t2 if k % 2 == 0 else t1})
-    # after the pairs: a closed LocalCluster leaves threads in this process that would slow the loop
+    ratios = [p["dask"] / p["loop"] for p in pairs]
+    return {
+        "pairs": pairs, "per_bag_loop_seconds_median": statistics.median(p["loop"] for p in pairs),
+        "per_bag_dask_over_loop_median": statistics.median(ratios),
+        "per_bag_dask_over_loop_sum": sum(p["dask"] for p in pairs) / sum(p["loop"] for p in pairs),
+    }
+
+
+def fixed_costs() -> dict[str, Any]:
+    """``import distributed`` in a fresh interpreter, and the embedded cluster's start and close with 1 and 2
+    workers (dask_client, as flow_bag eval runs it); 3 of each. Run after the other measurements: a closed
+    LocalCluster leaves threads in this process."""
+    import distributed  # noqa: F401 - the first cluster start below must not time this import
+
     imports = [float(subprocess.run([sys.executable, "-c", "import time; t = time.perf_counter(); import distributed; "
                                      "print(time.perf_counter() - t)"], capture_output=True, text=True,
                                     check=True).stdout) for _ in range(3)]
-    starts, closes = [], []
-    for _ in range(3):
-        start = time.monotonic()
-        ctx = dask_client(None, 1)
-        ctx.__enter__()
-        starts.append(time.monotonic() - start)
-        closes.append(_timed(lambda c=ctx: c.__exit__(None, None, None)))
-    ratios = [p["dask"] / p["loop"] for p in pairs]
-    per_bag = statistics.median(p["loop"] for p in pairs)
-    fixed = statistics.median(imports) + statistics.median(starts) + statistics.median(closes)
-    return {
-        "pairs": pairs, "import_distributed_seconds": imports, "cluster_start_seconds": starts,
-        "cluster_close_seconds": closes, "per_bag_loop_seconds_median": per_bag,
-        "per_bag_dask_over_loop_median": statistics.median(ratios),
-        "per_bag_dask_over_loop_sum": sum(p["dask"] for p in pairs) / sum(p["loop"] for p in pairs),
-        "fixed_seconds": fixed,
-        # batch size from which the fixed cost is <= 5 %, counting no per-bag gain (a ratio < 1 as 1)
-        "bags_for_5_percent": fixed / (per_bag * max(0.05 - max(statistics.median(ratios) - 1.0, 0.0), 1e-9)),
-    }
+    out: dict[str, Any] = {"import_distributed_seconds": imports}
+    for workers in (1, 2):
+        starts, closes = [], []
+        for _ in range(3):
+            start = time.monotonic()
+            ctx = dask_client(None, workers)
+            ctx.__enter__()
+            starts.append(time.monotonic() - start)
+            closes.append(_timed(lambda c=ctx: c.__exit__(None, None, None)))
+        out[f"workers_{workers}"] = {"cluster_start_seconds": starts, "cluster_close_seconds": closes,
+                                     "fixed_seconds_median": statistics.median(imports) + statistics.median(starts)
+                                     + statistics.median(closes)}
+    return out
+
+
+def _size(text: str) -> tuple[int, int, int]:
+    size, _, count = text.partition(":")
+    w, h = (int(x) for x in size.lower().split("x"))
+    return w, h, int(count or 24)
+
+
+def measure_size(tmp: Path, size: tuple[int, int, int], args: argparse.Namespace) -> dict[str, Any]:
+    """The paired whole-process runs (and with --per-bag the per-bag pairs) on BAGS bags of one size."""
+    w, h, count = size
+    bags = tmp / f"bags_{w}x{h}"
+    make_bags(bags, count, min(args.distinct, count), args.frames, (w, h))
+    run_variant("loop", bags, tmp / "warm", args.preset)  # JIT cache and file cache warm
+    runs = []
+    for r in range(args.repeats):
+        for v in order(r, tuple(args.variants.split(","))):
+            runs.append(run_variant(v, bags, tmp / "out", args.preset) | {"repeat": r})
+            print(json.dumps(runs[-1] | {"size": f"{w}x{h}"}), flush=True)
+    result = {"size": f"{w}x{h}", "bags": count, "runs": runs,
+              "summary": summarise(runs, args.repeats) if runs else None}
+    if args.per_bag:
+        result["per_bag"] = paired_layer_cost(bags, tmp / "paired", args.preset, args.per_bag)
+    shutil.rmtree(bags)
+    per_bag = {k: v for k, v in result.get("per_bag", {}).items() if k != "pairs"}
+    print(json.dumps(result["summary"]), json.dumps(per_bag), flush=True)
+    return result
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--bags", type=int, default=24)
-    p.add_argument("--distinct", type=int, default=8)
+    p.add_argument("--size", type=_size, action="append", metavar="WxH:BAGS",
+                   help="frame size and bag count; repeatable (default: 160x120:24 and 320x240:12)")
+    p.add_argument("--distinct", type=int, default=8, help="distinct synthetic bags per size (the rest copies)")
     p.add_argument("--frames", type=int, default=50)
-    p.add_argument("--size", default="160x120")
     p.add_argument("--preset", default="realtime")
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--variants", default=",".join(VARIANTS), help="a subset of loop,dask-1,dask-2, in that order")
+    p.add_argument("--per-bag", choices=("process", "thread"),
+                   help="also the per-bag pairs: a separate dask worker process, or the embedded worker thread")
     p.add_argument("--out", default=str(REPO / "bench" / "results" / "batch.json"))
-    p.add_argument("--paired-only", action="store_true", help="skip the throughput runs")
     p.add_argument("--loop-run", nargs=2, metavar=("BAGS", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.loop_run:
@@ -205,27 +282,18 @@ def main(argv: list[str] | None = None) -> int:
         os.execve(sys.executable, [sys.executable, "-m", "bench.batch", *sys.argv[1:]],
                   os.environ | WORKER_ENV | {"NUMBA_CACHE_DIR": os.environ.get("NUMBA_CACHE_DIR",
                                                                                str(REPO / ".venv" / "numba_cache"))})
-    w, h = (int(x) for x in args.size.split("x"))
+    started = time.monotonic()
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
-        bags = Path(tmp) / "bags"
-        make_bags(bags, args.bags, args.distinct, args.frames, (w, h))
-        run_variant("loop", bags, Path(tmp) / "warm", args.preset)  # JIT cache and file cache warm
-        runs = []
-        for r in range(0 if args.paired_only else args.repeats):
-            order = VARIANTS[r % 3:] + VARIANTS[:r % 3]
-            for v in order:
-                runs.append(run_variant(v, bags, Path(tmp) / "out", args.preset) | {"repeat": r})
-                print(json.dumps(runs[-1]), flush=True)
-        paired = paired_layer_cost(bags, Path(tmp) / "paired", args.preset)
-        print(json.dumps({k: v for k, v in paired.items() if k != "pairs"}), flush=True)
+        sizes = [measure_size(Path(tmp), size, args) for size in args.size or [(160, 120, 24), (320, 240, 12)]]
+    fixed = fixed_costs()
     result = {"command": "python -m bench.batch " + " ".join(argv if argv is not None else sys.argv[1:]),
-              "bags": args.bags, "distinct": args.distinct, "frames": args.frames, "size": args.size,
-              "preset": args.preset, "repeats": args.repeats, "machine": platform.platform(),
-              "cores": os.cpu_count(), "runs": runs, "paired": paired,
-              "summary": summarise(runs, args.repeats) if runs else None}
+              "frames": args.frames, "distinct": args.distinct, "preset": args.preset, "repeats": args.repeats,
+              "machine": platform.platform(), "cores": os.cpu_count(), "load_average_at_end": os.getloadavg(),
+              "bench_seconds": time.monotonic() - started, "sizes": sizes, "fixed_costs": fixed}
     Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
-    print(json.dumps(result["summary"], indent=1))
-    print(json.dumps({k: v for k, v in paired.items() if k != "pairs"}, indent=1))
+    for size in sizes:
+        print(size["size"], size["bags"], "bags:", json.dumps(size["summary"], indent=1))
+    print(json.dumps(fixed, indent=1))
     return 0
 
 

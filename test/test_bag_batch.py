@@ -117,28 +117,24 @@ def test_an_unreachable_scheduler_is_a_one_line_error():
             pass
 
 
-def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
-    out = tmp_path / "out"
-    environ = dict(os.environ)
-    assert flow_bag(["eval", str(bags), "--output", str(out), *FAST]) == 1  # one bag failed
-    assert dict(os.environ) == environ  # Dask's nanny writes the workers' environment into its parent
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("flow_bag eval: error: 1 of 4 bags failed (first: corrupt: ")
-    report = batch_report(out)
+@pytest.fixture(scope="module")
+def singles(bags, tmp_path_factory) -> Path:
+    """Single-bag eval's output of each good bag, in ``singles/<name>``."""
+    root = tmp_path_factory.mktemp("single")
+    for name in ("translation", "rotation", "robot2/zoom"):
+        assert flow_bag(["eval", str(bags / name), "--output", str(root / name), *FAST]) == 0
+    return root
+
+
+def assert_as_single_bag_eval(singles: Path, out: Path, report: dict) -> None:
+    """Each good bag's output in the batch ``out`` is what single-bag eval writes: same report (but
+    timings), same flow bytes, same files (and the cache key); the corrupt one failed with its reason."""
     assert report["counts"] == {"bags": 4, "done": 3, "skipped": 0, "failed": 1}
-    assert report["scheduler"].startswith("embedded LocalCluster")
     (failure,) = report["failures"]
     assert failure["bag"] == "corrupt" and "corrupt" in failure["reason"] and "\n" not in failure["reason"]
     assert not (out / "bags" / "corrupt").exists()
-    assert all(r["pid"] != os.getpid() for r in report["bags"])  # ran in the cluster's worker processes
-    for name in ("aee_per_bag.png", "time_per_frame.png"):
-        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "## Failed bags" in (out / "report.md").read_text()
-
-    # Each bag's output is what single-bag eval writes: same report (but timings), same flow bytes.
     for name in ("translation", "rotation", "robot2/zoom"):
-        single = tmp_path / "single" / name
-        assert flow_bag(["eval", str(bags / name), "--output", str(single), *FAST]) == 0
+        single = singles / name
         mine = out / "bags" / name.replace("/", "__")
         assert untimed(json.loads((mine / "report.json").read_text())) == \
             untimed(json.loads((single / "report.json").read_text()))
@@ -148,6 +144,40 @@ def test_batch_on_the_embedded_cluster(bags, tmp_path, capsys):
     assert all(rows[n]["pairs_with_gt"] == 3 and rows[n]["aee_mean"] < AEE_BOUND
                for n in ("translation", "rotation", "robot2__zoom"))
 
+
+def test_batch_on_the_embedded_cluster(bags, singles, tmp_path, capsys):
+    out = tmp_path / "out"
+    environ = dict(os.environ)
+    assert flow_bag(["eval", str(bags), "--output", str(out), "--workers", "2", *FAST]) == 1  # one bag failed
+    assert dict(os.environ) == environ  # Dask's nanny writes the workers' environment into its parent
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("flow_bag eval: error: 1 of 4 bags failed (first: corrupt: ")
+    report = batch_report(out)
+    assert report["scheduler"] == "embedded LocalCluster, 2 workers"
+    assert all(r["pid"] != os.getpid() for r in report["bags"])  # ran in the cluster's worker processes
+    for name in ("aee_per_bag.png", "time_per_frame.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "## Failed bags" in (out / "report.md").read_text()
+    assert_as_single_bag_eval(singles, out, report)
+
+
+def test_one_worker_is_a_thread_of_this_process(bags, singles, tmp_path, monkeypatch):
+    """--workers 1: the embedded cluster's one worker is a thread of the client's process (no process to
+    spawn); the same tasks, events and results through the scheduler, and outputs as single-bag eval's."""
+    from flow_node.bag.progress import BatchProgress
+
+    seen: set[str] = set()
+    on_event = BatchProgress.on_event
+    monkeypatch.setattr(BatchProgress, "on_event", lambda self, e: (seen.add(e[1]["name"]), on_event(self, e)))
+    out = tmp_path / "out"
+    environ = dict(os.environ)
+    assert flow_bag(["eval", str(bags), "--output", str(out), "--workers", "1", *FAST]) == 1
+    assert dict(os.environ) == environ
+    report = batch_report(out)
+    assert report["scheduler"] == "embedded LocalCluster, 1 workers"
+    assert {r["pid"] for r in report["bags"] if r["status"] != "failed"} == {os.getpid()}
+    assert seen == {"translation", "rotation", "robot2__zoom"}  # per-frame progress came as Dask events
+    assert_as_single_bag_eval(singles, out, report)
 
 
 def test_rerun_skips_evaluated_bags_and_a_changed_parameter_reruns_them(bags, tmp_path):
@@ -242,3 +272,23 @@ def test_single_bag_eval_and_the_node_do_not_import_dask(bags, tmp_path):
             "print(rc, sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["0", "[]"]
+
+
+def test_worker_processes_skip_the_final_collections():
+    """The embedded cluster's worker processes load the preload dask_worker.py (through Dask's config, via
+    the nanny), whose teardown freezes the GC so that the process exits without walking every object."""
+    import gc
+
+    from distributed import Client
+
+    from flow_node.bag import dask_worker
+    from flow_node.bag.batch import local_cluster
+
+    with local_cluster(2) as cluster, Client(cluster) as client:
+        loaded = client.run(lambda: ("flow_node.bag.dask_worker" in sys.modules, gc.get_freeze_count()))
+    assert list(loaded.values()) == [(True, 0), (True, 0)]
+    try:
+        dask_worker.dask_teardown(None)
+        assert gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()

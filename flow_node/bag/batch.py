@@ -4,8 +4,9 @@ Inputs are bag folders, folders holding bags (searched recursively), glob patter
 bags (one path a line, ``#`` comments, relative to the list's folder). Every bag is one Dask task running
 :func:`evaluate_bag`: the single-bag :func:`~flow_node.bag.evaluate.run_eval` into ``OUT/bags/<name>/``, so
 each bag gets exactly what ``flow_bag eval BAG --output OUT/bags/<name>`` writes. The scheduler is an embedded
-``distributed.LocalCluster`` (one single-threaded worker process per core) or, with ``scheduler``, an
-existing cluster; both go through the same ``Client.submit`` / ``as_completed`` path. Workers must see the
+``distributed.LocalCluster`` (one single-threaded worker process per core; one worker is a thread of this
+process) or, with ``scheduler``, an existing cluster; both go through the same ``Client.submit`` /
+``as_completed`` path. Workers must see the
 bags and ``OUT`` under the same paths (a shared file system) and have flow_node installed.
 
 A bag that fails is reported with its one-line reason; the others go on. A bag whose content (hash of its
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import glob
 import hashlib
+import importlib
 import json
 import os
 import socket
@@ -33,6 +35,7 @@ from ..core.config import FlowConfig
 from ..core.errors import ClusterError, FlowError, one_line
 from .bagio import BagError
 from .evaluate import EvalOptions, run_eval
+from .progress import BatchProgress
 
 BATCH_FORMAT = 1  # part of every cache key: bump when the per-bag output changes meaning
 KEY_FILE = "batch_key.json"  # written into a bag's output folder once it is complete
@@ -274,9 +277,9 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
                 worker_timeout: float = 60.0) -> Iterator[Any]:
     """A ``distributed.Client``: connected to ``scheduler`` (tcp://host:port; within ``connect_timeout``
     s, then waiting up to ``worker_timeout`` s for a worker), or to an embedded LocalCluster of ``workers``
-    single-threaded worker processes (default: one per core). ClusterError if neither works; closed on exit."""
-    import dask
-    from distributed import Client, LocalCluster
+    single-threaded workers (default: one per core): worker processes, or for one worker a worker thread in
+    this process (:func:`local_cluster`). ClusterError if neither works; closed on exit."""
+    from distributed import Client, Worker
 
     cluster = client = None
     environ = dict(os.environ)
@@ -285,9 +288,7 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
             client = Client(scheduler, timeout=connect_timeout)
             client.wait_for_workers(1, timeout=worker_timeout)
         else:
-            with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV}):
-                cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1,
-                                       processes=True, host="127.0.0.1", dashboard_address=":0")
+            cluster = local_cluster(workers or default_workers())
             _restore_environ(environ)
             client = Client(cluster)
     except (OSError, TimeoutError, ValueError) as exc:
@@ -299,6 +300,13 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
         raise ClusterError(f"cannot start or reach {where}: {one_line(exc, None)}") from exc
     try:
         yield client
+    except BaseException:
+        # Ctrl-C: a worker thread of this process cannot be stopped, so the close does not wait for its task
+        # (its output stays an unfinished hidden folder, as when a worker process is killed)
+        for worker in cluster.workers.values() if cluster is not None else ():
+            if isinstance(worker, Worker):
+                cluster.sync(worker.close, executor_wait=False)
+        raise
     finally:
         client.close()
         if cluster is not None:
@@ -306,48 +314,23 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
         _restore_environ(environ)  # a worker restarted by its nanny wrote it again
 
 
-class BatchProgress:
-    """tqdm bars on the client: the bags done overall, and the frames of each bag being evaluated (fed by
-    the workers' Dask events). Thread-safe: events arrive on the client's event-loop thread."""
+def local_cluster(workers: int) -> Any:
+    """The embedded ``LocalCluster``. Several workers: one single-threaded process each (the engine's numba
+    kernels hold the GIL), started by Dask's nanny with WORKER_ENV and the preload dask_worker.py (a fast
+    exit). One worker: a worker thread in this process (``processes=False``), the one batch layout in which
+    no two bags compute at once anyway. It spares the fixed cost of a worker process (docs/bags.md,
+    BENCHMARKS.md): spawning it, importing distributed, flow_node, OpenCV and numba a second time, loading
+    the JIT cache there, and waiting for it to exit; tasks, events and results go through the same
+    scheduler and Client calls (in-process comm)."""
+    import dask
+    from distributed import LocalCluster
 
-    def __init__(self, total: int, enabled: bool) -> None:
-        from tqdm import tqdm
-
-        self._tqdm, self.enabled = tqdm, enabled
-        self.overall = tqdm(total=total, unit="bag", desc="bags", disable=not enabled, dynamic_ncols=True)
-        self._bars: dict[str, Any] = {}
-        self._finished: set[str] = set()
-        self._lock = threading.Lock()
-
-    def on_event(self, event: Any) -> None:
-        """Handler of PROGRESS_TOPIC events: ``(timestamp, {"name", "done", "total"})``."""
-        msg = event[1] if isinstance(event, tuple) else event
-        with self._lock:
-            name = msg["name"]
-            if not self.enabled or name in self._finished:
-                return
-            bar = self._bars.get(name)
-            if bar is None:
-                bar = self._bars[name] = self._tqdm(total=msg["total"], unit="frame", desc=name, leave=False,
-                                                    dynamic_ncols=True)
-            bar.update(msg["done"] - bar.n)
-
-    def finish(self, outcome: BagOutcome) -> None:
-        """A bag is over: close its bar, count it, print a failure's reason above the bars."""
-        with self._lock:
-            self._finished.add(outcome.name)
-            bar = self._bars.pop(outcome.name, None)
-            if bar is not None:
-                bar.close()
-            self.overall.update(1)
-            if outcome.status == "failed" and self.enabled:
-                self.overall.write(f"flow_bag eval: {outcome.name}: failed: {outcome.reason}")
-
-    def close(self) -> None:
-        with self._lock:
-            for bar in self._bars.values():
-                bar.close()
-            self.overall.close()
+    if workers == 1:
+        return LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0")
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV,
+                          "distributed.worker.preload": [f"{__package__}.dask_worker"]}):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                            dashboard_address=":0")
 
 
 def run_jobs(client: Any, jobs: Sequence[BagJob], progress: BatchProgress) -> list[BagOutcome]:
@@ -380,8 +363,6 @@ def run_batch(inputs: Sequence[str], output: str | Path, configs: Sequence[FlowC
               scheduler: str | None = None, workers: int | None = None) -> list[BagOutcome]:
     """Evaluate every bag of ``inputs`` on Dask into ``output``/bags/, then write the batch report
     (``output``/report.json, report.md, PNGs). Returns the outcomes in input order."""
-    from .batch_report import write_batch_report
-
     out = Path(output)
     if out.exists() and not out.is_dir():
         raise BagError(f"output {out} exists and is not a folder")
@@ -391,10 +372,17 @@ def run_batch(inputs: Sequence[str], output: str | Path, configs: Sequence[FlowC
     progress = BatchProgress(len(jobs), opts.progress)
     try:
         with dask_client(scheduler, workers) as client:
+            # the report's imports (matplotlib: ~1 s) while the workers compute, not after them
+            report_import = threading.Thread(target=importlib.import_module, args=(f"{__package__}.batch_report",),
+                                             daemon=True)
+            report_import.start()
             outcomes = run_jobs(client, jobs, progress)
             workers_seen = len(client.nthreads())
     finally:
         progress.close()
+    report_import.join()
+    from .batch_report import write_batch_report
+
     where = f"{scheduler or 'embedded LocalCluster'}, {workers_seen} workers"
     write_batch_report(outcomes, out, configs, time.monotonic() - start, where)
     return outcomes

@@ -75,7 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="batch: run on this existing Dask cluster (default: an embedded local cluster)")
     e.add_argument("--workers", type=int, metavar="N",
-                   help="batch: worker processes of the embedded cluster (default: one per core)")
+                   help="batch: workers of the embedded cluster (default: one per core); "
+                   "several are processes, one is a thread of this process")
 
     y = sub.add_parser("play", help="publish a bag over DDS with its recorded timing (rclpy)")
     y.add_argument("bag", help="rosbag2 folder (mcap or sqlite3)")
