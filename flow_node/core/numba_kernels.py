@@ -36,7 +36,9 @@ from numba import njit, prange  # noqa: E402
 
 REG_CODES = {"l2": 0, "tv": 1, "tv_l2": 2, "tv_tv": 3}  # regulariser -> integer flag of the kernels
 
-_JIT = dict(fastmath=True, cache=True, error_model="numpy")  # numpy: no zero-check branch per division
+# error_model numpy: no zero-check branch per division; nogil: a kernel releases the GIL, so another
+# thread of the process (a Dask worker's event loop, the node's executor) is not held up for its duration
+_JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
 _ONE = np.float32(1.0)
 _ZERO = np.float32(0.0)
 
