@@ -315,13 +315,13 @@ def dask_client(scheduler: str | None, workers: int | None = None, connect_timeo
 
 
 def local_cluster(workers: int) -> Any:
-    """The embedded ``LocalCluster``. Several workers: one single-threaded process each (the engine's numba
-    kernels hold the GIL), started by Dask's nanny with WORKER_ENV and the preload dask_worker.py (a fast
-    exit). One worker: a worker thread in this process (``processes=False``), the one batch layout in which
-    no two bags compute at once anyway. It spares the fixed cost of a worker process (docs/bags.md,
-    BENCHMARKS.md): spawning it, importing distributed, flow_node, OpenCV and numba a second time, loading
-    the JIT cache there, and waiting for it to exit; tasks, events and results go through the same
-    scheduler and Client calls (in-process comm)."""
+    """The embedded ``LocalCluster``. Several workers: one single-threaded process each (the numba kernels release
+    the GIL, but the engine's Python and numpy stages between them do not), started by Dask's nanny with WORKER_ENV
+    and the preload dask_worker.py (a fast exit). One worker: a worker thread in this process (``processes=False``),
+    the one batch layout in which no two bags compute at once anyway. It spares the fixed cost of a worker process
+    (docs/bags.md, BENCHMARKS.md): spawning it, importing distributed, flow_node, OpenCV and numba a second time,
+    loading the JIT cache there, and waiting for it to exit; tasks, events and results go through the same scheduler
+    and Client calls (in-process comm)."""
     import dask
     from distributed import LocalCluster
 

@@ -26,7 +26,7 @@ FUSION_MARGIN = 1.3  # a candidate is taken where it costs less than this times 
 FINAL_MARGIN = 1.3  # after the refinement: a candidate is taken where it costs less than this times the refined flow
 FINAL_ONLY_CONSISTENT = False  # True: ... and only where forward-backward consistent
 CONSISTENT_COST = 0.5  # cost factor of a forward-backward consistent candidate pixel
-PROPAGATE_INCONSISTENT = True  # a pixel won by a candidate failing its check takes the nearest decided choice
+PROPAGATE_INCONSISTENT = True  # a pixel won by a candidate failing its check is undecided (fill_undecided)
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
 
@@ -108,22 +108,17 @@ def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     return fused.astype(np.float32, copy=False), choice
 
 
-def fill_undecided(choice: np.ndarray, undecided: np.ndarray, stack: np.ndarray | None = None) -> np.ndarray:
+def fill_undecided(choice: np.ndarray, undecided: np.ndarray, stack: np.ndarray) -> np.ndarray:
     """Where no data decides (``undecided`` (h, w) bool: every candidate leaves the image, or the winner
     failed its forward-backward check), continue the neighbours' flow instead of defaulting to the
-    reference (which the regulariser and the median filter would spread inwards). With the candidates
-    ``stack`` (K, 2, h, w), an undecided pixel takes the candidate whose flow there is nearest to the
-    fused flow of the nearest decided pixel (on an occluded background that is the background's motion,
-    whichever candidate the neighbours chose); without it, the nearest decided pixel's choice (h, w) int.
-    All undecided: the choice stands."""
+    reference (which the regulariser and the median filter would spread inwards): an undecided pixel takes
+    the candidate of ``stack`` (K, 2, h, w) whose flow there is nearest to the fused flow of the nearest
+    decided pixel (on an occluded background that is the background's motion, whichever candidate the
+    neighbours chose). Returns the choice (h, w) int; all undecided (or none): ``choice`` as it is."""
     if not undecided.any() or undecided.all():
         return choice
     _, labels = cv2.distanceTransformWithLabels(undecided.astype(np.uint8), cv2.DIST_L2, 5,
                                                 labelType=cv2.DIST_LABEL_PIXEL)
-    lut = np.zeros(labels.max() + 1, choice.dtype)
-    lut[labels[~undecided]] = choice[~undecided]
-    if stack is None:
-        return lut[labels]
     near = np.zeros(labels.max() + 1, np.int64)
     near[labels[~undecided]] = np.flatnonzero(~undecided.reshape(-1))
     src = near[labels[undecided]]  # flat index of each undecided pixel's nearest decided pixel

@@ -141,8 +141,9 @@ def linearise_kernel(i0, src, g0, flow, kernel, interpolated, a, c, parallel):  
 @njit(**_JIT)
 def bspline_columns(img, pole, horizon):  # noqa: ANN001, ANN201
     """In place: the B-spline direct transform of every column of each plane of img (N, H, W), run over
-    whole rows (unit stride: one strided line per column misses the cache on every element). The same
-    recursion as :func:`_bspline_line`; the carried row is read back as float32."""
+    whole rows (unit stride: one strided line per column misses the cache on every element). The recursion
+    of warping.bspline_prefilter (causal, then anti-causal, mirrored start); the carried row is read back as
+    float32."""
     n, h, w = img.shape
     if h == 1:
         return

@@ -55,29 +55,33 @@ def median_filter(v: np.ndarray, size: int) -> np.ndarray:
     return out
 
 
-def level_params(cfg: FlowConfig, level: int, finest: bool = False) -> SolveParams:
-    """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``; on the ``finest``
-    solved level ``cfg.finest_iterations`` per warp when set."""
-    iterations = cfg.finest_iterations if finest and cfg.finest_iterations else cfg.iterations
+def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
+    """(warps, primal-dual iterations per warp) of a level: ``cfg.finest_warps`` / ``cfg.finest_iterations``
+    on the ``finest`` solved level where set (non-zero), else ``cfg.warps`` / ``cfg.iterations``."""
+    if not finest:
+        return cfg.warps, cfg.iterations
+    return cfg.finest_warps or cfg.warps, cfg.finest_iterations or cfg.iterations
+
+
+def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
+    """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``, ``iterations`` per
+    warp (:func:`level_schedule`)."""
     return SolveParams(MODEL_SPECS[cfg.model], cfg.alpha * cfg.level_alpha_factor**level, cfg.alpha1,
                        cfg.tv_norm, iterations, cfg.tolerance)
 
 
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState,
                 bregman_steps: int = 0) -> tuple[int, int]:
-    """``cfg.warps`` times (``cfg.finest_warps`` times with ``cfg.finest_iterations`` each on the finest solved
-    level, when set): linearise around the
-    current flow (the backend's fused warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside
-    pixels masked), run the backend's solver and median-filter the flow; then ``bregman_steps`` Bregman steps
-    on the last linearisation. ``state`` lives on ``level`` and is updated in place. Returns (iterations,
-    Bregman iterations)."""
-    finest = level == finest_level(pyr, cfg)
-    params = level_params(cfg, level, finest)
+    """As many warps as :func:`level_schedule` gives: linearise around the current flow (the backend's fused warp of
+    frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked), run the backend's solver and
+    median-filter the flow; then ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives on ``level``
+    and is updated in place. Returns (iterations, Bregman iterations)."""
+    warps, per_warp = level_schedule(cfg, level == finest_level(pyr, cfg))
+    params = level_params(cfg, level, per_warp)
     i0, i1 = pyr.i0[level], pyr.i1[level]
     src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
     g0 = image_gradient(i0, cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
     iterations = 0
-    warps = cfg.finest_warps if finest and cfg.finest_warps else cfg.warps
     for _ in range(warps):
         a, c = backend.linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
         iterations += backend.solve(Problem(a, c), state, params)
