@@ -80,7 +80,8 @@ def test_numba_linearise_matches_the_numpy_reference(kernel: str, scheme: str, p
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     """The fused linearisation kernel: a and c as operators.linearise, including the pixels whose target
     leaves the image (zero there), odd sizes and the parallel rows."""
-    monkeypatch.setattr(numba_backend, "PARALLEL_MIN_PIXELS", 0 if parallel else 10**9)
+    for name in ("PARALLEL_MIN_PIXELS", "LINEARISE_PARALLEL_MIN_PIXELS"):  # the warp source's sample, the kernel
+        monkeypatch.setattr(numba_backend, name, 0 if parallel else 10**9)
     rng = np.random.default_rng(5)
     i0, i1 = rng.random((2, 31, 45)).astype(np.float32)
     flow = (2.5 * rng.standard_normal((2, 31, 45))).astype(np.float32)
