@@ -22,8 +22,11 @@ from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
 from flow_node.core.config import MODELS, FlowConfig
 from flow_node.core.errors import ConfigError
+from flow_node.core.fusion import fuse
+from flow_node.core.initialise import forward_backward_consistent
 from flow_node.core.models import MODEL_SPECS
 from flow_node.core.numba_backend import WARPER, linearise_numba, reliability_numba, solve_numba
+from flow_node.core.numba_fusion import consistent_numba, fuse_numba
 from flow_node.core.operators import linearise
 from flow_node.core.photometric import reliability
 from flow_node.core.solver import CHECK_EVERY, PDState, Problem, SolveParams, solve_numpy
@@ -200,11 +203,15 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
         logger.setLevel(old)
 
 
+NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability, fuse, forward_backward_consistent)
+NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, reliability_numba, fuse_numba, consistent_numba)
+
+
 def test_backend_selection_and_log() -> None:
     with flow_node_log(logging.INFO) as records:
-        assert select_backend("numpy") == ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability)
-        assert select_backend("auto") == ("numba", solve_numba, WARPER, linearise_numba, reliability_numba)
-        assert select_backend("numba") == ("numba", solve_numba, WARPER, linearise_numba, reliability_numba)
+        assert select_backend("numpy") == NUMPY_FIELDS
+        assert select_backend("auto") == NUMBA_FIELDS
+        assert select_backend("numba") == NUMBA_FIELDS
     lines = [r.getMessage() for r in records]
     assert len(lines) == 3
     assert lines[0].startswith("flow_node backend: numpy")
@@ -218,7 +225,7 @@ def test_fallback_when_numba_is_missing(monkeypatch: pytest.MonkeyPatch) -> None
     monkeypatch.setitem(sys.modules, "flow_node.core.numba_backend", None)  # import now raises ImportError
     monkeypatch.delattr(core, "numba_backend")
     with flow_node_log(logging.WARNING) as records:
-        assert select_backend("auto") == ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability)
+        assert select_backend("auto") == NUMPY_FIELDS
     assert [r.levelno for r in records] == [logging.WARNING]
     assert "numba not importable" in records[0].getMessage()
     with pytest.raises(ConfigError, match="numba"):

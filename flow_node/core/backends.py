@@ -7,6 +7,8 @@ import logging
 from typing import NamedTuple
 
 from .errors import ConfigError
+from .fusion import Fuse, fuse
+from .initialise import Consistent, forward_backward_consistent
 from .operators import Linearise, linearise
 from .photometric import Reliability, reliability
 from .solver import LevelSolver, solve_numpy
@@ -16,15 +18,17 @@ log = logging.getLogger("flow_node")
 
 
 class Backend(NamedTuple):
-    """A resolved backend: its name, the level solver, the warper, the linearisation of one warp and the
-    reliability figure (same semantics in every backend; the defaults are the numpy references, the
-    linearisation on ``warper``)."""
+    """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
+    reliability figure, the fusion and its forward-backward check (same semantics in every backend; the
+    defaults are the numpy references, the linearisation on ``warper``)."""
 
     name: str
     solve: LevelSolver
     warper: Warper
     linearise: Linearise = linearise
     reliability: Reliability = reliability
+    fuse: Fuse = fuse
+    consistent: Consistent = forward_backward_consistent
 
 
 NUMPY = Backend("numpy", solve_numpy, NUMPY_WARPER)
@@ -77,4 +81,4 @@ def select_backend(name: str, threads: int = 0) -> Backend:
     log.info("flow_node backend: numba (%d thread%s, kernel cache %s)", used, "" if used == 1 else "s",
              numba_backend.cache_dir())
     return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER, numba_backend.linearise_numba,
-                   numba_backend.reliability_numba)
+                   numba_backend.reliability_numba, numba_backend.fuse_numba, numba_backend.consistent_numba)

@@ -30,8 +30,8 @@ import numpy as np
 
 from .backends import Backend
 from .config import FlowConfig
-from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT, fuse
-from .initialise import Candidate, beyond_reach, forward_backward_consistent, initialise
+from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
+from .initialise import Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .photometric import stage
@@ -60,31 +60,38 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: lis
     if start < pyr.coarsest:
         state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, start + 1, stats)
         state = resize_state(state, pyr.shapes[start])
-    state.v, choice = fuse_on_level(pyr, start, state.v, candidates)
+    state.v, choice = fuse_on_level(pyr, start, state.v, candidates, backend)
     stats.init = "+".join(c.name for c in candidates)
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
     state = refine_levels(pyr, cfg, backend, state, start, finest, stats)
-    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates, final=True)
+    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates, backend, final=True)
     stats.final_init_share = float(np.mean(choice > 0))
     return state
 
 
-def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, candidates: list[Candidate],
+def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, candidates: list[Candidate], backend: Backend,
                   final: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it; returns
     the fused flow and the per-pixel choice (0 = ``flow``). On the start level (``final`` False) candidates
     are preferred (FUSION_MARGIN) and forward-backward consistent pixels trusted more (checked there, where
     a candidate has a backward flow); after the refinement (``final``) a candidate must be clearly better
     than the refined flow (FINAL_MARGIN), which is then usually the more accurate one, and consistent where
-    it can be checked."""
+    it can be checked. The backend's fusion and check (numpy references or numba kernels, same results)."""
     shape = pyr.shapes[level]
-    flows = [flow] + [resize_flow(c.flow, shape) for c in candidates]
-    trusted = [None] + [None if c.backward is None else forward_backward_consistent(f, resize_flow(c.backward, shape))
+    flows = [flow] + [on_grid(c.flow, shape) for c in candidates]
+    trusted = [None] + [None if c.backward is None else backend.consistent(f, on_grid(c.backward, shape))
                         for f, c in zip(flows[1:], candidates, strict=True)]
     if final:
-        return fuse(pyr.i0[level], pyr.i1[level], flows, trusted, FINAL_MARGIN, only_consistent=FINAL_ONLY_CONSISTENT)
-    return fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
+        return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted, FINAL_MARGIN,
+                            only_consistent=FINAL_ONLY_CONSISTENT)
+    return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
+
+
+def on_grid(flow: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """A candidate's flow (2, h, w) on a level of ``shape``: itself when it already lives there (the
+    finest level at full resolution; a resize to the same size would only copy it), else resized."""
+    return flow if flow.shape[1:] == shape else resize_flow(flow, shape)
 
 
 def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,

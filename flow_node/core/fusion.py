@@ -16,6 +16,8 @@ the pyramid alone.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -106,6 +108,11 @@ def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     choice = fill_undecided(choice, undecided, stack)
     fused = np.take_along_axis(stack, choice[None, None], axis=0)[0]
     return fused.astype(np.float32, copy=False), choice
+
+
+# fuse(i0, i1, candidates, consistent, margin, only_consistent) -> (flow, choice): :func:`fuse` or a
+# backend's kernels (numba_fusion.fuse_numba)
+Fuse = Callable[..., tuple[np.ndarray, np.ndarray]]
 
 
 def fill_undecided(choice: np.ndarray, undecided: np.ndarray, stack: np.ndarray) -> np.ndarray:

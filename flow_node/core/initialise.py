@@ -19,6 +19,7 @@ any of them blindly: it fuses them per pixel with the pyramid's own estimate (:m
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -67,6 +68,10 @@ def forward_backward_consistent(forward: np.ndarray, backward: np.ndarray) -> np
     tol = FB_TOLERANCE_PX + 0.05 * np.sqrt(forward[0] ** 2 + forward[1] ** 2)
     inside = (xs >= 0) & (xs <= w - 1) & (ys >= 0) & (ys <= h - 1)
     return inside & (err2 < tol * tol)
+
+
+# forward_backward_consistent(forward, backward) -> mask: the numpy reference or a backend's kernel
+Consistent = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def to_u8(img: np.ndarray) -> np.ndarray:
