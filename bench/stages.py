@@ -1,7 +1,7 @@
 """Where a call's time goes: the engine's stages for some presets beside OpenCV DIS, one run, interleaved.
 
     PYTHONPATH=$PWD .venv-bench/bin/python bench/stages.py --out bench/results/stages.json
-    PYTHONPATH=/work/main .venv-bench/bin/python bench/stages.py ...   # another checkout's engine, same harness
+    PYTHONPATH=$PWD .venv-bench/bin/python bench/stages.py --base ../main   # + another checkout's engine
 
 Per case (a preset on a pair) the stage functions the engine calls are wrapped with timers: grey
 conversion, the photometric stage, the initialisation (the DIS gate run and, for a pair that moves far, its
@@ -9,7 +9,9 @@ backward run), the pyramid, the refinement (everything in ``refine_levels``), th
 and the reliability figure; 'other' is what is left of the call (the driver's glue). Per round every
 method runs once, the order rotating (DIS ultrafast, DIS medium on the 8-bit frames the suite hands them,
 and each preset); per stage the median over the rounds. Ratios are to DIS ultrafast / DIS medium in the same
-rounds. Names that the checkout's engine lacks are skipped, so the harness also times an older checkout.
+rounds. With ``--base DIR`` the engine of another checkout (DIR/flow_node/core, imported under another
+package name, ``flow_node_base``) runs in the same rounds as ``base:<preset>``, so before/after ratios come
+from one interleaved run; names that engine lacks are skipped.
 
 Pairs: an exactly rendered fine-texture pair (the suite's tune seed 0) at 320x240 and 640x480, and the
 KITTI pairs of ../shared/data/large (1242x375; 000045 moves ~11 px, 000000 ~52 px: the second is where
@@ -19,8 +21,12 @@ realtime fuses its DIS initialisation).
 from __future__ import annotations
 
 import argparse
+import hashlib
+import importlib
 import json
+import shutil
 import sys
+import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
@@ -67,10 +73,26 @@ class Timers:
         return timed
 
 
-def install(timers: Timers) -> None:
+def install(timers: Timers, api_module: Any = api, engine_module: Any = engine) -> None:
+    modules = {api: api_module, engine: engine_module}
     for module, name, label in WRAPPED:
-        if hasattr(module, name):
-            setattr(module, name, timers.wrap(getattr(module, name), label))
+        target = modules[module]
+        if hasattr(target, name):
+            setattr(target, name, timers.wrap(getattr(target, name), label))
+
+
+def load_base(checkout: str) -> tuple[Any, Any, Any]:
+    """(api, engine, config) modules of ``checkout``'s engine, imported as package ``flow_node_base`` from a
+    copy at a fixed path per checkout (numba caches compiled kernels by source path; freshly compiled
+    kernels differ from cached ones by ~1e-4 px in the flow, so a comparison must load both sides alike)."""
+    tag = hashlib.sha1(str(Path(checkout).resolve()).encode()).hexdigest()[:10]
+    root = Path(tempfile.gettempdir()) / f"stages_base_{tag}"
+    shutil.rmtree(root / "flow_node_base", ignore_errors=True)
+    shutil.copytree(Path(checkout) / "flow_node" / "core", root / "flow_node_base" / "core",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    (root / "flow_node_base" / "__init__.py").write_text("")
+    sys.path.insert(0, str(root))
+    return tuple(importlib.import_module(f"flow_node_base.core.{m}") for m in ("api", "engine", "config"))
 
 
 def fine_pair(size: tuple[int, int]) -> tuple[str, np.ndarray, np.ndarray]:
@@ -86,12 +108,15 @@ def large_pair(name: str) -> tuple[str, np.ndarray, np.ndarray]:
 
 
 def run_case(label: str, f0: np.ndarray, f1: np.ndarray, presets: list[str], rounds: int,
-             timers: Timers) -> dict[str, Any]:
+             timers: Timers, base: tuple[Any, Any, Any] | None = None) -> dict[str, Any]:
     g0, g1 = api.to_grey(f0), api.to_grey(f1)
     u0, u1 = to_u8(g0), to_u8(g1)
     dis = {"dis_ultrafast": cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST),
            "dis_medium": cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)}
     estimators = {p: FlowEstimator(FlowConfig.preset(p)) for p in presets}
+    if base is not None:
+        estimators.update({f"base:{p}": base[0].FlowEstimator(base[2].FlowConfig.preset(p)) for p in presets})
+        presets = presets + [f"base:{p}" for p in presets]
     for est in estimators.values():
         est.warmup()
         est.estimate(f0, f1)
@@ -134,12 +159,17 @@ def main() -> None:
     ap.add_argument("--presets", default="realtime,fastest")
     ap.add_argument("--rounds", type=int, default=30)
     ap.add_argument("--cases", default="fine_320,fine_640,kitti2012_000045,kitti2012_000000")
+    ap.add_argument("--base", default="", help="another checkout whose engine runs in the same rounds")
     ap.add_argument("--out", default="")
     args = ap.parse_args()
     timers = Timers()
     install(timers)
+    base = load_base(args.base) if args.base else None
+    if base is not None:
+        install(timers, base[0], base[1])
     presets = args.presets.split(",")
-    results = {"command": " ".join(sys.argv), "engine": str(Path(engine.__file__).resolve().parent), "cases": {}}
+    results = {"command": " ".join(sys.argv), "engine": str(Path(engine.__file__).resolve().parent),
+               "base": args.base, "cases": {}}
     for case in args.cases.split(","):
         if case == "fine_320":
             label, f0, f1 = fine_pair((320, 240))
@@ -147,7 +177,7 @@ def main() -> None:
             label, f0, f1 = fine_pair((640, 480))
         else:
             label, f0, f1 = large_pair(case)
-        results["cases"][label] = run_case(label, f0, f1, presets, args.rounds, timers)
+        results["cases"][label] = run_case(label, f0, f1, presets, args.rounds, timers, base)
     if args.out:
         Path(args.out).write_text(json.dumps(results, indent=1))
 

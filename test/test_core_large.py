@@ -267,15 +267,48 @@ def test_confidence_auc_is_one_for_a_perfect_ranking_and_half_for_noise() -> Non
 
 
 def test_a_computed_initialisation_is_fused_only_for_large_motions() -> None:
-    """A 2 px shift is below init_min_motion (24 px): DIS is computed but not fused (the result is the
-    pyramid's own, bit for bit); a 40 px shift is above it and DIS is fused."""
+    """A 2 px shift is below init_min_motion (24 px): only the cheap DIS gate runs, nothing is fused (the
+    result is the pyramid's own, bit for bit); a 40 px shift is above it and DIS is fused."""
     i0, i1, _ = shifted_pair(seed=3, shift=(2.3, -1.4), size=(240, 180))
     cfg = SHORT.replace(initialisation="dis_medium")
     small = FlowEstimator(cfg).estimate_grey(i0, i1)
-    assert small.stats.init_offered == "dis_medium" and small.stats.init == "" and small.stats.start_level == -1
+    assert small.stats.init_offered == "" and small.stats.init == "" and small.stats.start_level == -1
     assert np.array_equal(small.flow, FlowEstimator(SHORT).estimate_grey(i0, i1).flow)
     j0, j1, _ = shifted_pair(0, SHIFT, (240, 180))
     assert FlowEstimator(cfg).estimate_grey(j0, j1).stats.init == "dis_medium"
+
+
+@pytest.mark.parametrize("preset", ["dis_ultrafast", "dis_medium"])
+def test_the_gate_passes_every_pair_the_preset_would_fuse_unchanged(preset) -> None:
+    """The gate (DIS ultrafast on the half-size pair) decides only whether the preset's own DIS runs: a
+    30 px pan gets exactly the candidate a direct DIS run gives (forward and backward, bit for bit); a
+    15 px pan -- under init_min_motion but over the gate's fraction of it -- runs the preset's DIS too,
+    which then judges it not far; a 2 px pan stops at the gate (no candidate)."""
+    import cv2
+
+    from flow_node.core.initialise import DIS_PRESETS, dis_candidates, to_u8
+
+    for shift, names, far in (((30.0, 0.0), [preset], True), ((15.0, 2.0), [preset], False),
+                              ((2.0, 1.0), [], None)):
+        i0, i1, _ = shifted_pair(1, shift, (240, 180))
+        cands = dis_candidates(i0, i1, preset, 24.0)
+        assert [c.name for c in cands] == names and (not cands or cands[0].far is far)
+        if far:
+            algo = cv2.DISOpticalFlow_create(DIS_PRESETS[preset][0])
+            u0, u1 = to_u8(i0), to_u8(i1)
+            assert np.array_equal(cands[0].flow, np.moveaxis(algo.calc(u0, u1, None), -1, 0))
+            assert np.array_equal(cands[0].backward, np.moveaxis(algo.calc(u1, u0, None), -1, 0))
+
+
+def test_to_u8_rounds_half_to_even_and_clips() -> None:
+    """The OpenCV conversion equals np.clip(np.rint(x * 255), 0, 255) on values below 0, above 1 and on
+    the rounding boundaries (k + 1/2) / 255 and their neighbouring floats."""
+    from flow_node.core.initialise import to_u8
+
+    k = np.arange(-20, 280, dtype=np.float64)
+    x = np.concatenate([(k + 0.5) / 255, k / 255, np.linspace(-0.3, 1.3, 5001)]).astype(np.float32)
+    x = np.concatenate([x, np.nextafter(x, np.float32(2)), np.nextafter(x, np.float32(-2))]).reshape(3, -1)
+    assert np.array_equal(to_u8(x), np.clip(np.rint(x * np.float32(255)), 0, 255).astype(np.uint8))
 
 
 @pytest.mark.parametrize("shape", [(2, 2), (8, 40), (40, 11), (15, 15)])
