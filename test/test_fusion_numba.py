@@ -6,11 +6,12 @@ scenes with real occlusions, several candidates and every option of the fusion.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
-from flow_node.core import FlowEstimator
+from flow_node.core import FlowEstimator, numba_backend
 from flow_node.core.backends import select_backend
 from flow_node.core.config import FlowConfig
 from flow_node.core.fusion import FINAL_MARGIN, fuse
@@ -53,7 +54,7 @@ def candidates(truth: np.ndarray, seed: int) -> tuple[list[np.ndarray], list[np.
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_consistency_check_equals_the_reference(seed) -> None:
+def test_consistency_check_equals_the_reference(seed, rows) -> None:
     _, _, truth = jump_scene()
     rng = np.random.default_rng(seed)
     forward = truth + rng.normal(0.0, 1.0, truth.shape).astype(np.float32)
@@ -64,10 +65,21 @@ def test_consistency_check_equals_the_reference(seed) -> None:
     assert np.array_equal(consistent_numba(forward, backward), ref)
 
 
+@pytest.fixture(params=["serial", "parallel"])
+def rows(request, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Both ways the kernels run their rows: serial (small levels) and in parallel (the threshold the
+    kernels read, numba_backend.PARALLEL_MIN_PIXELS, patched down to this test's small frames)."""
+    if request.param == "parallel":
+        monkeypatch.setattr(numba_backend, "PARALLEL_MIN_PIXELS", 0)
+        numba_backend.set_threads(0)
+        assert numba_backend.threads() > 1 or numba.config.NUMBA_NUM_THREADS == 1
+    return request.param
+
+
 @pytest.mark.parametrize("count", [2, 3])
 @pytest.mark.parametrize("margin,only_consistent,propagate", [(1.3, False, True), (FINAL_MARGIN, True, True),
                                                               (1.0, False, False), (2.0, True, False)])
-def test_fusion_equals_the_reference(count, margin, only_consistent, propagate) -> None:
+def test_fusion_equals_the_reference(count, margin, only_consistent, propagate, rows) -> None:
     i0, i1, truth = jump_scene()
     cands, masks = candidates(truth, count)
     cands, masks = cands[:count], masks[:count]
@@ -78,7 +90,7 @@ def test_fusion_equals_the_reference(count, margin, only_consistent, propagate) 
     assert np.array_equal(choice, ref_choice) and np.array_equal(flow, ref_flow)
 
 
-def test_fusion_without_masks_and_with_undecided_pixels_equals_the_reference() -> None:
+def test_fusion_without_masks_and_with_undecided_pixels_equals_the_reference(rows) -> None:
     """No forward-backward masks, and a candidate that leaves the image in a wide stripe (no support: those
     pixels are undecided and continue their decided neighbours' flow)."""
     i0, i1, truth = jump_scene()

@@ -71,7 +71,7 @@ def select_backend(name: str, threads: int = 0) -> Backend:
         log.info("flow_node backend: numpy (reference, requested)")
         return NUMPY
     try:
-        from . import numba_backend
+        from . import numba_backend, numba_fusion
     except ImportError as exc:
         if name == "numba":
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
@@ -81,4 +81,4 @@ def select_backend(name: str, threads: int = 0) -> Backend:
     log.info("flow_node backend: numba (%d thread%s, kernel cache %s)", used, "" if used == 1 else "s",
              numba_backend.cache_dir())
     return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER, numba_backend.linearise_numba,
-                   numba_backend.reliability_numba, numba_backend.fuse_numba, numba_backend.consistent_numba)
+                   numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba)

@@ -24,7 +24,6 @@ import numpy as np
 
 from . import numba_kernels as nk
 from . import numba_warp as nw
-from .numba_fusion import consistent_numba, fuse_numba  # noqa: F401 (backend fields)
 from .photometric import RELIABILITY_STRIDE, RESIDUAL_OUTLIER
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
