@@ -1,11 +1,17 @@
 """The numba fusion stage (numba_fusion.py) against the numpy reference (fusion.fuse,
-initialise.forward_backward_consistent), the oracle: same remap and box means, same float32 arithmetic,
-so the fused flow, the choice and the consistency masks must be equal bit for bit -- on exactly rendered
-scenes with real occlusions, several candidates and every option of the fusion.
+initialise.forward_backward_consistent), the oracle, on exactly rendered scenes with real occlusions,
+several candidates and every option of the fusion.
+
+The kernels sample bilinearly themselves, as OpenCV 5's remap does (the reference's sampling): with
+OpenCV 5 the fused flow, the choice and the masks must equal the reference's bit for bit. OpenCV 4.x
+snaps remap positions to 1/32 px (the Ubuntu 24.04 venv), so there the reference differs slightly: the
+kernels' sampling is checked against an exact bilinear numpy reference everywhere, and the fusion's
+outcome must agree on all but a few pixels.
 """
 
 from __future__ import annotations
 
+import cv2
 import numba
 import numpy as np
 import pytest
@@ -14,11 +20,63 @@ from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowEstimator, numba_backend
 from flow_node.core.backends import select_backend
 from flow_node.core.config import FlowConfig
-from flow_node.core.fusion import FINAL_MARGIN, fuse
+from flow_node.core.fusion import FINAL_MARGIN, fuse, planes
 from flow_node.core.initialise import forward_backward_consistent
-from flow_node.core.numba_fusion import consistent_numba, fuse_numba
+from flow_node.core.numba_fusion import _NONE, consistent_numba, fuse_numba, residual_kernel
 
 W, H = 200, 160
+
+
+def remap_is_exact() -> bool:
+    """Whether this OpenCV's remap samples bilinearly at the exact position (OpenCV 5) rather than at the
+    nearest 1/32 px (4.x): a ramp sampled at 1/128 px steps comes back exactly."""
+    ramp = np.tile(np.arange(16, dtype=np.float32), (4, 1))
+    xs = np.tile(np.float32(5) + np.arange(0, 1, 1 / 128, dtype=np.float32), (4, 1))
+    return bool(np.array_equal(cv2.remap(ramp, xs, np.ones_like(xs), cv2.INTER_LINEAR)[0], xs[0]))
+
+
+REMAP_EXACT = remap_is_exact()
+
+
+def assert_same_fusion(ref: tuple[np.ndarray, np.ndarray], out: tuple[np.ndarray, np.ndarray]) -> None:
+    """The numba fusion's (flow, choice) equals the reference's: bit for bit with OpenCV 5's exact remap;
+    with 4.x's 1/32 px positions, the same choice on >= 99 % of the pixels and the same flow there."""
+    (ref_flow, ref_choice), (flow, choice) = ref, out
+    assert flow.dtype == np.float32 and flow.shape == ref_flow.shape and choice.shape == ref_choice.shape
+    if REMAP_EXACT:
+        assert np.array_equal(choice, ref_choice) and np.array_equal(flow, ref_flow)
+        return
+    same = choice == ref_choice
+    assert same.mean() >= 0.99 and np.array_equal(flow[:, same], ref_flow[:, same])
+
+
+def bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Exact bilinear samples of img (h, w, c) at (x, y) (inside the image), float64: the reference of the
+    kernels' sampling, independent of OpenCV."""
+    h, w = img.shape[:2]
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    ax, ay = (x - x0)[..., None], (y - y0)[..., None]
+    im = img.astype(np.float64)
+    return ((1 - ay) * ((1 - ax) * im[y0, x0] + ax * im[y0, x1]) + ay * ((1 - ax) * im[y1, x0] + ax * im[y1, x1]))
+
+
+def test_residual_kernel_samples_bilinearly(rows) -> None:
+    """The kernel's masked residual against an exact bilinear numpy reference (to float32 round-off),
+    with a flow that leaves the image in places (mask 0 there)."""
+    i0, i1, truth = jump_scene()
+    flow = truth + np.random.default_rng(2).normal(0.0, 2.0, truth.shape).astype(np.float32)
+    flow[0, :, :10] -= np.float32(20.0)
+    s0, s1 = planes(i0), planes(i1)
+    out = np.empty((H, W, 2), np.float32)
+    residual_kernel(out, s0, s1, flow, _NONE, _NONE, _NONE, _NONE, numba_backend.PARALLEL_MIN_PIXELS == 0)
+    x = np.arange(W, dtype=np.float32)[None] + flow[0]
+    y = np.arange(H, dtype=np.float32)[:, None] + flow[1]
+    inside = (x >= 0) & (x <= W - 1) & (y >= 0) & (y <= H - 1)
+    assert 0.05 < 1 - inside.mean() < 0.5
+    ref = np.abs(bilinear(s1, x[inside], y[inside]) - s0[inside]).sum(axis=-1)
+    assert np.array_equal(out[..., 1], inside.astype(np.float32)) and np.all(out[~inside, 0] == 0)
+    np.testing.assert_allclose(out[inside, 0], ref, rtol=0, atol=1e-5)
 
 
 def grey(rgb: np.ndarray) -> np.ndarray:
@@ -62,7 +120,8 @@ def test_consistency_check_equals_the_reference(seed, rows) -> None:
     backward = -truth + rng.normal(0.0, 1.0, truth.shape).astype(np.float32)
     ref = forward_backward_consistent(forward, backward)
     assert 0.1 < ref.mean() < 0.9  # both outcomes occur
-    assert np.array_equal(consistent_numba(forward, backward), ref)
+    out = consistent_numba(forward, backward)
+    assert np.array_equal(out, ref) if REMAP_EXACT else (out == ref).mean() > 0.99
 
 
 @pytest.fixture(params=["serial", "parallel"])
@@ -83,11 +142,9 @@ def test_fusion_equals_the_reference(count, margin, only_consistent, propagate, 
     i0, i1, truth = jump_scene()
     cands, masks = candidates(truth, count)
     cands, masks = cands[:count], masks[:count]
-    ref_flow, ref_choice = fuse(i0, i1, cands, masks, margin, only_consistent, propagate)
-    flow, choice = fuse_numba(i0, i1, cands, masks, margin, only_consistent, propagate)
-    assert len(np.unique(ref_choice)) == count  # every candidate wins somewhere: the choice is exercised
-    assert flow.dtype == np.float32 and flow.shape == ref_flow.shape
-    assert np.array_equal(choice, ref_choice) and np.array_equal(flow, ref_flow)
+    ref = fuse(i0, i1, cands, masks, margin, only_consistent, propagate)
+    assert len(np.unique(ref[1])) == count  # every candidate wins somewhere: the choice is exercised
+    assert_same_fusion(ref, fuse_numba(i0, i1, cands, masks, margin, only_consistent, propagate))
 
 
 def test_fusion_without_masks_and_with_undecided_pixels_equals_the_reference(rows) -> None:
@@ -98,9 +155,9 @@ def test_fusion_without_masks_and_with_undecided_pixels_equals_the_reference(row
     left[0, :, :60] = -100.0
     out = truth.copy()
     out[0, :, :60] = -90.0
-    ref_flow, ref_choice = fuse(i0, i1, [left, out])
-    flow, choice = fuse_numba(i0, i1, [left, out])
-    assert np.array_equal(choice, ref_choice) and np.array_equal(flow, ref_flow)
+    ref = fuse(i0, i1, [left, out])
+    assert ref[1].any()
+    assert_same_fusion(ref, fuse_numba(i0, i1, [left, out]))
 
 
 def test_numba_fusion_keeps_the_background_where_it_is_occluded() -> None:
@@ -123,7 +180,7 @@ def test_numba_fusion_keeps_the_background_where_it_is_occluded() -> None:
 
 def test_engine_with_the_numba_fusion_equals_the_numpy_fusion() -> None:
     """A 40 px pan (DIS fused on two levels, forward-backward checked): the numba backend with its own
-    fusion and with the numpy reference's gives the same flow bit for bit."""
+    fusion and with the numpy reference's gives the same flow (bit for bit with OpenCV 5's remap)."""
     rng = np.random.default_rng(4)
     pan = Layer(Texture.random(rng, fmin=1 / 100), AffineMotion((119.5, 89.5), (40.0, 12.0)))
     scene = Scene("pan", (240, 180), (pan,))
@@ -134,4 +191,8 @@ def test_engine_with_the_numba_fusion_equals_the_numpy_fusion() -> None:
     assert res.stats.init == "dis_ultrafast" and res.stats.start_level > 0
     backend = select_backend("numba")
     est._backend = backend._replace(fuse=fuse, consistent=forward_backward_consistent)
-    assert np.array_equal(est.estimate_grey(i0, i1).flow, res.flow)
+    ref = est.estimate_grey(i0, i1).flow
+    if REMAP_EXACT:
+        assert np.array_equal(ref, res.flow)
+    else:  # 1/32 px remap positions move a few fusion choices, and the refinement carries them on (94 %)
+        assert np.mean(np.hypot(*np.moveaxis(ref - res.flow, -1, 0)) < 0.01) > 0.9

@@ -1,12 +1,17 @@
 """The fusion stage with numba kernels: :func:`fuse_numba` (fusion.fuse) and :func:`consistent_numba`
 (initialise.forward_backward_consistent), the numba backend's fields.
 
-The numpy references chain a dozen whole-image passes with temporaries per candidate (maps, masks, an
-(h, w, 3) difference summed over its last axis, a (K, h, w) stack of costs, argmin, take_along_axis, the
-label look-ups of fill_undecided); here each is one pass: the masked residual of a candidate, the choice
-over all candidates, the undecided pixels' choice and the gather of the fused flow. The sampling
-(cv2.remap), the box means (cv2.boxFilter) and the distance transform stay OpenCV's and the arithmetic is
-the references' float32 in the same order, so the results equal theirs bit for bit (test_fusion_numba.py).
+The numpy references chain a dozen whole-image passes with temporaries per candidate (maps, an OpenCV
+remap of the (h, w, 3) planes, masks, the difference summed over its last axis, a (K, h, w) stack of
+costs, argmin, take_along_axis, the label look-ups of fill_undecided); here each is one pass: the masked
+residual of a candidate (sampling frame 1 itself), the choice over all candidates, the undecided pixels'
+choice and the gather of the fused flow; the forward-backward check is one pass too. The box means
+(cv2.boxFilter) and the distance transform stay OpenCV's. The bilinear sample is computed as OpenCV 5's
+remap computes it (two lerps along x, one along y, each a fused multiply-add) and the rest of the
+arithmetic is the references' float32 in the same order, so with OpenCV 5 the results equal the
+references' bit for bit; OpenCV 4.x snaps remap positions to 1/32 px, so there the references differ
+slightly and these kernels are the exact ones (test_fusion_numba.py). Rows run in parallel on levels of
+numba_backend.PARALLEL_MIN_PIXELS or more.
 """
 
 from __future__ import annotations
@@ -17,38 +22,49 @@ import numpy as np
 from numba import njit, prange
 
 from . import numba_backend as nb
-
 from .fusion import CONSISTENT_COST, FUSION_MARGIN, FUSION_WINDOW, PROPAGATE_INCONSISTENT, planes
 from .initialise import FB_TOLERANCE_PX
 
 _F32 = np.float32
 # no fastmath: the costs are inf where no data decides, and fastmath may assume there is no inf
 _JIT = dict(cache=True, error_model="numpy", nogil=True)
+_JIT_CONTRACT = dict(_JIT, fastmath={"contract"})  # a + t (b - a) as one fused multiply-add, like OpenCV
 _MIN_SUPPORT = _F32(0.05)  # fusion.data_cost: a box with less inside support than this has no cost
 _TINY = _F32(1e-6)
 
 
-@njit(**_JIT)
-def _maps_row(map_x, map_y, flow, _d, _e, _f, _g, _h, i):  # noqa: ANN001, ANN202
-    """Row i of operators.warp_maps' maps: x + u, y + v (float32) of flow (2, h, w)."""
-    y = _F32(i)
-    for j in range(flow.shape[2]):
-        map_x[i, j] = _F32(j) + flow[0, i, j]
-        map_y[i, j] = y + flow[1, i, j]
-    return 0
+@njit(**_JIT_CONTRACT)
+def _lerp(a, b, t):  # noqa: ANN001, ANN202
+    """a + t (b - a), contracted to one fused multiply-add where the CPU has it (as OpenCV's remap does)."""
+    return a + t * (b - a)
 
 
 @njit(**_JIT)
-def _residual_row(out, s0, w1, map_x, map_y, _f, _g, _h, i):  # noqa: ANN001, ANN202
-    """Row i of fusion.data_cost's two box inputs, interleaved: out[..., 0] = |w1 - s0|_1 over the 3
-    planes where the map stays inside the image, else 0; out[..., 1] = that inside mask (1 / 0)."""
-    h, w = map_x.shape
+def _bilinear_taps(x, y, h, w):  # noqa: ANN001, ANN202
+    """Columns, rows and fractions of a bilinear sample at (x, y) inside an (h, w) image (the far taps
+    clamped to the last column / row, where their weight is 0 or the position is the last pixel)."""
+    x0, y0 = min(np.int64(x), w - 1), min(np.int64(y), h - 1)  # x, y >= 0: truncation is floor
+    return x0, min(x0 + 1, w - 1), x - _F32(x0), y0, min(y0 + 1, h - 1), y - _F32(y0)
+
+
+@njit(**_JIT)
+def _residual_row(out, s0, s1, flow, _e, _f, _g, _h, i):  # noqa: ANN001, ANN202
+    """Row i of fusion.data_cost's two box inputs for the candidate ``flow`` (2, h, w), interleaved:
+    out[..., 0] = |I1(x + f) - I0(x)|_1 over the 3 planes of s0, s1 (h, w, 3) where x + f stays inside the
+    image, else 0; out[..., 1] = that inside mask (1 / 0). I1 is sampled bilinearly (fusion.warp_residual:
+    OpenCV's remap, which OpenCV 5 computes exactly so: per plane two lerps along x, one along y)."""
+    h, w = s0.shape[0], s0.shape[1]
     right, bottom = _F32(w - 1), _F32(h - 1)
+    y_row = _F32(i)
     for j in range(w):
-        x, y = map_x[i, j], map_y[i, j]
+        x, y = _F32(j) + flow[0, i, j], y_row + flow[1, i, j]
         if x >= 0 and x <= right and y >= 0 and y <= bottom:
-            out[i, j, 0] = (abs(w1[i, j, 0] - s0[i, j, 0]) + abs(w1[i, j, 1] - s0[i, j, 1])
-                            + abs(w1[i, j, 2] - s0[i, j, 2]))
+            xa, xb, ax, ya, yb, ay = _bilinear_taps(x, y, h, w)
+            r = _F32(0)
+            for c in range(3):
+                top = _lerp(s1[ya, xa, c], s1[ya, xb, c], ax)
+                r += abs(_lerp(top, _lerp(s1[yb, xa, c], s1[yb, xb, c], ax), ay) - s0[i, j, c])
+            out[i, j, 0] = r
             out[i, j, 1] = 1
         else:
             out[i, j, 0] = 0
@@ -138,32 +154,27 @@ def _gather_row(choice, stack, out, _d, _e, _f, _g, _h, i):  # noqa: ANN001, ANN
 
 
 @njit(**_JIT)
-def _consistent_row(out, forward, bu, bv, map_x, map_y, tolerance, _h, i):  # noqa: ANN001, ANN202
-    """Row i of initialise.forward_backward_consistent after its remaps: out = inside & |f + b(x + f)|^2 <
-    tol^2, tol = tolerance + 5 % of |f| (float32 as the reference)."""
-    h, w = map_x.shape
+def _consistent_row(out, forward, backward, tolerance, _e, _f, _g, _h, i):  # noqa: ANN001, ANN202
+    """Row i of initialise.forward_backward_consistent: out = inside & |f + b(x + f)|^2 < tol^2, tol =
+    tolerance + 5 % of |f| (float32 as the reference), b sampled bilinearly like :func:`_residual_row`."""
+    h, w = forward.shape[1], forward.shape[2]
     right, bottom = _F32(w - 1), _F32(h - 1)
     five = _F32(0.05)
     for j in range(w):
-        x, y = map_x[i, j], map_y[i, j]
         f0, f1 = forward[0, i, j], forward[1, i, j]
-        e0, e1 = f0 + bu[i, j], f1 + bv[i, j]
+        x, y = _F32(j) + f0, _F32(i) + f1
+        if not (x >= 0 and x <= right and y >= 0 and y <= bottom):
+            out[i, j] = False
+            continue
+        xa, xb, ax, ya, yb, ay = _bilinear_taps(x, y, h, w)
+        bu = _lerp(_lerp(backward[0, ya, xa], backward[0, ya, xb], ax),
+                   _lerp(backward[0, yb, xa], backward[0, yb, xb], ax), ay)
+        bv = _lerp(_lerp(backward[1, ya, xa], backward[1, ya, xb], ax),
+                   _lerp(backward[1, yb, xa], backward[1, yb, xb], ax), ay)
+        e0, e1 = f0 + bu, f1 + bv
         tol = tolerance + five * np.sqrt(f0 * f0 + f1 * f1)
-        out[i, j] = (x >= 0 and x <= right and y >= 0 and y <= bottom) and e0 * e0 + e1 * e1 < tol * tol
+        out[i, j] = e0 * e0 + e1 * e1 < tol * tol
     return 0
-
-
-@njit(parallel=True, **_JIT)
-def maps_kernel(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN201
-    """:func:`_maps_row` over every row (in parallel when ``parallel``); the rows' returns summed."""
-    total = 0
-    if parallel:
-        for i in prange(a.shape[0]):
-            total += _maps_row(a, b, c, d, e, f, g, h, i)
-    else:
-        for i in range(a.shape[0]):
-            total += _maps_row(a, b, c, d, e, f, g, h, i)
-    return total
 
 
 @njit(parallel=True, **_JIT)
@@ -252,22 +263,12 @@ def _parallel(h: int, w: int) -> bool:
     return nb.threads() > 1 and h * w >= nb.PARALLEL_MIN_PIXELS
 
 
-def _maps(flow: np.ndarray, parallel: bool) -> tuple[np.ndarray, np.ndarray]:
-    h, w = flow.shape[1:]
-    map_x, map_y = np.empty((h, w), _F32), np.empty((h, w), _F32)
-    maps_kernel(map_x, map_y, flow, _NONE, _NONE, _NONE, _NONE, _NONE, parallel)
-    return map_x, map_y
-
-
 def consistent_numba(forward: np.ndarray, backward: np.ndarray) -> np.ndarray:
-    """initialise.forward_backward_consistent with the kernels above (same remap, same result)."""
+    """initialise.forward_backward_consistent with the kernel above (same result with OpenCV 5)."""
     forward = np.ascontiguousarray(forward, dtype=_F32)
-    parallel = _parallel(*forward.shape[1:])
-    map_x, map_y = _maps(forward, parallel)
-    bu, bv = (cv2.remap(np.ascontiguousarray(b, dtype=_F32), map_x, map_y, cv2.INTER_LINEAR,
-                        borderMode=cv2.BORDER_REPLICATE) for b in backward)
-    out = np.empty(map_x.shape, np.bool_)
-    consistent_kernel(out, forward, bu, bv, map_x, map_y, _F32(FB_TOLERANCE_PX), _NONE, parallel)
+    out = np.empty(forward.shape[1:], np.bool_)
+    consistent_kernel(out, forward, np.ascontiguousarray(backward, dtype=_F32), _F32(FB_TOLERANCE_PX), _NONE,
+                      _NONE, _NONE, _NONE, _parallel(*forward.shape[1:]))
     return out
 
 
@@ -275,7 +276,7 @@ def fuse_numba(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
                consistent: list[np.ndarray | None] | None = None, margin: float = FUSION_MARGIN,
                only_consistent: bool = False, propagate: bool = PROPAGATE_INCONSISTENT
                ) -> tuple[np.ndarray, np.ndarray]:
-    """fusion.fuse with the kernels above: same arguments, same result."""
+    """fusion.fuse with the kernels above: same arguments, same result (with OpenCV 5)."""
     s0, s1 = planes(i0), planes(i1)
     stack = np.stack([np.asarray(c, dtype=_F32) for c in candidates])
     k_n, h, w = stack.shape[0], stack.shape[2], stack.shape[3]
@@ -283,9 +284,7 @@ def fuse_numba(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     boxed = np.empty((k_n, h, w, 2), _F32)
     masked = np.empty((h, w, 2), _F32)
     for k in range(k_n):
-        map_x, map_y = _maps(stack[k], parallel)
-        w1 = cv2.remap(s1, map_x, map_y, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        residual_kernel(masked, s0, w1, map_x, map_y, _NONE, _NONE, _NONE, parallel)
+        residual_kernel(masked, s0, s1, stack[k], _NONE, _NONE, _NONE, _NONE, parallel)
         cv2.boxFilter(masked, -1, (FUSION_WINDOW, FUSION_WINDOW), dst=boxed[k], borderType=cv2.BORDER_REFLECT)
     checks = list(consistent or []) + [None] * (k_n - len(consistent or []))
     checked = np.array([c is not None for c in checks], np.bool_)
