@@ -104,9 +104,11 @@ def gate_passes(u0: np.ndarray, u1: np.ndarray, min_motion: float) -> bool:
         return True
     size = (w // 2, h // 2)
     a, b = (cv2.resize(u, size, interpolation=cv2.INTER_AREA) for u in (u0, u1))
-    flow = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST).calc(a, b, None)
-    flow = np.moveaxis(flow, -1, 0) * np.array([w / size[0], h / size[1]], np.float32)[:, None, None]
-    return moves_far(flow, GATE_FRACTION * min_motion, step=2)  # every 2nd half-size pixel: every 4th
+    flow = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST).calc(a, b, None)[::2, ::2]
+    u, v = flow[..., 0] * np.float32(w / size[0]), flow[..., 1] * np.float32(h / size[1])  # px of the input
+    # more than 5 % of the pixels (every 2nd of the half-size grid) beyond the threshold: the 95th
+    # percentile is (its nearest rank; np.percentile costs ~0.1 ms, a third of the gate's DIS run at 320x240)
+    return np.count_nonzero(u * u + v * v > np.float32(GATE_FRACTION * min_motion) ** 2) > 0.05 * u.size
 
 
 def dis_candidates(i0: np.ndarray, i1: np.ndarray, preset: str, min_motion: float) -> list[Candidate]:
@@ -135,9 +137,9 @@ def dis_candidates(i0: np.ndarray, i1: np.ndarray, preset: str, min_motion: floa
     return [Candidate(preset, fine, np.moveaxis(algo.calc(u1, u0, None), -1, 0), far=True), own]
 
 
-def moves_far(flow: np.ndarray, min_motion: float, step: int = 4) -> bool:
-    """Whether the 95th percentile of |flow| ((2, H, W), px; on every ``step``-th pixel) exceeds ``min_motion``."""
-    mag = np.hypot(flow[0, ::step, ::step], flow[1, ::step, ::step])
+def moves_far(flow: np.ndarray, min_motion: float) -> bool:
+    """Whether the 95th percentile of |flow| ((2, H, W), px; on every 4th pixel) exceeds ``min_motion``."""
+    mag = np.hypot(flow[0, ::4, ::4], flow[1, ::4, ::4])
     return float(np.percentile(mag, 95)) > min_motion
 
 
