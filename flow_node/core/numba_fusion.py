@@ -119,18 +119,18 @@ def _near_row(labels, undecided, near, _d, _e, _f, _g, _h, i):  # noqa: ANN001, 
 
 
 @njit(**_JIT)
-def _fill_row(choice, undecided, labels, near, stack, _f, _g, _h, i):  # noqa: ANN001, ANN202
+def _fill_row(choice, undecided, labels, near, stack, flat_choice, flat_stack, _h, i):  # noqa: ANN001, ANN202
     """Row i of fusion.fill_undecided, in place on ``choice``: an undecided pixel takes the candidate of
-    stack (K, 2, h, w) nearest to the flow its nearest decided pixel (``near[labels]``) chose (decided
-    pixels are only read, undecided ones only written: rows are independent)."""
+    stack (K, 2, h, w) nearest to the flow its nearest decided pixel (flat index ``near[labels]``, read
+    through the flat views of choice and stack) chose (decided pixels are only read, undecided ones only
+    written: rows are independent)."""
     k_n, w = stack.shape[0], choice.shape[1]
     for j in range(w):
         if not undecided[i, j]:
             continue
         src = near[labels[i, j]]
-        si, sj = src // w, src % w
-        kc = choice[si, sj]
-        t0, t1 = stack[kc, 0, si, sj], stack[kc, 1, si, sj]
+        kc = flat_choice[src]
+        t0, t1 = flat_stack[kc, 0, src], flat_stack[kc, 1, src]
         best = _F32(np.inf)
         pick = 0
         for k in range(k_n):
@@ -302,7 +302,8 @@ def fuse_numba(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
                                                     labelType=cv2.DIST_LABEL_PIXEL)
         near = np.zeros(int(labels.max()) + 1, np.int64)
         near_kernel(labels, undecided, near, _NONE, _NONE, _NONE, _NONE, _NONE, parallel)
-        fill_kernel(choice, undecided, labels, near, stack, _NONE, _NONE, _NONE, parallel)
+        fill_kernel(choice, undecided, labels, near, stack, choice.reshape(-1), stack.reshape(k_n, 2, -1), _NONE,
+                    parallel)
     fused = np.empty((2, h, w), _F32)
     gather_kernel(choice, stack, fused, _NONE, _NONE, _NONE, _NONE, _NONE, parallel)
     return fused, choice
