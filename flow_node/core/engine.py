@@ -9,7 +9,7 @@ stage                  interface                                                
 photometric            (i0, i1, mode) -> (solver pair, normalised pair)           ``core/photometric.py``
 initialisation         (i0, i1, cfg, initial, previous) -> [Candidate]            ``core/initialise.py``
 refinement             (pyramid, cfg, backend, state, first, last, stats) -> state ``core/refine.py``
-fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice)                         ``core/fusion.py``
+fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice), a backend field        ``core/fusion.py``
 output layout          (2, h, w) -> (H, W, 2) at the input size                   ``core/layout.py``
 =====================  =========================================================  ==========================
 

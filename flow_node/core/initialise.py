@@ -13,6 +13,9 @@ Sources (``FlowConfig.initialisation``; the temporal one is added by a stream, `
   (:mod:`flow_node.core.densify`, the idea of EpicFlow);
 * a caller's ``initial_flow`` (API) and the previous pair's flow carried forward (``previous``, a stream).
 
+A DIS source first runs a cheap gate (:func:`gate_passes`: DIS ultrafast on the half-size pair); a pair
+it finds moving less than half of ``init_min_motion`` gets no DIS run of the source and no candidate.
+
 Every candidate is a dense flow (2, H, W) float32 at the input resolution in px. The engine does not trust
 any of them blindly: it fuses them per pixel with the pyramid's own estimate (:mod:`flow_node.core.fusion`).
 """
