@@ -282,13 +282,12 @@ def fuse_numba(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     k_n, h, w = stack.shape[0], stack.shape[2], stack.shape[3]
     parallel = _parallel(h, w)
     boxed = np.empty((k_n, h, w, 2), _F32)
-    masked = np.empty((h, w, 2), _F32)
-    for k in range(k_n):
-        residual_kernel(masked, s0, s1, stack[k], _NONE, _NONE, _NONE, _NONE, parallel)
-        cv2.boxFilter(masked, -1, (FUSION_WINDOW, FUSION_WINDOW), dst=boxed[k], borderType=cv2.BORDER_REFLECT)
+    for k in range(k_n):  # the masked residual, then its box means in place (OpenCV's filters allow it)
+        residual_kernel(boxed[k], s0, s1, stack[k], _NONE, _NONE, _NONE, _NONE, parallel)
+        cv2.boxFilter(boxed[k], -1, (FUSION_WINDOW, FUSION_WINDOW), dst=boxed[k], borderType=cv2.BORDER_REFLECT)
     checks = list(consistent or []) + [None] * (k_n - len(consistent or []))
     checked = np.array([c is not None for c in checks], np.bool_)
-    ok = np.zeros((k_n, h, w), np.bool_)
+    ok = np.zeros((k_n, h, w) if checked.any() else (k_n, 1, 1), np.bool_)  # read only where checked
     for k, c in enumerate(checks):
         if c is not None:
             ok[k] = c
