@@ -33,7 +33,7 @@ PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thr
 # the linearisation costs ~10 primal-dual iterations per pixel in one pass: worth the threads on smaller levels
 LINEARISE_PARALLEL_MIN_PIXELS = 20_000
 _threads = 0  # 0 = all cores; applied on every solve because numba's thread count is per calling thread
-_buffers: dict[tuple[tuple[int, ...], bool], tuple[np.ndarray, ...]] = {}
+_buffers: dict[tuple, tuple[np.ndarray, ...]] = {}
 _DUMMY3 = np.zeros((2, 1, 1), _F32)
 _DUMMY4 = np.zeros((2, 2, 1, 1), _F32)
 _DUMMY5 = np.zeros((2, 2, 2, 1, 1), _F32)
@@ -75,6 +75,20 @@ def _work_buffers(v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, ...]
         width = v.shape[2]
         bufs = (np.empty_like(v), np.empty_like(w) if w is not None else _DUMMY4,
                 np.zeros((numba.config.NUMBA_NUM_THREADS, 2, width + 1), _F32), np.zeros((2, 1, width), _F32))
+        _buffers[key] = bufs
+    return bufs
+
+
+def _row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-thread row scratch of the linearisation kernel for images ``width`` wide: tap weights and mask
+    (threads, 9, width) float32, tap bases (threads, 2, width) int32. Reused like :func:`_work_buffers`."""
+    key = ("rows", width)
+    bufs = _buffers.get(key)
+    if bufs is None:
+        if len(_buffers) > 32:
+            _buffers.clear()
+        n = numba.config.NUMBA_NUM_THREADS
+        bufs = (np.empty((n, 9, width), _F32), np.empty((n, 2, width), np.int32))
         _buffers[key] = bufs
     return bufs
 
@@ -143,8 +157,9 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
     interpolated = scheme == "interpolated"
     numba.set_num_threads(threads())
     parallel = threads() > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS
+    scratch, base = _row_scratch(w)
     nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),
-                        KERNEL_CODES[kernel], interpolated, a, c, parallel)
+                        KERNEL_CODES[kernel], interpolated, a, c, scratch, base, parallel)
     return a, c
 
 
