@@ -5,8 +5,10 @@ count behind photometric.reliability.
 Same arithmetic as the numpy references (the oracles, test_warping.py / test_numba_backend.py). A sample
 position's taps and weights are computed once (:func:`taps`) and shared by every channel sampled there
 (:func:`tap_sum`): the linearisation samples I1 and both components of its gradient at x + v0 with the
-same 4 x 4 taps, forms a and c, and masks the pixels whose target leaves the image -- one pass over the
-level instead of a dozen numpy passes and temporaries.
+same 4 x 4 taps, forms a and c, and masks the pixels whose target leaves the image -- one kernel over the
+level instead of a dozen numpy passes and temporaries. Within a row it first computes every pixel's tap
+weights (vectorised), then gathers; away from the border a tap row is four adjacent samples
+(:func:`block_sum`), so only pixels near the border pay for mirrored indices.
 """
 
 from __future__ import annotations
