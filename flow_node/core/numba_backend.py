@@ -27,6 +27,7 @@ from . import numba_warp as nw
 from .photometric import RELIABILITY_STRIDE, RESIDUAL_OUTLIER
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
+from .workspace import scratch
 
 _F32 = np.float32
 PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
@@ -141,7 +142,9 @@ def bspline_prefilter_numba(img: np.ndarray) -> np.ndarray:
     shape = np.shape(img)
     h, w = shape[-2:]
     planes = np.asarray(img, dtype=_F32).reshape((-1, h, w))
-    rows = np.stack([cv2.transpose(p) for p in planes])  # (N, W, H): rows as columns
+    rows = scratch("prefilter.rows", (planes.shape[0], w, h))  # (N, W, H): rows as columns
+    for p, dst in zip(planes, rows, strict=True):
+        cv2.transpose(p, dst=dst)
     nw.bspline_columns(rows, BSPLINE_POLE, min(w, HORIZON))
     out = np.stack([cv2.transpose(p) for p in rows])
     nw.bspline_columns(out, BSPLINE_POLE, min(h, HORIZON))
@@ -157,9 +160,9 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
     interpolated = scheme == "interpolated"
     numba.set_num_threads(threads())
     parallel = threads() > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS
-    scratch, base = _row_scratch(w)
+    rows, base = _row_scratch(w)
     nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),
-                        KERNEL_CODES[kernel], interpolated, a, c, scratch, base, parallel)
+                        KERNEL_CODES[kernel], interpolated, a, c, rows, base, parallel)
     return a, c
 
 
