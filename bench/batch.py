@@ -33,6 +33,7 @@ import argparse
 import json
 import os
 import platform
+import resource
 import shutil
 import statistics
 import subprocess
@@ -85,14 +86,17 @@ def command(variant: str, bags: Path, out: Path, preset: str) -> list[str]:
 def run_variant(variant: str, bags: Path, out: Path, preset: str) -> dict[str, Any]:
     """One timed run in a fresh interpreter; the numbers of its batch report."""
     shutil.rmtree(out, ignore_errors=True)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.monotonic()
     proc = subprocess.run(command(variant, bags, out, preset), cwd=REPO, capture_output=True, text=True)
     wall = time.monotonic() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)  # the process and its worker processes, reaped
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if proc.returncode != 0:
         raise SystemExit(f"{variant} failed ({proc.returncode}): {proc.stderr.strip()[-2000:]}")
     report = json.loads((out / "report.json").read_text())
     tasks = [r["task_seconds"] for r in report["bags"]]
-    return {"variant": variant, "process_seconds": wall, "batch_seconds": report["wall_seconds"],
+    return {"variant": variant, "process_seconds": wall, "cpu_seconds": cpu, "batch_seconds": report["wall_seconds"],
             "task_seconds_sum": sum(tasks), "bags": report["counts"]["done"],
             "bags_per_minute": 60.0 * report["counts"]["done"] / wall, "scheduler": report["scheduler"]}
 
@@ -102,16 +106,19 @@ def order(repeat: int, variants: tuple[str, ...] = VARIANTS) -> tuple[str, ...]:
     return variants if repeat % 2 == 0 else variants[::-1]
 
 
-def _ratios(by: dict[str, list[dict[str, Any]]], a: str, b: str, repeats: int) -> list[float]:
-    return [by[a][k]["process_seconds"] / by[b][k]["process_seconds"] for k in range(repeats)]
+def _ratios(by: dict[str, list[dict[str, Any]]], a: str, b: str, repeats: int,
+            what: str = "process_seconds") -> list[float]:
+    return [by[a][k][what] / by[b][k][what] for k in range(repeats)]
 
 
 def summarise(runs: list[dict[str, Any]], repeats: int) -> dict[str, Any]:
     """Medians per variant, bags per minute, the paired ratios dask-1 / loop and dask-1 / dask-2 per repeat
-    and their medians; and per run the seconds outside the tasks (process time minus the tasks' summed
-    time: imports, cluster, scheduling, report, exit), whose paired difference dask-1 - loop is the Dask
-    layer's cost without the noise of a shared machine's varying speed inside the bags' work (but
-    without what the layer may cost inside a task, e.g. the scheduler's thread taking the GIL)."""
+    and their medians; dask-1 / loop also in CPU seconds (user + system of the process and its workers: what
+    the layer adds in work, less disturbed than wall time by other load on a shared machine); and per run
+    the seconds outside the tasks (process time minus the tasks' summed time: imports, cluster, scheduling,
+    report, exit), whose paired difference dask-1 - loop is the Dask layer's cost without the noise of a
+    shared machine's varying speed inside the bags' work (but without what the layer may cost inside a
+    task, e.g. the scheduler's thread taking the GIL)."""
     variants = [v for v in VARIANTS if any(r["variant"] == v for r in runs)]
     by = {v: [r for r in runs if r["variant"] == v] for v in variants}
     med = {v: statistics.median(r["process_seconds"] for r in rs) for v, rs in by.items()}
@@ -123,7 +130,10 @@ def summarise(runs: list[dict[str, Any]], repeats: int) -> dict[str, Any]:
         over_loop = _ratios(by, "dask-1", "loop", repeats)
         outside = [a - b for a, b in zip(out["seconds_outside_tasks"]["dask-1"], out["seconds_outside_tasks"]["loop"],
                                          strict=True)]
+        cpu_over_loop = _ratios(by, "dask-1", "loop", repeats, "cpu_seconds")
         out |= {"dask1_over_loop_per_repeat": over_loop, "dask1_over_loop_median": statistics.median(over_loop),
+                "dask1_over_loop_cpu_per_repeat": cpu_over_loop,
+                "dask1_over_loop_cpu_median": statistics.median(cpu_over_loop),
                 "dask1_minus_loop_outside_tasks_per_repeat": outside,
                 "dask1_minus_loop_outside_tasks_median": statistics.median(outside),
                 "dask1_minus_loop_outside_tasks_over_loop_median": statistics.median(

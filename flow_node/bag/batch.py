@@ -48,6 +48,16 @@ GLOB_CHARS = frozenset("*?[")
 # under which every per-frame array is a fresh mmap faulted in again (tasks ran up to 2x slower).
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
               "MALLOC_MMAP_THRESHOLD_": str(256 << 20), "MALLOC_TRIM_THRESHOLD_": str(512 << 20)}
+# Dask settings of the embedded cluster: its periodic bookkeeping made quiet. With the defaults an idle one-worker
+# cluster spends ~25 ms of CPU per second (mostly holding the GIL the bag's thread needs): the worker's
+# statistical profiler samples the task's stack every 10 ms, the memory monitor reads the process' memory every
+# 100 ms, the event loop's tick runs every 20 ms, the system monitor every 0.5 s and work stealing every 0.1 s.
+# A batch uses none of them (no dashboard; bags are queued on the scheduler and handed to the next free worker),
+# and without them the cluster idles at ~3.5 ms per second (BENCHMARKS.md, issue 14). A cluster given with
+# --scheduler keeps its own settings.
+QUIET_CLUSTER = {"distributed.worker.profile.enabled": False, "distributed.worker.memory.monitor-interval": "1s",
+                 "distributed.admin.tick.interval": "1s", "distributed.admin.system-monitor.interval": "2s",
+                 "distributed.scheduler.work-stealing": False}
 
 
 @dataclass(frozen=True)
@@ -326,8 +336,9 @@ def local_cluster(workers: int) -> Any:
     from distributed import LocalCluster
 
     if workers == 1:
-        return LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0")
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": WORKER_ENV,
+        with dask.config.set(QUIET_CLUSTER):
+            return LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0")
+    with dask.config.set({**QUIET_CLUSTER, "distributed.nanny.pre-spawn-environ": WORKER_ENV,
                           "distributed.worker.preload": [f"{__package__}.dask_worker"]}):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                             dashboard_address=":0")

@@ -27,13 +27,14 @@ from . import numba_warp as nw
 from .photometric import RELIABILITY_STRIDE, RESIDUAL_OUTLIER
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
+from .workspace import scratch
 
 _F32 = np.float32
 PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
 # the linearisation costs ~10 primal-dual iterations per pixel in one pass: worth the threads on smaller levels
 LINEARISE_PARALLEL_MIN_PIXELS = 20_000
 _threads = 0  # 0 = all cores; applied on every solve because numba's thread count is per calling thread
-_buffers: dict[tuple[tuple[int, ...], bool], tuple[np.ndarray, ...]] = {}
+_buffers: dict[tuple, tuple[np.ndarray, ...]] = {}
 _DUMMY3 = np.zeros((2, 1, 1), _F32)
 _DUMMY4 = np.zeros((2, 2, 1, 1), _F32)
 _DUMMY5 = np.zeros((2, 2, 2, 1, 1), _F32)
@@ -75,6 +76,20 @@ def _work_buffers(v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, ...]
         width = v.shape[2]
         bufs = (np.empty_like(v), np.empty_like(w) if w is not None else _DUMMY4,
                 np.zeros((numba.config.NUMBA_NUM_THREADS, 2, width + 1), _F32), np.zeros((2, 1, width), _F32))
+        _buffers[key] = bufs
+    return bufs
+
+
+def _row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-thread row scratch of the linearisation kernel for images ``width`` wide: tap weights and mask
+    (threads, 9, width) float32, tap bases (threads, 2, width) int32. Reused like :func:`_work_buffers`."""
+    key = ("rows", width)
+    bufs = _buffers.get(key)
+    if bufs is None:
+        if len(_buffers) > 32:
+            _buffers.clear()
+        n = numba.config.NUMBA_NUM_THREADS
+        bufs = (np.empty((n, 9, width), _F32), np.empty((n, 2, width), np.int32))
         _buffers[key] = bufs
     return bufs
 
@@ -127,7 +142,9 @@ def bspline_prefilter_numba(img: np.ndarray) -> np.ndarray:
     shape = np.shape(img)
     h, w = shape[-2:]
     planes = np.asarray(img, dtype=_F32).reshape((-1, h, w))
-    rows = np.stack([cv2.transpose(p) for p in planes])  # (N, W, H): rows as columns
+    rows = scratch("prefilter.rows", (planes.shape[0], w, h))  # (N, W, H): rows as columns
+    for p, dst in zip(planes, rows, strict=True):
+        cv2.transpose(p, dst=dst)
     nw.bspline_columns(rows, BSPLINE_POLE, min(w, HORIZON))
     out = np.stack([cv2.transpose(p) for p in rows])
     nw.bspline_columns(out, BSPLINE_POLE, min(h, HORIZON))
@@ -143,8 +160,9 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
     interpolated = scheme == "interpolated"
     numba.set_num_threads(threads())
     parallel = threads() > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS
+    rows, base = _row_scratch(w)
     nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),
-                        KERNEL_CODES[kernel], interpolated, a, c, parallel)
+                        KERNEL_CODES[kernel], interpolated, a, c, rows, base, parallel)
     return a, c
 
 

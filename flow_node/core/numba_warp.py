@@ -5,14 +5,16 @@ count behind photometric.reliability.
 Same arithmetic as the numpy references (the oracles, test_warping.py / test_numba_backend.py). A sample
 position's taps and weights are computed once (:func:`taps`) and shared by every channel sampled there
 (:func:`tap_sum`): the linearisation samples I1 and both components of its gradient at x + v0 with the
-same 4 x 4 taps, forms a and c, and masks the pixels whose target leaves the image -- one pass over the
-level instead of a dozen numpy passes and temporaries.
+same 4 x 4 taps, forms a and c, and masks the pixels whose target leaves the image -- one kernel over the
+level instead of a dozen numpy passes and temporaries. Within a row it first computes every pixel's tap
+weights (vectorised), then gathers; away from the border a tap row is four adjacent samples
+(:func:`block_sum`), so only pixels near the border pay for mirrored indices.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import get_thread_id, njit, prange
 
 from .numba_kernels import _JIT, _ONE  # first: sets OMP_WAIT_POLICY before numba's threading layer loads
 
@@ -100,42 +102,79 @@ def warp_kernel(img, map_x, map_y, kernel, out, parallel):  # noqa: ANN001, ANN2
 
 
 @njit(**_JIT)
-def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i):  # noqa: ANN001, ANN201
-    """Row i of :func:`linearise_kernel`."""
+def block_sum(img, ch, wx, wy, x0, y0):  # noqa: ANN001, ANN201
+    """:func:`tap_sum` for taps that need no mirroring: the 4 x 4 block at columns x0 .. x0 + 3, rows y0 ..
+    y0 + 3. The columns are adjacent, so each tap row is one contiguous load (vectorised)."""
+    wx0, wx1, wx2, wx3 = wx
+    s = np.float32(0.0)
+    for k in range(4):
+        r = y0 + k
+        s += wy[k] * (wx0 * img[ch, r, x0] + wx1 * img[ch, r, x0 + 1] + wx2 * img[ch, r, x0 + 2]
+                      + wx3 * img[ch, r, x0 + 3])
+    return s
+
+
+@njit(**_JIT)
+def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, base):  # noqa: ANN001, ANN201
+    """Row i of :func:`linearise_kernel`, in two passes over the row: the sample positions, tap weights and
+    inside mask (no gathers, no branches: vectorised) into ``scratch`` (9, W) and ``base`` (2, W) (floor of
+    the position; 0 outside), then the gathers -- unmirrored 4 x 4 blocks (:func:`block_sum`) inside the
+    image's interior, mirrored taps (:func:`tap_sum`) near the border."""
     h, w = i0.shape
     right, bottom = np.float32(w - 1), np.float32(h - 1)
+    zero = np.float32(0.0)
     for j in range(w):
-        u, v = flow[0, i, j], flow[1, i, j]
-        mx, my = np.float32(j) + u, np.float32(i) + v
-        if not (mx >= 0 and mx <= right and my >= 0 and my <= bottom):  # target outside: no data term
+        mx, my = np.float32(j) + flow[0, i, j], np.float32(i) + flow[1, i, j]
+        inside = mx >= 0 and mx <= right and my >= 0 and my <= bottom
+        mx = mx if inside else zero  # outside (or NaN): a harmless position, masked below
+        my = my if inside else zero
+        xi, yi = np.int64(mx), np.int64(my)  # mx, my >= 0: truncation is the floor
+        wx0, wx1, wx2, wx3 = cubic_weights4(mx - np.float32(xi), kernel)
+        wy0, wy1, wy2, wy3 = cubic_weights4(my - np.float32(yi), kernel)
+        scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j] = wx0, wx1, wx2, wx3
+        scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j] = wy0, wy1, wy2, wy3
+        scratch[8, j] = _ONE if inside else zero
+        base[0, j], base[1, j] = xi, yi
+    for j in range(w):
+        if scratch[8, j] == zero:  # target outside: no data term
             a[0, i, j] = 0
             a[1, i, j] = 0
             c[i, j] = 0
             continue
-        wx, wy, cols, rows = taps(mx, my, h, w, kernel)
-        i1w = tap_sum(src, 0, wx, wy, cols, rows)
-        a0 = tap_sum(src, 1, wx, wy, cols, rows)
-        a1 = tap_sum(src, 2, wx, wy, cols, rows)
+        wx = (scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j])
+        wy = (scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j])
+        xi, yi = np.int64(base[0, j]), np.int64(base[1, j])
+        if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:
+            i1w = block_sum(src, 0, wx, wy, xi - 1, yi - 1)
+            a0 = block_sum(src, 1, wx, wy, xi - 1, yi - 1)
+            a1 = block_sum(src, 2, wx, wy, xi - 1, yi - 1)
+        else:
+            cols, rows = _tap_indices(xi, w), _tap_indices(yi, h)
+            i1w = tap_sum(src, 0, wx, wy, cols, rows)
+            a0 = tap_sum(src, 1, wx, wy, cols, rows)
+            a1 = tap_sum(src, 2, wx, wy, cols, rows)
         if interpolated:
             a0 = _HALF * (g0[0, i, j] + a0)
             a1 = _HALF * (g0[1, i, j] + a1)
         a[0, i, j] = a0
         a[1, i, j] = a1
-        c[i, j] = i1w - i0[i, j] - a0 * u - a1 * v
+        c[i, j] = i1w - i0[i, j] - a0 * flow[0, i, j] - a1 * flow[1, i, j]
 
 
 @njit(parallel=True, **_JIT)
-def linearise_kernel(i0, src, g0, flow, kernel, interpolated, a, c, parallel):  # noqa: ANN001, ANN201
+def linearise_kernel(i0, src, g0, flow, kernel, interpolated, a, c, scratch, base, parallel):  # noqa: ANN001, ANN201
     """operators.linearise in one pass: a (2, H, W) and c (H, W) of the data term linearised around flow
     (2, H, W), from i0 (H, W), the warp source src (3, H, W) = coefficients of [I1, dI1/dx, dI1/dy] and,
-    when ``interpolated``, frame 0's gradient g0 (2, H, W) (else a dummy, not read). Rows in parallel when
+    when ``interpolated``, frame 0's gradient g0 (2, H, W) (else a dummy, not read). ``scratch`` (threads,
+    9, W) float32 and ``base`` (threads, 2, W) int32 are per-thread row scratch. Rows in parallel when
     ``parallel``."""
     if parallel:
         for i in prange(i0.shape[0]):
-            _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i)
+            t = get_thread_id()
+            _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch[t], base[t])
     else:
         for i in range(i0.shape[0]):
-            _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i)
+            _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch[0], base[0])
 
 
 @njit(**_JIT)

@@ -40,21 +40,28 @@ def div(p: np.ndarray) -> np.ndarray:
     return d
 
 
-def image_gradient(img: np.ndarray, scheme: str) -> np.ndarray:
+def image_gradient(img: np.ndarray, scheme: str, out: np.ndarray | None = None) -> np.ndarray:
     """Spatial derivative of an image for the data term. img: (H, W) -> (2, H, W), intensity per pixel.
 
     ``forward``: I(x+1) - I(x), zero in the last column/row. ``central`` (and ``interpolated``, which
     applies it to a temporally interpolated image): (I(x+1) - I(x-1)) / 2, zero on the border as in the
     paper. Note the paper writes the central difference without the 1/2; we keep the true derivative so
     that flow is in pixels, and the paper's weights map onto ours by alpha_ours = alpha_paper / 2.
+    ``out``: a float32 (2, H, W) array to write into (returned), else a new one.
     """
-    g = np.zeros((2,) + img.shape, dtype=np.float32)
+    g = np.empty((2,) + img.shape, dtype=np.float32) if out is None else out
     if scheme == "forward":
-        g[0, :, :-1] = img[:, 1:] - img[:, :-1]
-        g[1, :-1, :] = img[1:, :] - img[:-1, :]
+        np.subtract(img[:, 1:], img[:, :-1], out=g[0, :, :-1])
+        np.subtract(img[1:, :], img[:-1, :], out=g[1, :-1, :])
+        g[0, :, -1] = 0.0
+        g[1, -1, :] = 0.0
     else:
-        g[0, :, 1:-1] = 0.5 * (img[:, 2:] - img[:, :-2])
-        g[1, 1:-1, :] = 0.5 * (img[2:, :] - img[:-2, :])
+        np.subtract(img[:, 2:], img[:, :-2], out=g[0, :, 1:-1])
+        np.subtract(img[2:, :], img[:-2, :], out=g[1, 1:-1, :])
+        g[0, :, 1:-1] *= 0.5
+        g[1, 1:-1, :] *= 0.5
+        g[0, :, 0] = g[0, :, -1] = 0.0
+        g[1, 0, :] = g[1, -1, :] = 0.0
     return g
 
 
@@ -72,13 +79,17 @@ def warp_maps(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return map_x, map_y, inside
 
 
-def warp_source(i1: np.ndarray, scheme: str, kernel: str, warper: Warper = NUMPY_WARPER) -> np.ndarray:
+def warp_source(i1: np.ndarray, scheme: str, kernel: str, warper: Warper = NUMPY_WARPER,
+                out: np.ndarray | None = None) -> np.ndarray:
     """What each warp of one level samples: (3, H, W) float32 = [I1, its image gradient (scheme)] as the
     kernel's coefficients. Built once per level. For the B-spline only I1 is prefiltered and the gradient
     taken of its coefficients: both filters are linear and shift-invariant, so that is the prefiltered
-    gradient (away from the one-pixel border) at a third of the prefilter's cost."""
-    coef = warper.coefficients(i1, kernel)
-    return np.concatenate([coef[None], image_gradient(coef, scheme)])
+    gradient (away from the one-pixel border) at a third of the prefilter's cost. ``out``: a float32
+    (3, H, W) array to write into (returned), else a new one."""
+    src = np.empty((3,) + np.shape(i1), dtype=np.float32) if out is None else out
+    src[0] = warper.coefficients(i1, kernel)
+    image_gradient(src[0], scheme, out=src[1:])
+    return src
 
 
 # linearise(i0, source1, grad_i0, flow0, scheme, kernel, warper) -> (a, c): :func:`linearise` or a backend's

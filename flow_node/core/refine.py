@@ -22,6 +22,7 @@ from .models import MODEL_SPECS
 from .operators import image_gradient, warp_source
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
+from .workspace import scratch
 
 
 @dataclass
@@ -75,12 +76,16 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     """As many warps as :func:`level_schedule` gives: linearise around the current flow (the backend's fused warp of
     frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked), run the backend's solver and
     median-filter the flow; then ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives on ``level``
-    and is updated in place. Returns (iterations, Bregman iterations)."""
+    and is updated in place. The level's warp source and frame 0's gradient are scratch arrays reused from call
+    to call (workspace.py). Returns (iterations, Bregman iterations)."""
     warps, per_warp = level_schedule(cfg, level == finest_level(pyr, cfg))
     params = level_params(cfg, level, per_warp)
     i0, i1 = pyr.i0[level], pyr.i1[level]
-    src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
-    g0 = image_gradient(i0, cfg.gradient_scheme) if cfg.gradient_scheme == "interpolated" else None
+    h, w = i0.shape
+    src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper,
+                       out=scratch("refine.source", (3, h, w)))
+    g0 = (image_gradient(i0, cfg.gradient_scheme, out=scratch("refine.grad0", (2, h, w)))
+          if cfg.gradient_scheme == "interpolated" else None)
     iterations = 0
     for _ in range(warps):
         a, c = backend.linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
