@@ -103,8 +103,10 @@ def warp_kernel(img, map_x, map_y, kernel, out, parallel):  # noqa: ANN001, ANN2
 
 @njit(**_JIT)
 def block_sum(img, ch, wx, wy, x0, y0):  # noqa: ANN001, ANN201
-    """:func:`tap_sum` for taps that need no mirroring: the 4 x 4 block at columns x0 .. x0 + 3, rows y0 ..
-    y0 + 3. The columns are adjacent, so each tap row is one contiguous load (vectorised)."""
+    """:func:`tap_sum` for taps that need no mirroring: sum of weight * img[ch] (img (C, H, W)) over the 4 x 4
+    block at columns x0 .. x0 + 3, rows y0 .. y0 + 3 (all inside the image), wx, wy the four weights per axis
+    of :func:`cubic_weights4`. The columns are adjacent, so each tap row is one contiguous load (vectorised);
+    the sum is tap_sum's, in the same order."""
     wx0, wx1, wx2, wx3 = wx
     s = np.float32(0.0)
     for k in range(4):
