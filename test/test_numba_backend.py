@@ -178,7 +178,7 @@ def test_end_to_end_flow_agrees(model: str) -> None:
 @pytest.mark.parametrize("preset", ["realtime", "fastest"])
 def test_fast_presets_agree_with_the_numpy_reference(preset: str) -> None:
     """The fast presets end to end -- photometric stage, pyramid, B-spline source, the numba linearisation
-    (interior blocks and mirrored border taps), 2-16 iterations per warp, 5x5 medians -- on an exactly
+    (interior blocks and mirrored border taps), 3-16 iterations per warp, 5x5 medians -- on an exactly
     rendered pair: the numba backend's flow is the numpy reference's to float32 round-off, and accurate."""
     h, w = 96, 128
     gt = constant_flow(h, w, 1.3, -0.6) + rotation_flow(h, w, 2.0)
