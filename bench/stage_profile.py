@@ -40,12 +40,14 @@ STAGES = ("iterations", "linearise", "median", "warp_source", "resize_state", "p
 
 
 def samples(regime: str, large: Path) -> list[Any]:
+    """The pairs of ``regime``: fine_320 / fine_640 (the suite's quick tune seeds), or large (../shared)."""
     if regime == "large":
         return data.large(False, large)
     return list(synthetic.fine("tune", True, (320, 240) if regime == "fine_320" else (640, 480)))
 
 
 def timed(fn: Callable[..., Any], label: str, acc: dict[str, float]) -> Callable[..., Any]:
+    """``fn`` that adds the seconds of each call to ``acc[label]``."""
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         start = time.perf_counter()
         try:
@@ -99,6 +101,7 @@ def profile(regime: str, rounds: int, large: Path) -> dict[str, dict[str, float]
 
 
 def table(result: dict[str, Any]) -> str:
+    """A Markdown table of ``result``: ms per call of each stage, DIS's times and the preset's ratios to them."""
     cols = ("total", *STAGES, "other")
     head = " | ".join(cols) + " | DIS medium | DIS ultrafast | / DIS medium | / DIS ultrafast"
     lines = [f"| regime | preset | {head} |", "|---|---|" + "---:|" * (len(cols) + 4)]

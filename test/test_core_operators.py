@@ -76,6 +76,16 @@ def test_gradient_and_warp_source_write_into_a_given_array(scheme: str, shape: t
     assert src is stale and np.array_equal(src, warp_source(img, scheme, "bspline"))
 
 
+def test_gradient_refuses_an_out_that_overlaps_the_image() -> None:
+    """In place would be wrong (the y-difference would read x-differences), so it is refused; the warp
+    source's gradient of its own first plane into the other two is not an overlap."""
+    buf = RNG.random((3, 6, 9)).astype(np.float32)
+    with pytest.raises(ValueError, match="overlaps"):
+        image_gradient(buf[1], "central", out=buf[1:])
+    fresh = image_gradient(buf[0], "central")
+    assert np.array_equal(image_gradient(buf[0], "central", out=buf[1:]), fresh)
+
+
 def _brute_force_2d(objective, centre: np.ndarray, radius: float, n: int = 401) -> np.ndarray:
     """Minimise objective(v) for v in R^2 by two rounds of grid search around centre."""
     best = centre

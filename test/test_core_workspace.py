@@ -7,6 +7,8 @@ import threading
 import numpy as np
 
 from flow_node.core import workspace
+from flow_node.core.api import FlowEstimator
+from flow_node.core.config import FlowConfig
 from flow_node.core.workspace import scratch
 
 
@@ -32,3 +34,26 @@ def test_the_pool_is_bounded() -> None:
     for k in range(3 * workspace.MAX_ENTRIES):
         scratch("test.many", (k + 1,))
     assert len(workspace._local.pool) <= workspace.MAX_ENTRIES
+
+
+def test_arrays_in_use_stay_while_other_sizes_come_and_go() -> None:
+    """Least recently used first: an array requested on every frame is kept however many other sizes pass
+    through the pool (dropping everything when full would reallocate it every MAX_ENTRIES requests)."""
+    kept = scratch("test.kept", (3, 4))
+    for k in range(3 * workspace.MAX_ENTRIES):
+        scratch("test.passing", (k + 1,))
+        assert scratch("test.kept", (3, 4)) is kept
+
+
+def test_a_frame_of_a_15_level_preset_fits_in_the_pool() -> None:
+    """Frame after frame the engine gets the same scratch arrays back: the second frame allocates none, on
+    the preset with the most levels (balanced: 15, interpolated gradient, numba backend)."""
+    rng = np.random.default_rng(2)
+    i0, i1 = rng.random((2, 400, 420)).astype(np.float32)
+    est = FlowEstimator(FlowConfig.preset("balanced").replace(backend="numba", iterations=1, warps=1))
+    res = est.estimate(i0, i1)
+    assert len(res.stats.iterations) == 15
+    before = dict(workspace._local.pool)
+    est.estimate(i1, i0)
+    after = workspace._local.pool
+    assert after.keys() == before.keys() and all(after[k] is before[k] for k in before)

@@ -95,6 +95,31 @@ def test_numba_linearise_matches_the_numpy_reference(kernel: str, scheme: str, p
     assert np.abs(a - a_ref).max() < 1e-5 and np.abs(c - c_ref).max() < 1e-5
 
 
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (7, 1), (2, 2), (3, 3), (2, 5), (5, 3), (4, 4), (6, 9)])
+@pytest.mark.parametrize("parallel", [False, True])
+def test_numba_linearise_matches_the_numpy_reference_on_tiny_images(shape: tuple[int, int], parallel: bool,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Tiny and odd sizes, where every target's 4 x 4 taps cross a border (mirrored) or only a few pixels have
+    unmirrored interior blocks: every target inside the image, a third of them exactly on or half a pixel
+    from the first or last row or column. Both kernels, every gradient scheme, serial and parallel rows."""
+    monkeypatch.setattr(numba_backend, "LINEARISE_PARALLEL_MIN_PIXELS", 0 if parallel else 10**9)
+    rng = np.random.default_rng(sum(shape))
+    h, w = shape
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
+    tx, ty = rng.uniform(0, w - 1, (h, w)), rng.uniform(0, h - 1, (h, w))
+    tx.flat[::3] = rng.choice([0.0, 0.5, w - 1.5, w - 1.0], tx.size)[::3].clip(0, w - 1)
+    ty.flat[1::3] = rng.choice([0.0, 0.5, h - 1.5, h - 1.0], ty.size)[1::3].clip(0, h - 1)
+    flow = np.stack([tx - xs, ty - ys]).astype(np.float32)
+    i0, i1 = rng.random((2, h, w)).astype(np.float32)
+    for kernel in KERNELS:
+        for scheme in GRADIENT_SCHEMES:
+            src = warp_source(i1, scheme, kernel, WARPER)
+            g0 = image_gradient(i0, scheme) if scheme == "interpolated" else None
+            a_ref, c_ref = linearise(i0, src, g0, flow, scheme, kernel)
+            a, c = linearise_numba(i0, src, g0, flow, scheme, kernel)
+            assert np.abs(a - a_ref).max() < 1e-5 and np.abs(c - c_ref).max() < 1e-5, (kernel, scheme)
+
+
 def test_bspline_interpolates_its_samples() -> None:
     img = np.random.default_rng(4).random((20, 30)).astype(np.float32)
     ys, xs = np.mgrid[0:20, 0:30].astype(np.float32)

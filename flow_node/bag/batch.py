@@ -49,12 +49,12 @@ GLOB_CHARS = frozenset("*?[")
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
               "MALLOC_MMAP_THRESHOLD_": str(256 << 20), "MALLOC_TRIM_THRESHOLD_": str(512 << 20)}
 # Dask settings of the embedded cluster: its periodic bookkeeping made quiet. With the defaults an idle one-worker
-# cluster spends ~25 ms of CPU per second (mostly holding the GIL the bag's thread needs): the worker's
+# cluster and its client spend ~49 ms of CPU per second (mostly holding the GIL the bag's thread needs): the worker's
 # statistical profiler samples the task's stack every 10 ms, the memory monitor reads the process' memory every
-# 100 ms, the event loop's tick runs every 20 ms, the system monitor every 0.5 s and work stealing every 0.1 s.
+# 100 ms, the event loop's tick runs every 20 ms, the system monitor every 0.5 s and work stealing every 1 s.
 # A batch uses none of them (no dashboard; bags are queued on the scheduler and handed to the next free worker),
-# and without them the cluster idles at ~3.5 ms per second (BENCHMARKS.md, issue 14). A cluster given with
-# --scheduler keeps its own settings.
+# and without them the cluster idles at ~5 ms per second (BENCHMARKS.md, issue 14, "Quiet cluster"). A cluster
+# given with --scheduler keeps its own settings.
 QUIET_CLUSTER = {"distributed.worker.profile.enabled": False, "distributed.worker.memory.monitor-interval": "1s",
                  "distributed.admin.tick.interval": "1s", "distributed.admin.system-monitor.interval": "2s",
                  "distributed.scheduler.work-stealing": False}

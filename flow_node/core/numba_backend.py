@@ -5,8 +5,8 @@ Same semantics as solver.solve_numpy (scaling E / alpha, update order, stopping 
 iterations, Bregman linear term ``problem.b``); the kernels are in numba_kernels.py (iteration) and
 numba_warp.py (warp, prefilter, linearisation: :func:`linearise_numba`). Differences that do
 not change results beyond float32 rounding: the state arrays are updated in place (made float32
-C-contiguous first if they are not) and the extrapolated variables v_bar / w_bar live in buffers that are
-reused across calls of the same image size.
+C-contiguous first if they are not) and the extrapolated variables v_bar / w_bar live in the calling
+thread's scratch arrays (workspace.py), reused across calls of the same image size.
 
 Compiled kernels are cached on disk (``cache=True``): in NUMBA_CACHE_DIR when set (the Makefile sets
 ``.venv/numba_cache``), otherwise numba writes ``__pycache__`` next to this file, or, when the package
@@ -34,7 +34,6 @@ PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thr
 # the linearisation costs ~10 primal-dual iterations per pixel in one pass: worth the threads on smaller levels
 LINEARISE_PARALLEL_MIN_PIXELS = 20_000
 _threads = 0  # 0 = all cores; applied on every solve because numba's thread count is per calling thread
-_buffers: dict[tuple, tuple[np.ndarray, ...]] = {}
 _DUMMY3 = np.zeros((2, 1, 1), _F32)
 _DUMMY4 = np.zeros((2, 2, 1, 1), _F32)
 _DUMMY5 = np.zeros((2, 2, 2, 1, 1), _F32)
@@ -65,33 +64,21 @@ def _f32c(x: np.ndarray) -> np.ndarray:
 
 
 def _work_buffers(v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, ...]:
-    """(v_bar, w_bar, xbuf, zero_b) for this shape: the extrapolated variables, the per-thread row scratch
-    of the primal kernel and the zero Bregman row. Reused across calls and frames; one set per pyramid
-    level shape (bounded, so a stream of ever-changing sizes cannot grow memory)."""
-    key = (v.shape, w is not None)
-    bufs = _buffers.get(key)
-    if bufs is None:
-        if len(_buffers) > 32:
-            _buffers.clear()
-        width = v.shape[2]
-        bufs = (np.empty_like(v), np.empty_like(w) if w is not None else _DUMMY4,
-                np.zeros((numba.config.NUMBA_NUM_THREADS, 2, width + 1), _F32), np.zeros((2, 1, width), _F32))
-        _buffers[key] = bufs
-    return bufs
+    """(v_bar, w_bar, xbuf, zero_b) for this shape: the extrapolated variables (2, H, W) and (2, 2, H, W),
+    the per-thread row scratch of the primal kernel (threads, 2, W + 1) and the zero Bregman row (2, 1, W),
+    float32. The calling thread's scratch arrays (workspace.py), reused across calls and frames."""
+    width = v.shape[2]
+    zero_b = scratch("numba.zero_b", (2, 1, width))
+    zero_b.fill(0.0)
+    return (scratch("numba.v_bar", v.shape), scratch("numba.w_bar", w.shape) if w is not None else _DUMMY4,
+            scratch("numba.xbuf", (numba.config.NUMBA_NUM_THREADS, 2, width + 1)), zero_b)
 
 
 def _row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-thread row scratch of the linearisation kernel for images ``width`` wide: tap weights and mask
-    (threads, 9, width) float32, tap bases (threads, 2, width) int32. Reused like :func:`_work_buffers`."""
-    key = ("rows", width)
-    bufs = _buffers.get(key)
-    if bufs is None:
-        if len(_buffers) > 32:
-            _buffers.clear()
-        n = numba.config.NUMBA_NUM_THREADS
-        bufs = (np.empty((n, 9, width), _F32), np.empty((n, 2, width), np.int32))
-        _buffers[key] = bufs
-    return bufs
+    (threads, 9, width) float32, tap bases (threads, 2, width) int32; the calling thread's scratch arrays."""
+    n = numba.config.NUMBA_NUM_THREADS
+    return scratch("numba.linearise_rows", (n, 9, width)), scratch("numba.linearise_base", (n, 2, width), np.int32)
 
 
 def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:

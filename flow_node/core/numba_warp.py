@@ -7,8 +7,8 @@ position's taps and weights are computed once (:func:`taps`) and shared by every
 (:func:`tap_sum`): the linearisation samples I1 and both components of its gradient at x + v0 with the
 same 4 x 4 taps, forms a and c, and masks the pixels whose target leaves the image -- one kernel over the
 level instead of a dozen numpy passes and temporaries. Within a row it first computes every pixel's tap
-weights (vectorised), then gathers; away from the border a tap row is four adjacent samples
-(:func:`block_sum`), so only pixels near the border pay for mirrored indices.
+weights (vectorised), then gathers; away from the border a tap row is four adjacent samples, so only
+pixels near the border pay for mirrored indices.
 """
 
 from __future__ import annotations
@@ -102,24 +102,11 @@ def warp_kernel(img, map_x, map_y, kernel, out, parallel):  # noqa: ANN001, ANN2
 
 
 @njit(**_JIT)
-def block_sum(img, ch, wx, wy, x0, y0):  # noqa: ANN001, ANN201
-    """:func:`tap_sum` for taps that need no mirroring: the 4 x 4 block at columns x0 .. x0 + 3, rows y0 ..
-    y0 + 3. The columns are adjacent, so each tap row is one contiguous load (vectorised)."""
-    wx0, wx1, wx2, wx3 = wx
-    s = np.float32(0.0)
-    for k in range(4):
-        r = y0 + k
-        s += wy[k] * (wx0 * img[ch, r, x0] + wx1 * img[ch, r, x0 + 1] + wx2 * img[ch, r, x0 + 2]
-                      + wx3 * img[ch, r, x0 + 3])
-    return s
-
-
-@njit(**_JIT)
 def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, base):  # noqa: ANN001, ANN201
     """Row i of :func:`linearise_kernel`, in two passes over the row: the sample positions, tap weights and
     inside mask (no gathers, no branches: vectorised) into ``scratch`` (9, W) and ``base`` (2, W) (floor of
-    the position; 0 outside), then the gathers -- unmirrored 4 x 4 blocks (:func:`block_sum`) inside the
-    image's interior, mirrored taps (:func:`tap_sum`) near the border."""
+    the position; 0 outside), then the gathers (:func:`tap_sum`) -- of adjacent, unmirrored taps wherever
+    the 4 x 4 block lies inside the image (one test for both axes), of mirrored taps near the border."""
     h, w = i0.shape
     right, bottom = np.float32(w - 1), np.float32(h - 1)
     zero = np.float32(0.0)
@@ -144,15 +131,13 @@ def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, ba
         wx = (scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j])
         wy = (scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j])
         xi, yi = np.int64(base[0, j]), np.int64(base[1, j])
-        if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:
-            i1w = block_sum(src, 0, wx, wy, xi - 1, yi - 1)
-            a0 = block_sum(src, 1, wx, wy, xi - 1, yi - 1)
-            a1 = block_sum(src, 2, wx, wy, xi - 1, yi - 1)
+        if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:  # interior: one branch for both axes
+            cols, rows = (xi - 1, xi, xi + 1, xi + 2), (yi - 1, yi, yi + 1, yi + 2)
         else:
             cols, rows = _tap_indices(xi, w), _tap_indices(yi, h)
-            i1w = tap_sum(src, 0, wx, wy, cols, rows)
-            a0 = tap_sum(src, 1, wx, wy, cols, rows)
-            a1 = tap_sum(src, 2, wx, wy, cols, rows)
+        i1w = tap_sum(src, 0, wx, wy, cols, rows)
+        a0 = tap_sum(src, 1, wx, wy, cols, rows)
+        a1 = tap_sum(src, 2, wx, wy, cols, rows)
         if interpolated:
             a0 = _HALF * (g0[0, i, j] + a0)
             a1 = _HALF * (g0[1, i, j] + a1)

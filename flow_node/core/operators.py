@@ -47,8 +47,11 @@ def image_gradient(img: np.ndarray, scheme: str, out: np.ndarray | None = None) 
     applies it to a temporally interpolated image): (I(x+1) - I(x-1)) / 2, zero on the border as in the
     paper. Note the paper writes the central difference without the 1/2; we keep the true derivative so
     that flow is in pixels, and the paper's weights map onto ours by alpha_ours = alpha_paper / 2.
-    ``out``: a float32 (2, H, W) array to write into (returned), else a new one.
+    ``out``: a float32 (2, H, W) array to write into (returned), else a new one; it must not overlap img
+    (the second component would read what the first wrote).
     """
+    if out is not None and np.may_share_memory(img, out):
+        raise ValueError("image_gradient: out overlaps the image")
     g = np.empty((2,) + img.shape, dtype=np.float32) if out is None else out
     if scheme == "forward":
         np.subtract(img[:, 1:], img[:, :-1], out=g[0, :, :-1])

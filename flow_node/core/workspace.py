@@ -1,6 +1,6 @@
 """Scratch arrays reused from call to call: temporaries of one level (the warp source, frame 0's gradient,
-the prefilter's transposed planes) are requested here by name and shape instead of being allocated fresh on
-every call.
+the prefilter's transposed planes, the numba solver's extrapolated variables and the kernels' per-thread row
+scratch) are requested here by name and shape instead of being allocated fresh on every call.
 
 Why: it saves the allocation and a concatenation per level, and it keeps the engine's speed independent of
 the allocator's state. In a loop of same-size calls glibc reuses the freed blocks (no page faults per call
@@ -8,10 +8,13 @@ measured), but a process whose allocator returns large freed blocks to the kerne
 on every call: the warp source of a 640x480 level measured 4-7 ms that way against 0.5 ms (BENCHMARKS.md,
 "Engine speed, round 3"). Allocator settings themselves belong to an executable's main(), not here.
 
-The pool is per thread (threads never share an array) and bounded (MAX_ENTRIES: a stream of ever-changing
-frame sizes cannot grow it without limit). Contents are undefined, as with np.empty. A caller owns a scratch
-array only until it asks for the same name and shape again: use one only for temporaries that do not
-outlive the call that requested them.
+The pool is per thread (threads never share an array: two flows computed at once in two threads, e.g. two
+nodes in one process, each get their own) and bounded (MAX_ENTRIES, least recently used dropped first: a
+stream of ever-changing frame sizes cannot grow it without limit, while the ~8 arrays per pyramid level of a
+15-level preset stay in it from frame to frame). Contents are undefined, as with np.empty. A caller owns a
+scratch array only until it, or anything it calls in the same thread, asks for the same name and shape
+again: use one only for temporaries that do not outlive the call that requested them, and never pass one
+as an ``out=`` that aliases an input.
 """
 
 from __future__ import annotations
@@ -20,20 +23,22 @@ import threading
 
 import numpy as np
 
-MAX_ENTRIES = 64
+MAX_ENTRIES = 256  # per thread; a frame of a 15-level preset uses ~120 (numba backend, interpolated scheme)
 _local = threading.local()
 
 
 def scratch(name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.ndarray:
     """The calling thread's scratch array ``name`` of ``shape`` and ``dtype`` (C-contiguous, contents
-    undefined); the same array on every request with the same key in this thread."""
+    undefined); the same array on every request with the same key in this thread while it stays among the
+    MAX_ENTRIES most recently requested."""
     pool = getattr(_local, "pool", None)
     if pool is None:
         pool = _local.pool = {}
     key = (name, tuple(shape), np.dtype(dtype))
-    buf = pool.get(key)
+    buf = pool.pop(key, None)  # re-inserted below: the dict's order is the order of last use
     if buf is None:
-        if len(pool) >= MAX_ENTRIES:
-            pool.clear()
-        buf = pool[key] = np.empty(key[1], key[2])
+        while len(pool) >= MAX_ENTRIES:
+            del pool[next(iter(pool))]
+        buf = np.empty(key[1], key[2])
+    pool[key] = buf
     return buf
