@@ -318,8 +318,8 @@ PRESETS: dict[str, dict[str, Any]] = {
     # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
-    "fastest": dict(model="l1_tv", alpha=0.05, iterations=3, warps=4, levels=5, finest_level=1,
-                    median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
+    "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=5, levels=5,
+                    finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
 }
 
 

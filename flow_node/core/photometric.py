@@ -124,7 +124,8 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> t
     says whether an exposure change was found (and undone). ``noise_gain`` (<= 1) is how much the
     quantisation noise shrinks where the data term is evaluated (the pyramid's anti-alias blur when the
     finest solved level is coarser than the input: :func:`flow_node.core.pyramid.noise_gain`); rel is
-    judged after it."""
+    judged after it, and the presmoothing is left to that blur (wider than QUANT_SIGMA, it does the same
+    on the level the data term lives on; both together take a low-contrast texture's signal too)."""
     s0, s1 = sorted_sample(i0), sorted_sample(i1)
     gain, offset = exposure_change(s0, s1)
     if (gain, offset) != (1.0, 0.0):
@@ -135,7 +136,7 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> t
     rel = quantisation_step(s0) * noise_gain / span
     scale = np.float32(min(1.0, STEP_REF / rel) / span if rel > 0 else 1.0 / span)
     n0, n1 = (i0 - np.float32(lo)) * scale, (i1 - np.float32(lo)) * scale
-    if rel > STEP_REF:
+    if rel > STEP_REF and noise_gain >= 1.0:  # else the pyramid's anti-alias blur (>= 1.4 px) does it
         blur = lambda x: cv2.GaussianBlur(x, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)  # noqa: E731
         n0, n1 = blur(n0), blur(n1)
     return n0, n1, (gain, offset) != (1.0, 0.0)

@@ -17,7 +17,7 @@ import numpy as np
 from .config import FlowConfig
 from .solver import PDState
 
-ANTIALIAS = 0.7  # blur (px of the finer level, times 1/scale) on the steps down to a coarser finest solved level
+ANTIALIAS = 0.7  # blur (px of the finer level, times 1/scale) of every step when the finest solved level is coarser
 
 
 def pyramid_shapes(shape: tuple[int, int], levels: int, scale: float, min_size: int) -> list[tuple[int, int]]:
@@ -36,8 +36,8 @@ def build_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float, 
                   ) -> list[np.ndarray]:
     """Gaussian pyramid on the given shapes: blur then bilinear-resample each step. The blur is sigma =
     1/(3 scale) px of the finer level (weak: some aliasing on a level that a finer one corrects is
-    harmless), except on the steps down to level ``antialias_levels`` (the finest solved level when that is
-    coarser than the input), where it is ANTIALIAS / scale: nothing finer corrects what aliases there."""
+    harmless), except on the first ``antialias_levels`` steps, where it is ANTIALIAS / scale (see
+    :func:`make_pyramid`)."""
     levels = [img]
     for step, (h, w) in enumerate(shapes[1:]):
         sigma = (ANTIALIAS if step < antialias_levels else 1.0 / 3.0) / scale
@@ -114,7 +114,10 @@ def noise_gain(shape: tuple[int, int], cfg: FlowConfig) -> float:
 
 
 def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig) -> Pyramid:
-    """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size)."""
+    """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
+    level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
+    finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
+    flow, which must not have converged to an aliased texture's wrong minimum either."""
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
-    finest = min(cfg.finest_level, len(shapes) - 1)
-    return Pyramid(shapes, *(build_pyramid(img, shapes, cfg.scale_factor, finest) for img in (i0, i1)))
+    antialias = len(shapes) if min(cfg.finest_level, len(shapes) - 1) > 0 else 0
+    return Pyramid(shapes, *(build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1)))
