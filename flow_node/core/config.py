@@ -309,16 +309,21 @@ PRESETS: dict[str, dict[str, Any]] = {
     # noise want (Middlebury, 8 pairs: 0.48 with one 4-iteration warp there, 0.42 with one of 24, 0.41 with
     # 2 x 12, 0.40 with 2 x 16; 3 x 13: 0.38); the second warp there is what 10-16-bit content of the finest
     # texture band needs (tune split, 24 pairs: 1 x 24 0.020 at 8 bit but 0.031 at 10 bit; 2 x 16 0.017 / 0.014).
-    # fastest: half size (finest_level 1, as before) with 4 warps x 3 iterations and the 5x5 median (was 2 x 8
-    # with 3x3): fine textures 0.19 -> 0.033-0.036 AEE (DIS medium 0.05, ultrafast 0.16) at ~1-1.3x DIS
-    # medium's time, Middlebury unchanged; a longer last warp there trades fine textures for low contrast
-    # (tune/speed_s14.json). Neither reaches its time target (BENCHMARKS.md).
+    # fastest: half size (finest_level 1), 5x5 median, 4 warps per level. Round 3 (BENCHMARKS.md "fastest,
+    # round 3"): since the pyramid anti-aliases every step when the finest solved level is coarser than the
+    # input (pyramid.ANTIALIAS; before, 8-bit pairs got the quantisation presmoothing and 10-16 bit did not:
+    # 1.5x the 8-bit AEE) the coarse levels converge to the right flow, so they get 10 iterations per warp
+    # (was 3; a warp costs ~10-13 iterations, so iterations are the cheap part) and the half-size level 5,
+    # alpha 0.07 (was 0.05: sensor noise). Tune split (4x the suite's seeds), from the old values on the new
+    # pyramid: bit depths 0.039 -> 0.034, noise 0.064 -> 0.055, low contrast 0.088 -> 0.066, flat 0.135 ->
+    # 0.064, Middlebury 0.608 -> 0.574 at ~1.1x the time; 3 coarse warps (~1.04x): noise 0.057, low
+    # contrast 0.070, Middlebury 0.591; alpha 0.06: Middlebury 0.553 but noise 0.058 (DIS medium 0.056).
     # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
     # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
     # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
-    "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=5, levels=5,
+    "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
 }
 
