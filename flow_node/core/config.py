@@ -313,11 +313,12 @@ PRESETS: dict[str, dict[str, Any]] = {
     # round 3"): since the pyramid anti-aliases every step when the finest solved level is coarser than the
     # input (pyramid.ANTIALIAS; before, 8-bit pairs got the quantisation presmoothing and 10-16 bit did not:
     # 1.5x the 8-bit AEE) the coarse levels converge to the right flow, so they get 10 iterations per warp
-    # (was 3; a warp costs ~10-13 iterations, so iterations are the cheap part) and the half-size level 5,
-    # alpha 0.07 (was 0.05: sensor noise). Tune split (4x the suite's seeds), from the old values on the new
-    # pyramid: bit depths 0.039 -> 0.034, noise 0.064 -> 0.055, low contrast 0.088 -> 0.066, flat 0.135 ->
-    # 0.064, Middlebury 0.608 -> 0.574 at ~1.1x the time; 3 coarse warps (~1.04x): noise 0.057, low
-    # contrast 0.070, Middlebury 0.591; alpha 0.06: Middlebury 0.553 but noise 0.058 (DIS medium 0.056).
+    # (was 3; a warp costs ~10-13 iterations, so iterations are the cheap part) and the half-size level 6,
+    # alpha 0.07 (was 0.05: sensor noise). Tune split (bench/results/fastest_round3_tune.json), the old values
+    # on the same pyramid -> these: bit depths 0.038 -> 0.033, noise 0.066 -> 0.052, low contrast 0.091 ->
+    # 0.058, flat 0.107 -> 0.063, fine 0.041 -> 0.037, Middlebury 0.631 -> 0.564 at ~1.15x the time; 3
+    # coarse warps (~0.9x of that): noise 0.054, low contrast 0.060, Middlebury 0.581; alpha 0.06: Middlebury
+    # 0.542 but noise 0.055, level with DIS medium; 5 half-size iterations: the 10-level pairs 0.081 vs 0.070.
     # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
     # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
     # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
