@@ -13,7 +13,7 @@ import pytest
 
 from flow_node import FlowConfig, FlowEstimator, aee
 from flow_node.bag.scenes import BandTexture, Layer, Scene, fine_motion, render_grey_pair
-from flow_node.core.pyramid import build_pyramid, noise_gain, pyramid_shapes
+from flow_node.core.pyramid import build_pyramid, make_pyramid, noise_gain, pyramid_shapes
 
 SIZE = (320, 240)  # the half-size level must be large enough to hold the texture's coarser octaves
 
@@ -52,6 +52,10 @@ def test_a_coarser_finest_level_is_anti_aliased() -> None:
     inner = (slice(8, -8), slice(8, -8))
     assert np.std(weak[1][inner]) > 0.02  # the weak blur leaves an aliased pattern of ~0.05 amplitude
     assert np.std(anti[1][inner]) < 0.2 * np.std(weak[1][inner])
+    # the engine's pyramids: anti-aliased for a half-size solve, as before for a full-resolution one
+    half, full = (FlowConfig.preset(p).replace(levels=3) for p in ("fastest", "realtime"))
+    np.testing.assert_array_equal(make_pyramid(img, img, half).i0[1], anti[1])
+    np.testing.assert_array_equal(make_pyramid(img, img, full).i0[1], weak[1])
 
 
 def test_noise_gain_is_one_at_full_resolution_and_shrinks_with_the_blur() -> None:
