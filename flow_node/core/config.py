@@ -309,17 +309,23 @@ PRESETS: dict[str, dict[str, Any]] = {
     # noise want (Middlebury, 8 pairs: 0.48 with one 4-iteration warp there, 0.42 with one of 24, 0.41 with
     # 2 x 12, 0.40 with 2 x 16; 3 x 13: 0.38); the second warp there is what 10-16-bit content of the finest
     # texture band needs (tune split, 24 pairs: 1 x 24 0.020 at 8 bit but 0.031 at 10 bit; 2 x 16 0.017 / 0.014).
-    # fastest: half size (finest_level 1, as before) with 4 warps x 3 iterations and the 5x5 median (was 2 x 8
-    # with 3x3): fine textures 0.19 -> 0.033-0.036 AEE (DIS medium 0.05, ultrafast 0.16) at ~1-1.3x DIS
-    # medium's time, Middlebury unchanged; a longer last warp there trades fine textures for low contrast
-    # (tune/speed_s14.json). Neither reaches its time target (BENCHMARKS.md).
+    # fastest: half size (finest_level 1), 5x5 median, 4 warps per level. Round 3 (BENCHMARKS.md "fastest,
+    # round 3"): since the pyramid anti-aliases every step when the finest solved level is coarser than the
+    # input (pyramid.ANTIALIAS; before, 8-bit pairs got the quantisation presmoothing and 10-16 bit did not:
+    # 1.5x the 8-bit AEE) the coarse levels converge to the right flow, so they get 10 iterations per warp
+    # (was 3; a warp costs ~10-13 iterations, so iterations are the cheap part) and the half-size level 6,
+    # alpha 0.07 (was 0.05: sensor noise). Tune split (bench/results/fastest_round3_tune.json), the old values
+    # on the same pyramid -> these: bit depths 0.038 -> 0.033, noise 0.066 -> 0.052, low contrast 0.091 ->
+    # 0.058, flat 0.107 -> 0.063, fine 0.041 -> 0.037, Middlebury 0.631 -> 0.564 at ~1.15x the time; 3
+    # coarse warps (~0.9x of that): noise 0.054, low contrast 0.060, Middlebury 0.581; alpha 0.06: Middlebury
+    # 0.542 but noise 0.055, level with DIS medium; 5 half-size iterations: the 10-level pairs 0.081 vs 0.070.
     # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
     # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
     # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
-    "fastest": dict(model="l1_tv", alpha=0.05, iterations=3, warps=4, levels=5, finest_level=1,
-                    median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
+    "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
+                    finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
 }
 
 

@@ -35,7 +35,7 @@ from .initialise import Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .photometric import stage
-from .pyramid import Pyramid, make_pyramid, resize_flow, resize_state
+from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
 
@@ -106,7 +106,7 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
     upsampled to (H, W) by the output layout stage.
     """
-    (i0, i1), normalised = stage(i0, i1, cfg.photometric)
+    (i0, i1), normalised = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
     pyr = make_pyramid(i0, i1, cfg)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))

@@ -112,7 +112,7 @@ def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return normalise_pair(i0, i1)[:2]
 
 
-def normalise_pair(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> tuple[np.ndarray, np.ndarray, bool]:
     """Both frames (H, W) float32 with frame 1's exposure matched to frame 0 (:func:`exposure_change`) and
     one affine map for the pair taking its robust range -- the frames' mean 2nd and 98th percentiles -- to
     [0, 1].
@@ -121,7 +121,11 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarr
     spanning fewer than ~100 grey levels) is presmoothed (QUANT_SIGMA) and mapped to [0, STEP_REF / rel]
     instead: its data term carries quantisation noise of relative size rel, and shrinking the contrast by
     the same factor keeps the balance of data term and weights (exactly for the L1 data term). The flag
-    says whether an exposure change was found (and undone)."""
+    says whether an exposure change was found (and undone). ``noise_gain`` (<= 1) is how much the
+    quantisation noise shrinks where the data term is evaluated (the pyramid's anti-alias blur when the
+    finest solved level is coarser than the input: :func:`flow_node.core.pyramid.noise_gain`); rel is
+    judged after it, and the presmoothing is left to that blur (wider than QUANT_SIGMA, it does the same
+    on the level the data term lives on; both together take a low-contrast texture's signal too)."""
     s0, s1 = sorted_sample(i0), sorted_sample(i1)
     gain, offset = exposure_change(s0, s1)
     if (gain, offset) != (1.0, 0.0):
@@ -129,10 +133,10 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarr
         s1 = s1 * gain + offset
     lo, hi = 0.5 * (quantiles(s0, PERCENTILES) + quantiles(s1, PERCENTILES))
     span = hi - lo if hi - lo > MIN_SPAN else 1.0
-    rel = quantisation_step(s0) / span
+    rel = quantisation_step(s0) * noise_gain / span
     scale = np.float32(min(1.0, STEP_REF / rel) / span if rel > 0 else 1.0 / span)
     n0, n1 = (i0 - np.float32(lo)) * scale, (i1 - np.float32(lo)) * scale
-    if rel > STEP_REF:
+    if rel > STEP_REF and noise_gain >= 1.0:  # else the pyramid's anti-alias blur (>= 1.4 px) does it
         blur = lambda x: cv2.GaussianBlur(x, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)  # noqa: E731
         n0, n1 = blur(n0), blur(n1)
     return n0, n1, (gain, offset) != (1.0, 0.0)
@@ -168,11 +172,12 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
     return stage(i0, i1, mode)[0]
 
 
-def stage(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[tuple[np.ndarray, np.ndarray],
-                                                                tuple[np.ndarray, np.ndarray]]:
+def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0
+          ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
-    The second is the ``normalise`` result in every mode, so the reliability figure has one meaning."""
-    n0, n1, exposure_changed = normalise_pair(i0, i1)
+    The second is the ``normalise`` result in every mode, so the reliability figure has one meaning.
+    ``noise_gain``: see :func:`normalise_pair`."""
+    n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain)
     if mode == "none":
         return (i0, i1), (n0, n1)
     if mode == "normalise" and exposure_changed:

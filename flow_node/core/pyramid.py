@@ -8,6 +8,7 @@ levels is :mod:`flow_node.core.refine`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -15,6 +16,8 @@ import numpy as np
 
 from .config import FlowConfig
 from .solver import PDState
+
+ANTIALIAS = 0.7  # blur (px of the finer level, times 1/scale) of every step when the finest solved level is coarser
 
 
 def pyramid_shapes(shape: tuple[int, int], levels: int, scale: float, min_size: int) -> list[tuple[int, int]]:
@@ -29,11 +32,15 @@ def pyramid_shapes(shape: tuple[int, int], levels: int, scale: float, min_size: 
     return shapes
 
 
-def build_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float) -> list[np.ndarray]:
-    """Gaussian pyramid on the given shapes: blur (sigma = 1/(3 scale)) then area-resample each step."""
-    sigma = 1.0 / (3.0 * scale)
+def build_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0
+                  ) -> list[np.ndarray]:
+    """Gaussian pyramid on the given shapes: blur then bilinear-resample each step. The blur is sigma =
+    1/(3 scale) px of the finer level (weak: some aliasing on a level that a finer one corrects is
+    harmless), except on the first ``antialias_levels`` steps, where it is ANTIALIAS / scale (see
+    :func:`make_pyramid`)."""
     levels = [img]
-    for h, w in shapes[1:]:
+    for step, (h, w) in enumerate(shapes[1:]):
+        sigma = (ANTIALIAS if step < antialias_levels else 1.0 / 3.0) / scale
         blurred = cv2.GaussianBlur(levels[-1], (0, 0), sigmaX=sigma, sigmaY=sigma,
                                    borderType=cv2.BORDER_REPLICATE)
         levels.append(cv2.resize(blurred, (w, h), interpolation=cv2.INTER_LINEAR))
@@ -92,7 +99,25 @@ class Pyramid:
         return level
 
 
+def noise_gain(shape: tuple[int, int], cfg: FlowConfig) -> float:
+    """The factor by which white noise (a quantisation error, say) shrinks on the finest solved level of the
+    pyramid of an image of ``shape`` for ``cfg``: 1 when that is the input resolution, else 1 / (2 sqrt(pi)
+    sigma), the noise gain of a Gaussian of sigma input px -- the anti-alias blur of :func:`build_pyramid`
+    accumulated down to that level (subsampling leaves the noise's variance as it is)."""
+    shapes = pyramid_shapes(shape, cfg.levels, cfg.scale_factor, cfg.min_size)
+    finest = min(cfg.finest_level, len(shapes) - 1)
+    if finest == 0:
+        return 1.0
+    s = cfg.scale_factor
+    sigma = math.sqrt(sum((ANTIALIAS / s / s**k) ** 2 for k in range(finest)))
+    return min(1.0, 1.0 / (2.0 * math.sqrt(math.pi) * sigma))
+
+
 def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig) -> Pyramid:
-    """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size)."""
+    """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
+    level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
+    finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
+    flow, which must not have converged to an aliased texture's wrong minimum either."""
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
-    return Pyramid(shapes, build_pyramid(i0, shapes, cfg.scale_factor), build_pyramid(i1, shapes, cfg.scale_factor))
+    antialias = len(shapes) if min(cfg.finest_level, len(shapes) - 1) > 0 else 0
+    return Pyramid(shapes, *(build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1)))
