@@ -299,21 +299,22 @@ PRESETS: dict[str, dict[str, Any]] = {
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0),
     # realtime/fastest (re-tuned for speed, issue 11; BENCHMARKS.md "realtime and fastest on the faster engine").
-    # With the fused numba linearisation one warp costs about 10-13 primal-dual iterations at the same size,
-    # and on the suite's fine textures many warps of few iterations beat few long ones (tune split, realtime
-    # candidates: 2 warps x 6 iterations 0.031 AEE, 2 x 10 0.049, 1 x 20 0.098: the iterations converge to the
-    # linearised problem's minimiser, a poor one on a texture of 3-6 px period). Hence realtime: 4 warps x 6
-    # iterations on the coarse levels and 2 x 16 at full resolution (the level that costs; finest_warps /
-    # finest_iterations): fine textures 0.015-0.016 AEE on the tune split at ~2.5-3x DIS medium's time (3 x 13
-    # on every level: 0.021 at 3.3-3.8x). The long warps at full size are what real frames, low contrast and
-    # noise want (Middlebury, 8 pairs: 0.48 with one 4-iteration warp there, 0.42 with one of 24, 0.41 with
-    # 2 x 12, 0.40 with 2 x 16; 3 x 13: 0.38); the second warp there is what 10-16-bit content of the finest
-    # texture band needs (tune split, 24 pairs: 1 x 24 0.020 at 8 bit but 0.031 at 10 bit; 2 x 16 0.017 / 0.014).
+    # With the fused numba linearisation one warp costs about 10 primal-dual iterations at the same size (10-13
+    # before its two-pass form), and on the suite's fine textures many warps of few iterations beat few long ones
+    # (tune split, realtime candidates: 2 warps x 6 iterations 0.031 AEE, 2 x 10 0.049, 1 x 20 0.098: the
+    # iterations converge to the linearised problem's minimiser, a poor one on a texture of 3-6 px period). Hence
+    # realtime: 4 warps x 6 iterations on the coarse levels and 2 x 16 at full resolution (the level that costs;
+    # finest_warps / finest_iterations): fine textures 0.015-0.016 AEE on the tune split at ~2.5-3x DIS medium's
+    # time (3 x 13 on every level: 0.021 at 3.3-3.8x). The long warps at full size are what real frames, low
+    # contrast and noise want (Middlebury, 8 pairs: 0.48 with one 4-iteration warp there, 0.42 with one of 24,
+    # 0.41 with 2 x 12, 0.40 with 2 x 16; 3 x 13: 0.38); the second warp there is what 10-16-bit content of the
+    # finest texture band needs (tune split, 24 pairs: 1 x 24 0.020 at 8 bit but 0.031 at 10 bit; 2 x 16 0.017 /
+    # 0.014).
     # fastest: half size (finest_level 1), 5x5 median, 4 warps per level. Round 3 (BENCHMARKS.md "fastest,
     # round 3"): since the pyramid anti-aliases every step when the finest solved level is coarser than the
     # input (pyramid.ANTIALIAS; before, 8-bit pairs got the quantisation presmoothing and 10-16 bit did not:
     # 1.5x the 8-bit AEE) the coarse levels converge to the right flow, so they get 10 iterations per warp
-    # (was 3; a warp costs ~10-13 iterations, so iterations are the cheap part) and the half-size level 6,
+    # (was 3; a warp costs ~10 iterations, so iterations are the cheap part) and the half-size level 6,
     # alpha 0.07 (was 0.05: sensor noise). Tune split (bench/results/fastest_round3_tune.json), the old values
     # on the same pyramid -> these: bit depths 0.038 -> 0.033, noise 0.066 -> 0.052, low contrast 0.091 ->
     # 0.058, flat 0.107 -> 0.063, fine 0.041 -> 0.037, Middlebury 0.631 -> 0.564 at ~1.15x the time; 3
