@@ -37,7 +37,8 @@ from sensor_msgs.msg import Image
 from bench.node_latency import ProcessRig, frames, image_msg
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
-from flow_node.ros.node import FlowNode, keep_freed_memory
+from flow_node.process import keep_freed_memory
+from flow_node.ros.node import FlowNode
 
 EXECUTORS = ("single", "multi")
 SIZE = (240, 320)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import array
 import time
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -199,7 +200,7 @@ def test_compressed_input() -> None:
 _FAULTS_SCRIPT = """
 import resource, sys
 import numpy as np
-from flow_node.ros.node import keep_freed_memory
+from flow_node.process import keep_freed_memory
 applied = keep_freed_memory() if sys.argv[1] == "keep" else None
 src = np.ones((480, 640), np.uint8)
 for _ in range(3):  # warm up
@@ -212,7 +213,8 @@ print(applied, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
 
 
 def test_node_process_keeps_freed_memory_instead_of_faulting_in_fresh_pages() -> None:
-    """main() calls keep_freed_memory: per-frame arrays then reuse heap pages (page faults counted by the OS)."""
+    """keep_freed_memory (which every executable's main() calls): per-frame arrays then reuse heap pages (page
+    faults counted by the OS)."""
     import subprocess
     import sys
 
@@ -229,6 +231,32 @@ def test_node_process_keeps_freed_memory_instead_of_faulting_in_fresh_pages() ->
     # (Ubuntu 24.04's) already reuses them itself (0 measured), so there keep_freed_memory changes nothing.
     if np.__version__.startswith("2."):
         assert default > 50 * 200 and kept < default / 20
+
+
+class _Applied(Exception):
+    """Raised by the stand-in keep_freed_memory: main() got as far as applying it."""
+
+
+@pytest.mark.parametrize("module, argv", [
+    ("flow_node.ros.node", []),
+    ("flow_node.bag.cli", ["synth", "--frames", "2", "unused_bag"]),
+    ("flow_node.cli.estimate", ["f0.png", "f1.png", "-o", "unused.flo"]),
+])
+def test_every_executable_keeps_freed_memory_before_its_work(module: str, argv: list[str], tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """flow_node, flow_bag and flow_estimate all apply keep_freed_memory in main() (the fault test above shows
+    what it buys: without it every frame's arrays fault in fresh pages), before they touch any input."""
+    import importlib
+
+    mod = importlib.import_module(module)
+
+    def applied() -> bool:
+        raise _Applied
+
+    monkeypatch.setattr(mod, "keep_freed_memory", applied)
+    monkeypatch.chdir(tmp_path)  # nothing is written if it works; if it does not, the work lands here
+    with pytest.raises(_Applied):
+        mod.main(argv)
 
 
 @pytest.mark.parametrize("direct", [True, False])

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 from ..core.config import MODELS, PRESETS
 from ..core.errors import ConfigError, FlowError
+from ..process import keep_freed_memory
 
 if TYPE_CHECKING:
     from ..core.config import FlowConfig
@@ -187,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
         print(MISSING_ROSBAGS, file=sys.stderr)
         return 1
     args = parser.parse_args(argv)
+    keep_freed_memory()  # every command runs frame after frame: reuse the freed per-frame arrays' pages
     try:
         if args.command == "play":  # rclpy logs through fd 2: keep it
             return _run(args)

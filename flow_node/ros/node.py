@@ -10,7 +10,6 @@ solved, and memory is bounded by two images (the one solving and the one waiting
 from __future__ import annotations
 
 import array
-import ctypes
 import sys
 import threading
 import time
@@ -35,6 +34,7 @@ from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import array_to_image_fields, decode
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
 from ..pipeline.units import output_in_units
+from ..process import keep_freed_memory
 from . import camera_info, diagnostics, security, startup
 from .params import ParamSpec, coerce, param_specs, preset_values, settings_from_values
 
@@ -347,24 +347,6 @@ class FlowNode(Node):
         if self._worker.is_alive() and threading.current_thread() is not self._worker:
             self._worker.join(timeout=30.0)
         super().destroy_node()
-
-
-# glibc mallopt parameters (malloc.h)
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
-
-
-def keep_freed_memory(limit_bytes: int = 256 << 20) -> bool:
-    """Serve arrays up to ``limit_bytes`` from the heap and keep freed heap memory in the process (glibc only;
-    returns whether it applied). Every frame the engine allocates and frees arrays of 0.1-5 MB; with glibc's
-    defaults each is a fresh mmap whose pages fault in on first touch, which cost ~3 ms per VGA frame in the
-    grey conversion alone on a 2-core VM (docs/node.md). Memory stays bounded by the per-frame peak. Set for
-    the node's own process only (``main``), never on import: it is process-wide state."""
-    try:
-        libc = ctypes.CDLL("libc.so.6")
-        return bool(libc.mallopt(_M_MMAP_THRESHOLD, limit_bytes)) and bool(libc.mallopt(_M_TRIM_THRESHOLD,
-                                                                                         2 * limit_bytes))
-    except (OSError, AttributeError):
-        return False
 
 
 def main(args: list[str] | None = None) -> int:

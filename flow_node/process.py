@@ -1,0 +1,26 @@
+"""Process-wide settings that an executable of the package (``flow_node``, ``flow_bag``, ``flow_estimate``)
+applies in its ``main()``. Never applied on import: a program that embeds the engine owns its process and
+decides for itself (it can call these too)."""
+
+from __future__ import annotations
+
+import ctypes
+
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameter numbers (malloc.h)
+
+
+def keep_freed_memory(limit_bytes: int = 256 << 20) -> bool:
+    """Serve arrays up to ``limit_bytes`` from the heap and keep freed heap memory in the process (glibc only;
+    returns whether it applied).
+
+    Every frame the engine allocates and frees arrays of 0.1-5 MB; with glibc's defaults each is a fresh
+    mmap whose pages fault in on first touch, which cost ~3 ms per VGA frame in the grey conversion alone on
+    a 2-core VM (docs/node.md, "Memory allocation"), and ~15 % of a ``flow_bag eval`` of a VGA bag with
+    ``realtime`` (BENCHMARKS.md). Memory stays bounded by the per-frame peak: what is kept is reused by the
+    next frame."""
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        return bool(libc.mallopt(_M_MMAP_THRESHOLD, limit_bytes)) and bool(libc.mallopt(_M_TRIM_THRESHOLD,
+                                                                                         2 * limit_bytes))
+    except (OSError, AttributeError):
+        return False
