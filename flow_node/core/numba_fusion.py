@@ -177,82 +177,32 @@ def _consistent_row(out, forward, backward, tolerance, _e, _f, _g, _h, i):  # no
     return 0
 
 
-@njit(parallel=True, **_JIT)
-def residual_kernel(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN201
-    """:func:`_residual_row` over every row (in parallel when ``parallel``); the rows' returns summed."""
-    total = 0
-    if parallel:
-        for i in prange(a.shape[0]):
-            total += _residual_row(a, b, c, d, e, f, g, h, i)
-    else:
-        for i in range(a.shape[0]):
-            total += _residual_row(a, b, c, d, e, f, g, h, i)
-    return total
+def _over_rows(row, name: str):  # noqa: ANN001, ANN202
+    """Compile a driver ``name(a, ..., h, parallel)`` that runs the row kernel ``row(a, ..., h, i)`` over every
+    row i of ``a`` (in parallel when ``parallel``) and returns the rows' returns summed. Every kernel below is
+    one such driver around one row function; the distinct name keeps its on-disk cache entry apart."""
+
+    def driver(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN202
+        total = 0
+        if parallel:
+            for i in prange(a.shape[0]):
+                total += row(a, b, c, d, e, f, g, h, i)
+        else:
+            for i in range(a.shape[0]):
+                total += row(a, b, c, d, e, f, g, h, i)
+        return total
+
+    driver.__name__ = driver.__qualname__ = name
+    driver.__doc__ = f":func:`{row.py_func.__name__}` over every row (in parallel when ``parallel``); returns summed."
+    return njit(parallel=True, **_JIT)(driver)
 
 
-@njit(parallel=True, **_JIT)
-def choose_kernel(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN201
-    """:func:`_choose_row` over every row (in parallel when ``parallel``); the rows' returns summed."""
-    total = 0
-    if parallel:
-        for i in prange(a.shape[0]):
-            total += _choose_row(a, b, c, d, e, f, g, h, i)
-    else:
-        for i in range(a.shape[0]):
-            total += _choose_row(a, b, c, d, e, f, g, h, i)
-    return total
-
-
-@njit(parallel=True, **_JIT)
-def near_kernel(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN201
-    """:func:`_near_row` over every row (in parallel when ``parallel``); the rows' returns summed."""
-    total = 0
-    if parallel:
-        for i in prange(a.shape[0]):
-            total += _near_row(a, b, c, d, e, f, g, h, i)
-    else:
-        for i in range(a.shape[0]):
-            total += _near_row(a, b, c, d, e, f, g, h, i)
-    return total
-
-
-@njit(parallel=True, **_JIT)
-def fill_kernel(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN201
-    """:func:`_fill_row` over every row (in parallel when ``parallel``); the rows' returns summed."""
-    total = 0
-    if parallel:
-        for i in prange(a.shape[0]):
-            total += _fill_row(a, b, c, d, e, f, g, h, i)
-    else:
-        for i in range(a.shape[0]):
-            total += _fill_row(a, b, c, d, e, f, g, h, i)
-    return total
-
-
-@njit(parallel=True, **_JIT)
-def gather_kernel(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN201
-    """:func:`_gather_row` over every row (in parallel when ``parallel``); the rows' returns summed."""
-    total = 0
-    if parallel:
-        for i in prange(a.shape[0]):
-            total += _gather_row(a, b, c, d, e, f, g, h, i)
-    else:
-        for i in range(a.shape[0]):
-            total += _gather_row(a, b, c, d, e, f, g, h, i)
-    return total
-
-
-@njit(parallel=True, **_JIT)
-def consistent_kernel(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN201
-    """:func:`_consistent_row` over every row (in parallel when ``parallel``); the rows' returns summed."""
-    total = 0
-    if parallel:
-        for i in prange(a.shape[0]):
-            total += _consistent_row(a, b, c, d, e, f, g, h, i)
-    else:
-        for i in range(a.shape[0]):
-            total += _consistent_row(a, b, c, d, e, f, g, h, i)
-    return total
+residual_kernel = _over_rows(_residual_row, "residual_kernel")
+choose_kernel = _over_rows(_choose_row, "choose_kernel")
+near_kernel = _over_rows(_near_row, "near_kernel")
+fill_kernel = _over_rows(_fill_row, "fill_kernel")
+gather_kernel = _over_rows(_gather_row, "gather_kernel")
+consistent_kernel = _over_rows(_consistent_row, "consistent_kernel")
 
 
 _NONE = np.zeros(1, np.uint8)  # filler for a kernel's unused arguments
