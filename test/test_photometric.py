@@ -10,7 +10,15 @@ from synth import constant_flow, interior, pair_from_flow, rotation_flow, textur
 from flow_node import FlowConfig, FlowEstimator, aee
 from flow_node.core.backends import select_backend
 from flow_node.core.numba_backend import reliability_numba
-from flow_node.core.photometric import UNRELIABLE, exposure_change, line_fit, preprocess, reliability, sorted_sample
+from flow_node.core.photometric import (
+    UNRELIABLE,
+    exposure_change,
+    line_fit,
+    preprocess,
+    reliability,
+    reliability_stride,
+    sorted_sample,
+)
 
 H, W = 60, 80
 GT = constant_flow(H, W, 1.2, -0.7) + rotation_flow(H, W, 1.5)
@@ -118,3 +126,21 @@ def test_numba_reliability_matches_the_numpy_reference(pair) -> None:
             ref = reliability(p0[crop], p1[crop], flow[crop])
             assert 0.0 < ref < 1.0
             assert reliability_numba(p0[crop], p1[crop], flow[crop]) == pytest.approx(ref, abs=2e-3)
+
+
+def test_reliability_on_a_large_frame_samples_coarser_but_reads_the_same() -> None:
+    """A VGA frame is sampled at a coarser stride than 2 (reliability_stride), and the unexplained fraction
+    stays what stride 2 gives, for flows from good to garbage (the node's WARN threshold sits in between)."""
+    h, w = 480, 640
+    flow0 = constant_flow(h, w, 1.2, -0.7) + rotation_flow(h, w, 1.5)
+    p0, p1 = preprocess(*(np.clip(f, 0, 1) for f in pair_from_flow(texture(h, w, 5), flow0)), "normalise")
+    assert reliability_stride(h, w) > 2 and reliability_stride(H, W) == 2
+    rng = np.random.default_rng(3)
+    for noise in (0.0, 0.4, 1.0, 3.0):
+        flow = (flow0 + noise * rng.standard_normal(flow0.shape)).astype(np.float32)
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr("flow_node.core.photometric.RELIABILITY_SAMPLES", h * w)  # stride 2 everywhere
+            fine = reliability(p0, p1, flow)
+            fine_numba = reliability_numba(p0, p1, flow)
+        coarse, coarse_numba = reliability(p0, p1, flow), reliability_numba(p0, p1, flow)
+        assert abs(coarse - fine) < 0.01 and abs(coarse_numba - fine_numba) < 0.01, (noise, fine, coarse)

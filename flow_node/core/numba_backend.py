@@ -24,7 +24,7 @@ import numpy as np
 
 from . import numba_kernels as nk
 from . import numba_warp as nw
-from .photometric import RELIABILITY_STRIDE, RESIDUAL_OUTLIER
+from .photometric import RESIDUAL_OUTLIER, reliability_stride
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 from .workspace import scratch
@@ -156,8 +156,8 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
 def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> float:
     """photometric.reliability with one fused kernel (same sampling, threshold and stride)."""
     h, w = i0.shape
-    inside, bad = nw.unexplained_kernel(_f32c(i0), _f32c(i1).reshape((1, h, w)), _f32c(flow), RELIABILITY_STRIDE,
-                                        _F32(RESIDUAL_OUTLIER))
+    inside, bad = nw.unexplained_kernel(_f32c(i0), _f32c(i1).reshape((1, h, w)), _f32c(flow),
+                                        reliability_stride(h, w), _F32(RESIDUAL_OUTLIER))
     return bad / inside if inside else 1.0
 
 
