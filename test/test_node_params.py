@@ -262,3 +262,24 @@ def test_qos_override_parameters() -> None:
         assert h.node.get_parameter(f"qos_overrides.{ns}/image.subscription.history").value == "keep_last"
     finally:
         h.close()
+
+
+def test_the_node_uses_the_shipped_dds_profile_unless_the_user_chose(tmp_path, monkeypatch) -> None:
+    """startup.use_shipped_dds_profile (main() calls it before rclpy.init): sets FASTRTPS_DEFAULT_PROFILES_FILE
+    to the package's profile only if the user set no profile file, no FASTDDS_BUILTIN_TRANSPORTS and no other
+    RMW; and leaves the environment alone when the package's file cannot be found."""
+    from flow_node.ros import startup
+
+    shipped = startup.shipped_dds_profile()
+    assert shipped is not None and shipped.name == "fastdds_localhost.xml"
+    env: dict[str, str] = {}
+    assert startup.use_shipped_dds_profile(env) == str(shipped) and env == {startup.PROFILE_VAR: str(shipped)}
+    env = {"RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
+    assert startup.use_shipped_dds_profile(env) == str(shipped)
+    for chosen in ({startup.PROFILE_VAR: ""}, {startup.PROFILE_VAR: str(tmp_path / "mine.xml")},
+                   {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}, {"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"}):
+        env = dict(chosen)
+        assert startup.use_shipped_dds_profile(env) is None and env == chosen
+    monkeypatch.setattr(startup, "shipped_dds_profile", lambda: None)
+    env = {}
+    assert startup.use_shipped_dds_profile(env) is None and env == {}

@@ -352,6 +352,7 @@ class FlowNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``ros2 run flow_node flow_node`` / ``python -m flow_node.ros.node``."""
     keep_freed_memory()
+    startup.use_shipped_dds_profile()  # as the launch file does: ros2 run gets the same delivery
     argv = sys.argv if args is None else args
     log = rclpy.logging.get_logger("flow_node")
     try:

@@ -1,4 +1,5 @@
-"""Start-up checks of the node's command line: a one-line reason instead of rcl's traceback.
+"""Start-up of the node's process: checks of its command line (a one-line reason instead of rcl's traceback)
+and the middleware profile it runs with.
 
 rcl parses ``--params-file`` inside ``rclpy.init`` and fails with an RCLError whose text carries C source
 locations ("Couldn't parse params file: '--params-file x.yaml'. Error: Error opening YAML file, at
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Sequence
+from collections.abc import MutableMapping, Sequence
 from pathlib import Path
 
 import yaml
@@ -75,3 +76,41 @@ def rcl_error_line(exc: Exception) -> str:
     """rcl's error text without its C source locations (", at /path/file.c:123"), on one line."""
     text = re.sub(r",? at [^\s,]+\.c(pp)?:\d+", "", str(exc))
     return one_line(text, None)
+
+
+PROFILE_VAR = "FASTRTPS_DEFAULT_PROFILES_FILE"  # Fast DDS 2.x (Jazzy): XML profiles loaded at participant creation
+PROFILE_NAME = "fastdds_localhost.xml"
+FAST_DDS_RMWS = ("rmw_fastrtps_cpp", "rmw_fastrtps_dynamic_cpp")
+
+
+def shipped_dds_profile() -> Path | None:
+    """The package's Fast DDS profile: installed (share/flow_node/config, found through the ament index) or,
+    run from a checkout, config/ beside the package; None if neither exists."""
+    candidates = []
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+        try:
+            candidates.append(Path(get_package_share_directory("flow_node")) / "config" / PROFILE_NAME)
+        except (PackageNotFoundError, OSError):  # not installed through colcon / no AMENT_PREFIX_PATH
+            pass
+    except ImportError:
+        pass
+    candidates.append(Path(__file__).resolve().parents[2] / "config" / PROFILE_NAME)
+    return next((p for p in candidates if p.is_file()), None)
+
+
+def use_shipped_dds_profile(environ: MutableMapping[str, str] = os.environ) -> str | None:
+    """Point Fast DDS at the package's profile (32 MB shared-memory segments, UDP kept: docs/node.md,
+    "Middleware") for this process, as the launch file does, unless the user chose: their own profile file
+    (``FASTRTPS_DEFAULT_PROFILES_FILE``, even empty), ``FASTDDS_BUILTIN_TRANSPORTS``, or another RMW. Must run
+    before ``rclpy.init``. Returns the path it set, or None if it left the environment alone."""
+    if PROFILE_VAR in environ or "FASTDDS_BUILTIN_TRANSPORTS" in environ:
+        return None
+    if environ.get("RMW_IMPLEMENTATION", FAST_DDS_RMWS[0]) not in FAST_DDS_RMWS:
+        return None
+    path = shipped_dds_profile()
+    if path is None:
+        return None
+    environ[PROFILE_VAR] = str(path)
+    return str(path)
