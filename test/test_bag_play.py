@@ -140,3 +140,20 @@ def test_cli_play_ctrl_c_reports_what_it_published_and_exits_0():
     assert match, (out, err)
     assert int(match.group(1)) >= received >= 20
     assert err == ""  # in particular no rcl deprecation warning
+
+
+def test_play_publishes_with_the_shipped_dds_profile(monkeypatch: pytest.MonkeyPatch) -> None:
+    """flow_bag play publishes frames as a camera driver does, so it applies the node's Fast DDS profile choice
+    (startup.use_shipped_dds_profile: large frames whole through shared memory) before rclpy starts."""
+    from flow_node.bag import cli
+    from flow_node.ros import startup
+
+    class Applied(Exception):
+        pass
+
+    def applied() -> None:
+        raise Applied
+
+    monkeypatch.setattr(startup, "use_shipped_dds_profile", applied)
+    with pytest.raises(Applied):
+        cli.main(["play", str(BAGS / "translation")])

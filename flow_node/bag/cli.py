@@ -191,6 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     keep_freed_memory()  # every command runs frame after frame: reuse the freed per-frame arrays' pages
     try:
         if args.command == "play":  # rclpy logs through fd 2: keep it
+            from ..ros.startup import use_shipped_dds_profile
+
+            use_shipped_dds_profile()  # it publishes frames as a camera does: large ones whole (docs/node.md)
             return _run(args)
         silence_opencv_log()
         with native_stderr_silenced():  # libpng warnings while decoding compressed frames
