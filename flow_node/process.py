@@ -7,9 +7,16 @@ from __future__ import annotations
 import ctypes
 
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameter numbers (malloc.h)
+KEEP_LIMIT = 256 << 20  # arrays up to this size come from the heap; twice it stays in the process when freed
 
 
-def keep_freed_memory(limit_bytes: int = 256 << 20) -> bool:
+def keep_freed_environ(limit_bytes: int = KEEP_LIMIT) -> dict[str, str]:
+    """The same settings as :func:`keep_freed_memory`, as glibc's environment variables, for a process started
+    by someone else (Dask's nanny starts the embedded cluster's workers with them; glibc reads them at start)."""
+    return {"MALLOC_MMAP_THRESHOLD_": str(limit_bytes), "MALLOC_TRIM_THRESHOLD_": str(2 * limit_bytes)}
+
+
+def keep_freed_memory(limit_bytes: int = KEEP_LIMIT) -> bool:
     """Serve arrays up to ``limit_bytes`` from the heap and keep freed heap memory in the process (glibc only;
     returns whether it applied).
 

@@ -27,6 +27,7 @@ from flow_node.bag.evaluate import FrameRecord
 from flow_node.bag.report import per_frame_plot
 from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.errors import ClusterError
+from flow_node.process import keep_freed_environ
 
 FAST = small_frames.CLI_ARGS + ["-q"]
 TIMES = {"seconds", "wall_seconds", "seconds_mean", "seconds_median"}  # the only fields allowed to differ
@@ -315,3 +316,38 @@ def test_the_embedded_cluster_keeps_its_bookkeeping_quiet(workers):
         assert "profile" not in found and "profile-cycle" not in found
         assert min(found.values()) >= 1000, found
     assert "stealing" not in extensions
+
+
+def _mmapped_bytes_while_holding_40_mb() -> int:
+    """In a worker: bytes glibc serves by mmap (mallinfo2's hblkhd) while a 40 MB array is alive."""
+    import ctypes
+
+    import numpy as np  # the function is shipped to the worker by value: its imports go with it
+
+    class MallInfo2(ctypes.Structure):
+        _fields_ = [(name, ctypes.c_size_t) for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd",
+                                                          "usmblks", "fsmblks", "uordblks", "fordblks", "keepcost")]
+
+    libc = ctypes.CDLL("libc.so.6")
+    libc.mallinfo2.restype = MallInfo2
+    held = np.ones(40 << 17)  # 40 MB of float64: above glibc's largest dynamic mmap threshold (32 MB)
+    mapped = int(libc.mallinfo2().hblkhd)
+    del held
+    return mapped
+
+
+@pytest.mark.parametrize("preload", [True, False])
+def test_the_worker_preload_keeps_freed_memory(preload, monkeypatch):
+    """A worker of any cluster that preloads flow_node.bag.dask_worker (dask_setup) serves large arrays from the
+    heap, as the flow_node executables do; without the preload (Dask's nanny's environment) they are fresh mmaps
+    -- the control, showing the probe can tell."""
+    from distributed import Client, LocalCluster
+
+    for name in keep_freed_environ():  # an earlier embedded cluster's nanny may have written them into ours
+        monkeypatch.delenv(name, raising=False)
+
+    kw = {"preload": ["flow_node.bag.dask_worker"]} if preload else {}
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None, **kw) as cluster, \
+            Client(cluster) as client:
+        (mapped,) = client.run(_mmapped_bytes_while_holding_40_mb).values()
+    assert (mapped < 40 << 20) if preload else (mapped >= 40 << 20), mapped

@@ -33,6 +33,7 @@ from typing import Any
 
 from ..core.config import FlowConfig
 from ..core.errors import ClusterError, FlowError, one_line
+from ..process import keep_freed_environ
 from .bagio import BagError
 from .evaluate import EvalOptions, run_eval
 from .progress import BatchProgress
@@ -43,11 +44,10 @@ PROGRESS_TOPIC = "flow_bag-progress"  # Dask event topic of the per-frame progre
 BAG_SUFFIXES = (".mcap", ".db3")
 GLOB_CHARS = frozenset("*?[")
 # Environment of the embedded cluster's worker processes (Dask's nanny sets it before it starts them): one
-# thread per worker for the numeric libraries (Dask's default), and glibc keeping freed memory as the node's
-# main() does (docs/node.md, "Memory allocation") instead of Dask's aggressive MALLOC_TRIM_THRESHOLD_=65536,
+# thread per worker for the numeric libraries (Dask's default), and glibc keeping freed memory as the executables'
+# main() does (flow_node/process.py; docs/node.md, "Memory allocation") instead of Dask's MALLOC_TRIM_THRESHOLD_=65536,
 # under which every per-frame array is a fresh mmap faulted in again (tasks ran up to 2x slower).
-WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
-              "MALLOC_MMAP_THRESHOLD_": str(256 << 20), "MALLOC_TRIM_THRESHOLD_": str(512 << 20)}
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", **keep_freed_environ()}
 # Dask settings of the embedded cluster: its periodic bookkeeping made quiet. With the defaults an idle one-worker
 # cluster and its client spend ~49 ms of CPU per second (mostly holding the GIL the bag's thread needs): the worker's
 # statistical profiler samples the task's stack every 10 ms, the memory monitor reads the process' memory every

@@ -1,11 +1,22 @@
 """Preload of the embedded cluster's worker processes (Dask's ``distributed.worker.preload``, set by
-:func:`flow_node.bag.batch.local_cluster`): Dask calls its ``dask_teardown`` when a worker closes,
-right before the worker's process exits."""
+:func:`flow_node.bag.batch.local_cluster`; give it to workers of your own cluster with ``--preload
+flow_node.bag.dask_worker``): Dask calls its ``dask_setup`` when a worker starts and its ``dask_teardown``
+when a worker closes, right before the worker's process exits."""
 
 from __future__ import annotations
 
 import gc
 from typing import Any
+
+from ..process import keep_freed_memory
+
+
+def dask_setup(worker: Any) -> None:
+    """The worker starts: keep freed memory as every flow_node executable does (flow_node/process.py). Dask's
+    nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, under which every per-frame array is a fresh
+    mmap (bag tasks ran up to 2x slower); the embedded cluster's workers also get it through their environment
+    (batch.WORKER_ENV), a worker of someone else's cluster only through this."""
+    keep_freed_memory()
 
 
 def dask_teardown(worker: Any) -> None:
