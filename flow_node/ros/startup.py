@@ -86,17 +86,13 @@ FAST_DDS_RMWS = ("rmw_fastrtps_cpp", "rmw_fastrtps_dynamic_cpp")
 def shipped_dds_profile() -> Path | None:
     """The package's Fast DDS profile: installed (share/flow_node/config, found through the ament index) or,
     run from a checkout, config/ beside the package; None if neither exists."""
-    candidates = []
+    candidates = [Path(__file__).resolve().parents[2] / "config" / PROFILE_NAME]
     try:
-        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+        from ament_index_python.packages import get_package_share_directory
 
-        try:
-            candidates.append(Path(get_package_share_directory("flow_node")) / "config" / PROFILE_NAME)
-        except (PackageNotFoundError, OSError):  # not installed through colcon / no AMENT_PREFIX_PATH
-            pass
-    except ImportError:
+        candidates.insert(0, Path(get_package_share_directory("flow_node")) / "config" / PROFILE_NAME)
+    except (ImportError, LookupError, OSError):  # no ament index / not installed through colcon / no prefix path
         pass
-    candidates.append(Path(__file__).resolve().parents[2] / "config" / PROFILE_NAME)
     return next((p for p in candidates if p.is_file()), None)
 
 
