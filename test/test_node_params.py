@@ -195,6 +195,8 @@ def test_params_file_honoured_end_to_end_and_sigterm_exits_cleanly(tmp_path: Pat
         out = check_pfile_node(proc)
     assert proc.returncode == 0, out
     assert "Traceback" not in out
+    # the warm-up line is what tools wait for as "started": the start-up lines come before it
+    assert 0 <= out.find("subscribed to") < out.find("engine warm-up (numpy)"), out
 
 
 def check_pfile_node(proc: subprocess.Popen) -> str:

@@ -172,13 +172,15 @@ class FlowNode(Node):
         self.add_on_set_parameters_callback(self._validate)
         self.add_post_set_parameters_callback(self._apply)
         self._diag_timer = self.create_timer(self.get_parameter("diagnostics_period").value, self._publish_diagnostics)
-        self._worker = threading.Thread(target=self._run, name=f"{node_name}_worker", daemon=True)
-        self._worker.start()
         self.get_logger().info(f"subscribed to {self._sub.topic_name}; model {settings.config.model}, "
                                f"backend {self._stream.backend}")
         if self._backend_warning:
             self.get_logger().warning(self._backend_warning)
         self._security = security.check_and_log(self)  # warns when SROS2 is asked for but not in effect
+        # last: the worker logs the warm-up, which tools and tests take as "started", so everything above
+        # (the security verdict included) is in the log before it
+        self._worker = threading.Thread(target=self._run, name=f"{node_name}_worker", daemon=True)
+        self._worker.start()
 
     # ------------------------------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> None:
