@@ -4,13 +4,15 @@
 
 Arguments: ``image`` (input topic, default /image), ``params_file`` (default the package's
 config/flow_node.yaml), ``namespace`` (default empty), ``node_name`` (default flow_node), ``log_level``,
-``dds_profile`` (the Fast DDS XML profile of the node's process: $FASTRTPS_DEFAULT_PROFILES_FILE if set, else
-the package's config/fastdds_localhost.xml, whose large shared-memory segments make delivery of the flow
-images to subscribers on the same machine lossless; docs/node.md, "Middleware").
+``dds_profile`` (a Fast DDS XML profile for the node's process; empty, the default, leaves the choice to the
+node, whose ``main()`` applies the package's config/fastdds_localhost.xml unless the environment already names a
+profile, Fast DDS's built-in transports or another RMW: ``startup.use_shipped_dds_profile``, docs/node.md,
+"Middleware").
 """
 
-from launch.actions import DeclareLaunchArgument
-from launch.substitutions import EnvironmentVariable, LaunchConfiguration, PathJoinSubstitution
+from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable
+from launch.conditions import IfCondition
+from launch.substitutions import LaunchConfiguration, NotEqualsSubstitution, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
 
@@ -19,7 +21,6 @@ from launch import LaunchDescription
 
 def generate_launch_description() -> LaunchDescription:
     default_params = PathJoinSubstitution([FindPackageShare("flow_node"), "config", "flow_node.yaml"])
-    shipped_profile = PathJoinSubstitution([FindPackageShare("flow_node"), "config", "fastdds_localhost.xml"])
     return LaunchDescription([
         DeclareLaunchArgument("image", default_value="/image", description="input sensor_msgs/Image topic"),
         DeclareLaunchArgument("params_file", default_value=default_params,
@@ -27,10 +28,10 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument("namespace", default_value="", description="namespace of the node"),
         DeclareLaunchArgument("node_name", default_value="flow_node", description="name of the node"),
         DeclareLaunchArgument("log_level", default_value="info", description="logging level"),
-        DeclareLaunchArgument("dds_profile",
-                              default_value=EnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE",
-                                                                default_value=shipped_profile),
-                              description="Fast DDS XML profile for the node's process"),
+        DeclareLaunchArgument("dds_profile", default_value="",
+                              description="Fast DDS XML profile for the node's process (empty: the node's own rule)"),
+        SetEnvironmentVariable("FASTRTPS_DEFAULT_PROFILES_FILE", LaunchConfiguration("dds_profile"),
+                               condition=IfCondition(NotEqualsSubstitution(LaunchConfiguration("dds_profile"), ""))),
         Node(
             package="flow_node",
             executable="flow_node",
@@ -40,7 +41,6 @@ def generate_launch_description() -> LaunchDescription:
             remappings=[("image", LaunchConfiguration("image")),
                         ("image/compressed", [LaunchConfiguration("image"), "/compressed"])],
             arguments=["--ros-args", "--log-level", LaunchConfiguration("log_level")],
-            additional_env={"FASTRTPS_DEFAULT_PROFILES_FILE": LaunchConfiguration("dds_profile")},
             output="screen",
             emulate_tty=True,
         ),

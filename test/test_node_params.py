@@ -28,6 +28,7 @@ from flow_node.core.config import MODEL_WEIGHTS, PRESETS, FlowConfig, fields_inf
 from flow_node.core.errors import ConfigError
 from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import image_to_array
+from flow_node.ros import startup
 from flow_node.ros.params import NODE_PRESET, param_specs, render_yaml, settings_from_values
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -197,6 +198,10 @@ def test_params_file_honoured_end_to_end_and_sigterm_exits_cleanly(tmp_path: Pat
     assert "Traceback" not in out
     # the warm-up line is what tools wait for as "started": the start-up lines come before it
     assert 0 <= out.find("subscribed to") < out.find("engine warm-up (numpy)"), out
+    # the middleware in effect is logged: the shipped Fast DDS profile unless this environment chose otherwise
+    env = dict(os.environ)
+    startup.use_shipped_dds_profile(env)
+    assert startup.middleware_line(env) in out, out
 
 
 def check_pfile_node(proc: subprocess.Popen) -> str:
@@ -270,8 +275,6 @@ def test_the_node_uses_the_shipped_dds_profile_unless_the_user_chose(tmp_path, m
     """startup.use_shipped_dds_profile (main() calls it before rclpy.init): sets FASTRTPS_DEFAULT_PROFILES_FILE
     to the package's profile only if the user set no profile file, no FASTDDS_BUILTIN_TRANSPORTS and no other
     RMW; and leaves the environment alone when the package's file cannot be found."""
-    from flow_node.ros import startup
-
     shipped = startup.shipped_dds_profile()
     assert shipped is not None and shipped.name == "fastdds_localhost.xml"
     env: dict[str, str] = {}
@@ -285,3 +288,9 @@ def test_the_node_uses_the_shipped_dds_profile_unless_the_user_chose(tmp_path, m
     monkeypatch.setattr(startup, "shipped_dds_profile", lambda: None)
     env = {}
     assert startup.use_shipped_dds_profile(env) is None and env == {}
+    # what the start-up log says of each case
+    assert startup.middleware_line({}) == "middleware rmw_fastrtps_cpp, Fast DDS defaults"
+    assert startup.middleware_line({startup.PROFILE_VAR: str(shipped)}).endswith(f"profile {shipped}")
+    assert startup.middleware_line({"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}).endswith("built-in transports UDPv4")
+    assert startup.middleware_line({"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp", startup.PROFILE_VAR: "x"}) \
+        == "middleware rmw_cyclonedds_cpp"

@@ -173,7 +173,7 @@ class FlowNode(Node):
         self.add_post_set_parameters_callback(self._apply)
         self._diag_timer = self.create_timer(self.get_parameter("diagnostics_period").value, self._publish_diagnostics)
         self.get_logger().info(f"subscribed to {self._sub.topic_name}; model {settings.config.model}, "
-                               f"backend {self._stream.backend}")
+                               f"backend {self._stream.backend}; {startup.middleware_line()}")
         if self._backend_warning:
             self.get_logger().warning(self._backend_warning)
         self._security = security.check_and_log(self)  # warns when SROS2 is asked for but not in effect
@@ -354,7 +354,7 @@ class FlowNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``ros2 run flow_node flow_node`` / ``python -m flow_node.ros.node``."""
     keep_freed_memory()
-    startup.use_shipped_dds_profile()  # as the launch file does: ros2 run gets the same delivery
+    startup.use_shipped_dds_profile()  # ros2 run, ros2 launch and python -m get the same delivery
     argv = sys.argv if args is None else args
     log = rclpy.logging.get_logger("flow_node")
     try:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import MutableMapping, Sequence
+from collections.abc import Mapping, MutableMapping, Sequence
 from pathlib import Path
 
 import yaml
@@ -98,9 +98,9 @@ def shipped_dds_profile() -> Path | None:
 
 def use_shipped_dds_profile(environ: MutableMapping[str, str] = os.environ) -> str | None:
     """Point Fast DDS at the package's profile (32 MB shared-memory segments, UDP kept: docs/node.md,
-    "Middleware") for this process, as the launch file does, unless the user chose: their own profile file
-    (``FASTRTPS_DEFAULT_PROFILES_FILE``, even empty), ``FASTDDS_BUILTIN_TRANSPORTS``, or another RMW. Must run
-    before ``rclpy.init``. Returns the path it set, or None if it left the environment alone."""
+    "Middleware") for this process, unless the user chose: their own profile file (``FASTRTPS_DEFAULT_PROFILES_FILE``,
+    even empty), ``FASTDDS_BUILTIN_TRANSPORTS``, or another RMW. The one rule for ros2 run, ros2 launch and
+    python -m. Must run before ``rclpy.init``. Returns the path it set, or None if it left the environment alone."""
     if PROFILE_VAR in environ or "FASTDDS_BUILTIN_TRANSPORTS" in environ:
         return None
     if environ.get("RMW_IMPLEMENTATION", FAST_DDS_RMWS[0]) not in FAST_DDS_RMWS:
@@ -110,3 +110,16 @@ def use_shipped_dds_profile(environ: MutableMapping[str, str] = os.environ) -> s
         return None
     environ[PROFILE_VAR] = str(path)
     return str(path)
+
+
+def middleware_line(environ: Mapping[str, str] = os.environ) -> str:
+    """What the process runs on, for the start-up log: the RMW and, for Fast DDS, the profile file in effect
+    (after :func:`use_shipped_dds_profile`) or the transports the user chose."""
+    rmw = environ.get("RMW_IMPLEMENTATION", FAST_DDS_RMWS[0])
+    if rmw not in FAST_DDS_RMWS:
+        return f"middleware {rmw}"
+    if environ.get(PROFILE_VAR):
+        return f"middleware {rmw}, profile {environ[PROFILE_VAR]}"
+    if "FASTDDS_BUILTIN_TRANSPORTS" in environ:
+        return f"middleware {rmw}, built-in transports {environ['FASTDDS_BUILTIN_TRANSPORTS']}"
+    return f"middleware {rmw}, Fast DDS defaults"
