@@ -265,64 +265,18 @@ def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str,
 
 
 PRESETS: dict[str, dict[str, Any]] = {
-    # Re-tuned on the suite as a whole (issue 11; bench.suite tune split + Middlebury, BENCHMARKS.md "Presets
-    # re-tuned on the suite"), after the exact warp and the photometric stage (photometric="normalise", the
-    # default, in every preset: it wins on every regime with an exposure change and costs nothing elsewhere).
-    # quality/balanced: a fine pyramid (x0.8, down to min_size) with few warps per level (issue 2 search);
-    # alpha 0.03 on normalised contrast (0.02 was tuned on grey/255 and 8-bit Middlebury only: on exactly
-    # rendered fine textures 8-bit quantisation is the floor and a larger alpha averages it out -- fine
-    # textures 0.0155 at 0.03 before the quantisation-aware normalisation, 0.0126 after, 0.0115 at 0.1 --
-    # while Middlebury's 8 pairs want it small: 0.319 at 0.02, 0.315 at 0.03, 0.319 at 0.04).
-    # level_alpha_factor 1 (was 0.8): 0.8**14 = 0.04 left the coarse levels of the 15-level pyramid almost
-    # unregularised, and on the finest texture band (up to 1/3 cycles/px, aliased there) they converged to a
-    # wrong flow the fine levels never left: 0.42 and 0.34 AEE on 2 of the 12 tune pairs, 0.72 on a report
-    # pair; at 1.0 every pair is at 0.008-0.018 (tune mean 0.074 -> 0.012; 0.9 still fails one pair), for
-    # Middlebury 0.315 -> 0.326.
-    # quality: 10 warps x 12 iterations per level (was 2 x 30; issue 11 "Middlebury quality <= 0.30"): on
-    # Middlebury re-linearising often beats iterating long (same 0.80 pyramid): 2x30 0.326, 2x60 0.325,
-    # 3x30 0.313, 5x30 0.306, 6x20 0.301, 8x15 0.300, 10x12 0.296, 12x10 0.292 (at ~3.5x the time);
-    # level_alpha_factor < 1 (0.315 at 0.8) breaks fine textures; on top of 6-10 warps alpha 0.025/0.032/
-    # 0.035, scale 0.85, and on top of 4 median 3, keys warp, l1_tv_l2, anisotropic TV and Bregman iterations
-    # were worse. Suite (tune split, then report): as good or better on every regime but sensor noise
-    # (report 0.0537 -> 0.0547, DIS medium 0.0563) at ~2.5x the time of 2 x 30 (the TV-L1 peers: 3x more).
-    # Commands in BENCHMARKS.md, issue 11, "Middlebury quality and the paper protocol".
+    # Re-tuned on the suite as a whole (issue 11: bench.suite tune split plus the 8 Middlebury pairs), after the
+    # exact warp and the photometric stage. Why each value: docs/engine.md, "Presets"; the measurements behind
+    # them: BENCHMARKS.md (issue 11 sections) and bench/results/tune/.
+    # quality: many short warps per level on a fine pyramid (Middlebury <= 0.30); balanced: 2 x 15, alpha
+    # 0.035 (ahead of DIS medium on sensor noise); realtime: 4 x 6 on the coarse levels, 2 x 16 at full size
+    # (the level that costs); fastest: half size, 4 warps per level, 10 iterations per coarse warp.
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0),
-    # balanced: alpha 0.035 (was 0.03), 2 warps x 15 iterations as before: it lost to DIS medium on sensor
-    # noise (report 0.0568 vs 0.0563); now 0.055 vs 0.056 at the same cost (tune 0.056 -> 0.054, DIS 0.055),
-    # bit depths/exposure slightly better, Middlebury 0.330 -> 0.338 (no target for balanced). 5 x 6 at
-    # alpha 0.03 is better everywhere (Middlebury 0.318, noise 0.0550) but costs ~1.6x (1.5x per frame with
-    # the numpy backend: the demo, which runs balanced on numpy, then drops frames on a loaded machine);
-    # 4 x 8 was worse at 10-16 bit, 4 x 6 does not win on noise.
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0),
-    # realtime/fastest (re-tuned for speed, issue 11; BENCHMARKS.md "realtime and fastest on the faster engine").
-    # With the fused numba linearisation one warp costs about 10 primal-dual iterations at the same size (10-13
-    # before its two-pass form), and on the suite's fine textures many warps of few iterations beat few long ones
-    # (tune split, realtime candidates: 2 warps x 6 iterations 0.031 AEE, 2 x 10 0.049, 1 x 20 0.098: the
-    # iterations converge to the linearised problem's minimiser, a poor one on a texture of 3-6 px period). Hence
-    # realtime: 4 warps x 6 iterations on the coarse levels and 2 x 16 at full resolution (the level that costs;
-    # finest_warps / finest_iterations): fine textures 0.015-0.016 AEE on the tune split at ~2.5-3x DIS medium's
-    # time (3 x 13 on every level: 0.021 at 3.3-3.8x). The long warps at full size are what real frames, low
-    # contrast and noise want (Middlebury, 8 pairs: 0.48 with one 4-iteration warp there, 0.42 with one of 24,
-    # 0.41 with 2 x 12, 0.40 with 2 x 16; 3 x 13: 0.38); the second warp there is what 10-16-bit content of the
-    # finest texture band needs (tune split, 24 pairs: 1 x 24 0.020 at 8 bit but 0.031 at 10 bit; 2 x 16 0.017 /
-    # 0.014).
-    # fastest: half size (finest_level 1), 5x5 median, 4 warps per level. Round 3 (BENCHMARKS.md "fastest,
-    # round 3"): since the pyramid anti-aliases every step when the finest solved level is coarser than the
-    # input (pyramid.ANTIALIAS; before, 8-bit pairs got the quantisation presmoothing and 10-16 bit did not:
-    # 1.5x the 8-bit AEE) the coarse levels converge to the right flow, so they get 10 iterations per warp
-    # (was 3; a warp costs ~10 iterations, so iterations are the cheap part) and the half-size level 6,
-    # alpha 0.07 (was 0.05: sensor noise). Tune split (bench/results/fastest_round3_tune.json), the old values
-    # on the same pyramid -> these: bit depths 0.038 -> 0.033, noise 0.066 -> 0.052, low contrast 0.091 ->
-    # 0.058, flat 0.107 -> 0.063, fine 0.041 -> 0.037, Middlebury 0.631 -> 0.564 at ~1.15x the time; 3
-    # coarse warps (~0.9x of that): noise 0.054, low contrast 0.060, Middlebury 0.581; alpha 0.06: Middlebury
-    # 0.542 but noise 0.055, level with DIS medium; 5 half-size iterations: the 10-level pairs 0.081 vs 0.070.
-    # fastest keeps photometric normalise: local_contrast beats it on the suite's synthetic regimes at half
-    # size (fine textures 0.110 vs 0.185 AEE on the tune split, bit depths 0.128 vs 0.305, noise, flat areas;
-    # bench/results/tune/s9.json) but fails on real frames: Middlebury 1.89 against 0.59 (report run).
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
