@@ -50,15 +50,24 @@ def fine_checks(res: dict[str, Any]) -> list[dict[str, Any]]:
     return out
 
 
+def variant_ratios(m: dict[str, Any], ref: str) -> dict[str, float] | None:
+    """Each variant's mean AEE over the reference variant's (same seeds) for one method's regime result; None
+    if the regime has no such reference variant."""
+    per = m.get("per_variant", {})
+    if ref not in per:
+        return None
+    return {v: d["aee"] / per[ref]["aee"] for v, d in per.items() if v != ref}
+
+
 def variant_checks(res: dict[str, Any], regime: str, ref: str, bound: float, target: str) -> list[dict[str, Any]]:
     """For each preset: the worst ratio of a variant's mean AEE to the reference variant's (same seeds)."""
     out = []
     for name in PRESET_NAMES:
         m = _get(res, regime, name)
-        if not m or ref not in m.get("per_variant", {}):
+        ratios = variant_ratios(m, ref) if m else None
+        if not ratios:
             continue
         base = m["per_variant"][ref]["aee"]
-        ratios = {v: d["aee"] / base for v, d in m["per_variant"].items() if v != ref}
         worst = max(ratios, key=lambda v: ratios[v])
         detail = f"{ref} {base:.4f} px; " + ", ".join(f"{v} {r:.2f}x" for v, r in ratios.items())
         out.append(_check(target, regime, name, ratios[worst], bound, detail))
