@@ -20,6 +20,8 @@ from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
+from .startup import FAST_DDS_RMWS
+
 # rmw_dds_common::get_security_files: an enclave needs all of these (the key and certificate may be PKCS#11
 # URIs in key.p11 / cert.p11 instead of PEM files).
 SECURITY_FILES: tuple[tuple[str, ...], ...] = (("identity_ca.cert.pem",), ("cert.pem", "cert.p11"),
@@ -27,9 +29,8 @@ SECURITY_FILES: tuple[tuple[str, ...], ...] = (("identity_ca.cert.pem",), ("cert
                                                ("governance.p7s",), ("permissions.p7s",))
 # rmw_fastrtps_shared_cpp carries this message only when built without DDS-Security (#if HAVE_SECURITY ... #else)
 FASTDDS_NO_SECURITY_MARK = b"doesn't have the security libraries"
-FASTDDS_RMWS = ("rmw_fastrtps_cpp", "rmw_fastrtps_dynamic_cpp")
 # RMWs that apply SROS2 enclaves through DDS-Security when their DDS has it
-DDS_SECURITY_RMWS = (*FASTDDS_RMWS, "rmw_cyclonedds_cpp", "rmw_connextdds")
+DDS_SECURITY_RMWS = (*FAST_DDS_RMWS, "rmw_cyclonedds_cpp", "rmw_connextdds")
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,7 @@ def rmw_has_security(rmw: str, rmw_libraries: Iterable[bytes]) -> bool | None:
     None for an RMW this check does not know (e.g. rmw_zenoh_cpp, which does not use SROS2 enclaves)."""
     if rmw not in DDS_SECURITY_RMWS:
         return None
-    if rmw in FASTDDS_RMWS and any(FASTDDS_NO_SECURITY_MARK in lib for lib in rmw_libraries):
+    if rmw in FAST_DDS_RMWS and any(FASTDDS_NO_SECURITY_MARK in lib for lib in rmw_libraries):
         return False
     return True
 

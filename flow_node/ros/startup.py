@@ -79,8 +79,14 @@ def rcl_error_line(exc: Exception) -> str:
 
 
 PROFILE_VAR = "FASTRTPS_DEFAULT_PROFILES_FILE"  # Fast DDS 2.x (Jazzy): XML profiles loaded at participant creation
+TRANSPORTS_VAR = "FASTDDS_BUILTIN_TRANSPORTS"  # the user's choice of Fast DDS's built-in transports
 PROFILE_NAME = "fastdds_localhost.xml"
 FAST_DDS_RMWS = ("rmw_fastrtps_cpp", "rmw_fastrtps_dynamic_cpp")
+
+
+def rmw_name(environ: Mapping[str, str] = os.environ) -> str:
+    """The RMW this process will load: ``RMW_IMPLEMENTATION``, else Jazzy's default (Fast DDS)."""
+    return environ.get("RMW_IMPLEMENTATION", FAST_DDS_RMWS[0])
 
 
 def shipped_dds_profile() -> Path | None:
@@ -101,9 +107,7 @@ def use_shipped_dds_profile(environ: MutableMapping[str, str] = os.environ) -> s
     "Middleware") for this process, unless the user chose: their own profile file (``FASTRTPS_DEFAULT_PROFILES_FILE``,
     even empty), ``FASTDDS_BUILTIN_TRANSPORTS``, or another RMW. The one rule for ros2 run, ros2 launch and
     python -m. Must run before ``rclpy.init``. Returns the path it set, or None if it left the environment alone."""
-    if PROFILE_VAR in environ or "FASTDDS_BUILTIN_TRANSPORTS" in environ:
-        return None
-    if environ.get("RMW_IMPLEMENTATION", FAST_DDS_RMWS[0]) not in FAST_DDS_RMWS:
+    if PROFILE_VAR in environ or TRANSPORTS_VAR in environ or rmw_name(environ) not in FAST_DDS_RMWS:
         return None
     path = shipped_dds_profile()
     if path is None:
@@ -115,11 +119,11 @@ def use_shipped_dds_profile(environ: MutableMapping[str, str] = os.environ) -> s
 def middleware_line(environ: Mapping[str, str] = os.environ) -> str:
     """What the process runs on, for the start-up log: the RMW and, for Fast DDS, the profile file in effect
     (after :func:`use_shipped_dds_profile`) or the transports the user chose."""
-    rmw = environ.get("RMW_IMPLEMENTATION", FAST_DDS_RMWS[0])
+    rmw = rmw_name(environ)
     if rmw not in FAST_DDS_RMWS:
         return f"middleware {rmw}"
     if environ.get(PROFILE_VAR):
         return f"middleware {rmw}, profile {environ[PROFILE_VAR]}"
-    if "FASTDDS_BUILTIN_TRANSPORTS" in environ:
-        return f"middleware {rmw}, built-in transports {environ['FASTDDS_BUILTIN_TRANSPORTS']}"
+    if TRANSPORTS_VAR in environ:
+        return f"middleware {rmw}, built-in transports {environ[TRANSPORTS_VAR]}"
     return f"middleware {rmw}, Fast DDS defaults"
