@@ -26,6 +26,12 @@ graph() {  # graph CMD...: a ros2 CLI call about a running node, retried while t
   echo "$out"
 }
 param() { graph ros2 param get "$1" "$2"; }
+launch_until_warm() {  # launch_until_warm NAME ARGS...: the launch file (node smoke_NAME) until the node's warm-up
+  local name=$1; shift  # line, then stopped; its output in $log/NAME
+  start "$name" ros2 launch flow_node flow_node.launch.py node_name:="smoke_$name" "$@"
+  for _ in $(seq 60); do grep -q "engine warm-up" "$log/$name" && break; sleep 1; done
+  stop "$name"
+}
 has() { grep -Eq -- "$2" <<< "$1"; }  # has TEXT PATTERN (no pipe: grep -q closing it early breaks pipefail)
 
 [ -f "$share/config/fastest.yaml" ] && [ -f "$share/launch/flow_node.launch.py" ] || fail "no config/launch in $share"
@@ -79,16 +85,12 @@ echo "ok: ros2 launch with image, node_name, namespace, params_file, log_level; 
 
 # dds_profile:= gives the node's process another profile, which the node keeps
 cp "$share/config/fastdds_localhost.xml" "$log/mine.xml"
-start launch2 ros2 launch flow_node flow_node.launch.py node_name:=smoke_launch2 dds_profile:="$log/mine.xml"
-for _ in $(seq 60); do grep -q "engine warm-up" "$log/launch2" && break; sleep 1; done
-stop launch2
+launch_until_warm launch2 dds_profile:="$log/mine.xml"
 grep -q "middleware rmw_fastrtps_cpp, profile $log/mine.xml" "$log/launch2" \
   || fail "launch dds_profile:= not in effect: $(cat "$log/launch2")"
 echo "ok: ros2 launch dds_profile:=FILE"
 # the user's transport choice wins under launch too (docs/node.md, "Middleware")
-FASTDDS_BUILTIN_TRANSPORTS=UDPv4 start launch3 ros2 launch flow_node flow_node.launch.py node_name:=smoke_launch3
-for _ in $(seq 60); do grep -q "engine warm-up" "$log/launch3" && break; sleep 1; done
-stop launch3
+FASTDDS_BUILTIN_TRANSPORTS=UDPv4 launch_until_warm launch3
 grep -q "middleware rmw_fastrtps_cpp, built-in transports UDPv4" "$log/launch3" \
   || fail "launch overrode FASTDDS_BUILTIN_TRANSPORTS: $(cat "$log/launch3")"
 echo "ok: ros2 launch keeps the user's FASTDDS_BUILTIN_TRANSPORTS"
