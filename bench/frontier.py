@@ -39,6 +39,7 @@ REGIMES = ("fine_320", "fine_640", "middlebury", "bit_depth", "exposure", "large
 # name -> (base preset, overrides); the shipped presets first, then cheaper steps away from each
 CANDIDATES: dict[str, tuple[str, dict[str, Any]]] = {
     "realtime": ("realtime", {}),
+    "rt_far_full": ("realtime", {"init_finest_level": 0}),
     "rt_no_gate": ("realtime", {"initialisation": "none"}),
     "rt_1x24": ("realtime", {"finest_warps": 1, "finest_iterations": 24}),
     "rt_1x16": ("realtime", {"finest_warps": 1, "finest_iterations": 16}),
@@ -48,6 +49,7 @@ CANDIDATES: dict[str, tuple[str, dict[str, Any]]] = {
                              "median_filter": 3, "initialisation": "none"}),
     "rt_half": ("realtime", {"finest_level": 1}),
     "fastest": ("fastest", {}),
+    "fa_far_half": ("fastest", {"init_finest_level": 0}),
     "fa_no_gate": ("fastest", {"initialisation": "none"}),
     "fa_2x6": ("fastest", {"warps": 2, "iterations": 6}),
     "fa_lean": ("fastest", {"warps": 2, "iterations": 4, "finest_iterations": 4, "median_filter": 3,

@@ -32,7 +32,8 @@ from .suite.methods import unit_grey
 PRESETS = ("realtime", "fastest")
 # (module, function, stage label): functions the engine looks up at call time, wrapped in place
 WRAPPED = ((engine, "stage", "photometric"), (engine, "initialise", "initialise"), (engine, "make_pyramid", "pyramid"),
-           (engine, "fuse_on_level", "fusion"), (engine, "interleaved_flow", "layout"),
+           (engine, "fuse_on_level", "fusion"), (engine, "candidates_on_level", "fusion"),
+           (engine, "interleaved_flow", "layout"),
            (refine, "warp_source", "warp_source"), (refine, "median_filter", "median"),
            (refine, "resize_state", "resize_state"), (engine, "resize_state", "resize_state"))
 STAGES = ("iterations", "linearise", "median", "warp_source", "resize_state", "pyramid", "photometric",
@@ -57,8 +58,15 @@ def timed(fn: Callable[..., Any], label: str, acc: dict[str, float]) -> Callable
     return wrapper
 
 
-def profile(regime: str, rounds: int, large: Path) -> dict[str, dict[str, float]]:
-    """ms per call of each stage (and the total, DIS medium, DIS ultrafast) per preset on ``regime``."""
+def config(spec: str) -> FlowConfig:
+    """``PRESET[:key=value,...]`` -> that preset with the overrides."""
+    name, _, overrides = spec.partition(":")
+    cfg = FlowConfig.preset(name)
+    return cfg.with_overrides(overrides.split(",")) if overrides else cfg
+
+
+def profile(regime: str, rounds: int, large: Path, presets: tuple[str, ...] = PRESETS) -> dict[str, dict[str, float]]:
+    """ms per call of each stage (and the total, DIS medium, DIS ultrafast) per preset spec on ``regime``."""
     pairs = samples(regime, large)
     acc: dict[str, float] = {}
     saved = [(mod, name, getattr(mod, name)) for mod, name, _ in WRAPPED]
@@ -68,8 +76,8 @@ def profile(regime: str, rounds: int, large: Path) -> dict[str, dict[str, float]
            for p in ("MEDIUM", "ULTRAFAST")}
     out = {}
     try:
-        for preset in PRESETS:
-            est = FlowEstimator(FlowConfig.preset(preset))
+        for preset in presets:
+            est = FlowEstimator(config(preset))
             est.warmup()
             b = est._backend
             est._backend = b._replace(linearise=timed(b.linearise, "linearise", acc),
@@ -119,12 +127,15 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=8, help="timed passes over the pairs (large: a quarter)")
     ap.add_argument("--large", type=Path, default=data.LARGE_DATA)
     ap.add_argument("--out", type=Path, default=Path("bench/results/stage_profile.json"))
+    ap.add_argument("--presets", default=",".join(PRESETS),
+                    help="';'-separated PRESET[:key=value,...] specs (default: %(default)s)")
     args = ap.parse_args()
     result = {"command": "python -m bench.stage_profile " + " ".join(sys.argv[1:]), "machine": machine(),
               "unit": "ms per call", "regimes": {}}
     for regime in args.regimes.split(","):
         rounds = max(1, args.rounds // 4) if regime == "large" else args.rounds
-        result["regimes"][regime] = profile(regime, rounds, args.large)
+        result["regimes"][regime] = profile(regime, rounds, args.large, tuple(args.presets.replace(",", ";").split(";"))
+                                           if ":" not in args.presets else tuple(args.presets.split(";")))
     write_json(args.out, result)
     print(table(result))
 

@@ -46,7 +46,8 @@ from flow_node.core.initialise import to_u8  # noqa: E402
 # (module, function name, stage label)
 WRAPPED = ((api, "to_grey", "grey"), (engine, "stage", "photometric"), (engine, "initialise", "initialise"),
            (engine, "make_pyramid", "pyramid"), (engine, "refine_levels", "refine"),
-           (engine, "fuse_on_level", "fusion"), (engine, "interleaved_flow", "layout"),
+           (engine, "fuse_on_level", "fusion"), (engine, "candidates_on_level", "fusion"),
+           (engine, "interleaved_flow", "layout"),
            (api, "ensure_finite", "finite"))
 LARGE = Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "large"
 

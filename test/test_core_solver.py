@@ -236,3 +236,19 @@ def test_interleaved_output_equals_resizing_each_component_then_interleaving() -
         want = np.moveaxis(resize_flow(v, shape), 0, -1)
         assert got.shape == shape + (2,) and got.flags.c_contiguous
         np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
+
+
+def test_resizing_a_channel_first_view_of_interleaved_data_equals_resizing_each_channel() -> None:
+    """resize_flow on an OpenCV flow moved to channel-first (a strided view: resize_field then resizes the
+    interleaved array in one call) gives each channel's bilinear resize (OpenCV's two-channel path rounds
+    differently, ~1e-4 px) and a contiguous (2, h, w) array."""
+    from flow_node.core.pyramid import resize_flow
+
+    rng = np.random.default_rng(7)
+    interleaved = rng.normal(0.0, 20.0, size=(75, 124, 2)).astype(np.float32)
+    view = np.moveaxis(interleaved, -1, 0)
+    assert not view.flags.c_contiguous
+    for shape in ((19, 31), (150, 248), (75, 124)):
+        got = resize_flow(view, shape)
+        assert got.shape == (2, *shape) and got.flags.c_contiguous and got.dtype == np.float32
+        np.testing.assert_allclose(got, resize_flow(np.ascontiguousarray(view), shape), rtol=0, atol=2e-3)

@@ -126,6 +126,10 @@ class FlowConfig:
                              "matches densified edge-aware (orb/sift)", choices=INITIALISATIONS)
     init_scale: float = _f(0.25, "with an initialisation, refinement restarts on the coarsest pyramid level "
                            "with at least this fraction of the input resolution", lo=0.0, hi=1.0, lo_open=True)
+    init_finest_level: int = _f(0, "finest pyramid level solved for a pair the initialisation finds moving beyond "
+                                "init_min_motion (the larger of this and finest_level; a caller's initial_flow "
+                                "alone does not count): there the large-motion errors, not the full-size levels' "
+                                "precision, limit the flow", lo=0, hi=29)
     init_min_motion: float = _f(24.0, "an initialisation the engine computes is fused only when its 95th-percentile "
                                 "|flow| (px) exceeds this (smaller motions: the pyramid alone is more accurate; "
                                 "0 = always)", lo=0.0, hi=10000.0)
@@ -292,8 +296,13 @@ PRESETS: dict[str, dict[str, Any]] = {
 # suite's small-motion regimes (under 24 px) are unchanged by construction.
 PRESET_INITIALISATION = {"quality": "dis_fine", "balanced": "dis_fast", "realtime": "dis_ultrafast",
                          "fastest": "dis_ultrafast"}
+# The speed presets refine a pair the initialisation is fused on down to quarter size only (the level it
+# enters at): on the large set and the large-motion bags the finer levels changed the AEE by < 2 % and cost
+# ~3/4 of realtime's time (docs/engine.md, "Presets"; BENCHMARKS.md, "Large motions at a bounded cost").
+PRESET_INIT_FINEST_LEVEL = {"realtime": 2, "fastest": 2}
 for _name, _init in PRESET_INITIALISATION.items():
     PRESETS[_name]["initialisation"] = _init
+    PRESETS[_name]["init_finest_level"] = PRESET_INIT_FINEST_LEVEL.get(_name, 0)
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ import numpy as np
 from .backends import Backend
 from .config import FlowConfig
 from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
-from .initialise import Candidate, beyond_reach, initialise
+from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .photometric import stage
@@ -56,32 +56,49 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: lis
     candidates = beyond_reach(candidates, cfg.init_min_motion)
     if not candidates:
         return refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest, stats)
+    if cfg.init_finest_level > cfg.finest_level and any(c.name != INITIAL_FLOW for c in candidates):
+        cfg = cfg.replace(finest_level=min(cfg.init_finest_level, cfg.levels - 1))
+        finest = finest_level(pyr, cfg)
     start = start_level(pyr, cfg)
     if start < pyr.coarsest:
         state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, start + 1, stats)
         state = resize_state(state, pyr.shapes[start])
-    state.v, choice = fuse_on_level(pyr, start, state.v, candidates, backend)
+    on_start = candidates_on_level(pyr, start, candidates, backend)
+    state.v, choice = fuse_on_level(pyr, start, state.v, on_start, backend)
     stats.init = "+".join(c.name for c in candidates)
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
     state = refine_levels(pyr, cfg, backend, state, start, finest, stats)
-    state.v, choice = fuse_on_level(pyr, finest, state.v, candidates, backend, final=True)
+    on_finest = on_start if finest == start else candidates_on_level(pyr, finest, candidates, backend)
+    state.v, choice = fuse_on_level(pyr, finest, state.v, on_finest, backend, final=True)
     stats.final_init_share = float(np.mean(choice > 0))
     return state
 
 
-def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, candidates: list[Candidate], backend: Backend,
-                  final: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with every candidate resampled to it; returns
-    the fused flow and the per-pixel choice (0 = ``flow``). On the start level (``final`` False) candidates
-    are preferred (FUSION_MARGIN) and forward-backward consistent pixels trusted more (checked there, where
-    a candidate has a backward flow); after the refinement (``final``) a candidate must be clearly better
-    than the refined flow (FINAL_MARGIN), which is then usually the more accurate one, and consistent where
-    it can be checked. The backend's fusion and check (numpy references or numba kernels, same results)."""
+# the candidates on one level: their flows (2, h, w) and forward-backward masks (h, w) bool, None when unchecked
+OnLevel = tuple[list[np.ndarray], list[np.ndarray | None]]
+
+
+def candidates_on_level(pyr: Pyramid, level: int, candidates: list[Candidate], backend: Backend) -> OnLevel:
+    """Every candidate resampled to ``level`` and, where it has a backward flow, its forward-backward check
+    there (the backend's); computed once per level, also when both fusions are on the same level."""
     shape = pyr.shapes[level]
-    flows = [flow] + [on_grid(c.flow, shape) for c in candidates]
-    trusted = [None] + [None if c.backward is None else backend.consistent(f, on_grid(c.backward, shape))
-                        for f, c in zip(flows[1:], candidates, strict=True)]
+    flows = [on_grid(c.flow, shape) for c in candidates]
+    backward = [c.backward_flow() for c in candidates]
+    trusted = [None if b is None else backend.consistent(f, on_grid(b, shape))
+               for f, b in zip(flows, backward, strict=True)]
+    return flows, trusted
+
+
+def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, on_level: OnLevel, backend: Backend,
+                  final: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with the candidates there (``on_level``, from
+    :func:`candidates_on_level`); returns the fused flow and the per-pixel choice (0 = ``flow``). On the
+    start level (``final`` False) candidates are preferred (FUSION_MARGIN) and forward-backward consistent
+    pixels trusted more; after the refinement (``final``) a candidate must be clearly better than the
+    refined flow (FINAL_MARGIN), which is then usually the more accurate one, and consistent where it can be
+    checked. The backend's fusion (numpy reference or numba kernels, same results)."""
+    flows, trusted = [flow, *on_level[0]], [None, *on_level[1]]
     if final:
         return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted, FINAL_MARGIN,
                             only_consistent=FINAL_ONLY_CONSISTENT)

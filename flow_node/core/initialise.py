@@ -22,7 +22,9 @@ any of them blindly: it fuses them per pixel with the pyramid's own estimate (:m
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
+from concurrent.futures import Future
 from dataclasses import dataclass
 
 import cv2
@@ -43,6 +45,7 @@ CONSISTENCY_NEIGHBOURS = 8
 CONSISTENCY_PX = 4.0  # a match may deviate this much (plus 20 % of the flow) from its neighbours' median
 
 
+INITIAL_FLOW = "initial_flow"  # the name of a caller's warm start among the candidates
 FB_TOLERANCE_PX = 1.0  # forward-backward mismatch (plus 5 % of the flow) below which a DIS vector is trusted
 
 
@@ -51,13 +54,36 @@ class Candidate:
     """One initialisation: its source name, dense flow (2, H, W) float32 (px at input resolution) and
     optionally the same source's ``backward`` flow (2, H, W), frame 1 -> frame 0: where the two agree
     (:func:`forward_backward_consistent`, checked on each fusion level) fusion trusts the candidate more
-    (:data:`flow_node.core.fusion.CONSISTENT_COST`). ``far``: whether the source already found that the
-    flow moves far (:func:`moves_far` at the engine's threshold), None when it did not judge it."""
+    (:data:`flow_node.core.fusion.CONSISTENT_COST`). The backward flow may still be computing on a
+    background thread (a Future, :func:`in_background`): :meth:`backward_flow` waits for it. ``far``:
+    whether the source already found that the flow moves far (:func:`moves_far` at the engine's
+    threshold), None when it did not judge it."""
 
     name: str
     flow: np.ndarray
-    backward: np.ndarray | None = None
+    backward: np.ndarray | Future[np.ndarray] | None = None
     far: bool | None = None
+
+    def backward_flow(self) -> np.ndarray | None:
+        """The backward flow (2, H, W), waited for when it is computed in the background; None without one.
+        An error of that computation is raised here."""
+        return self.backward.result() if isinstance(self.backward, Future) else self.backward
+
+
+def in_background(fn: Callable[[], np.ndarray]) -> Future[np.ndarray]:
+    """``fn()`` on a new daemon thread; its result (or exception) in the returned Future. The engine runs a
+    DIS backward flow so (OpenCV releases the GIL): it is needed only at the first fusion, so it overlaps
+    the pyramid and the coarse levels' refinement on the other core instead of adding to the latency."""
+    future: Future[np.ndarray] = Future()
+
+    def run() -> None:
+        try:
+            future.set_result(fn())
+        except BaseException as exc:  # noqa: BLE001 -- handed to the waiting caller, re-raised there
+            future.set_exception(exc)
+
+    threading.Thread(target=run, name="flow_node-dis-backward", daemon=True).start()
+    return future
 
 
 def forward_backward_consistent(forward: np.ndarray, backward: np.ndarray) -> np.ndarray:
@@ -129,15 +155,23 @@ def dis_candidates(i0: np.ndarray, i1: np.ndarray, preset: str, min_motion: floa
     fwd = np.moveaxis(algo.calc(u0, u1, None), -1, 0)
     if not moves_far(fwd, min_motion):
         return [Candidate(preset, fwd, far=False)]
-    own = Candidate(preset if finest is None else "dis_medium", fwd, np.moveaxis(algo.calc(u1, u0, None), -1, 0),
-                    far=True)
+    own = Candidate(preset if finest is None else "dis_medium", fwd, dis_backward(code, None, u0, u1), far=True)
     if finest is None:
         return [own]
     algo.setFinestScale(finest)
     fine = np.moveaxis(algo.calc(u0, u1, None), -1, 0)
     if not moves_far(fine, min_motion):  # the full-resolution search judges the motion better: none fused
         return [Candidate(preset, fine, far=False)]
-    return [Candidate(preset, fine, np.moveaxis(algo.calc(u1, u0, None), -1, 0), far=True), own]
+    return [Candidate(preset, fine, dis_backward(code, finest, u0, u1), far=True), own]
+
+
+def dis_backward(code: int, finest: int | None, u0: np.ndarray, u1: np.ndarray) -> Future[np.ndarray]:
+    """DIS (OpenCV preset ``code``, finest scale ``finest`` or the preset's) from u1 to u0 (uint8 (H, W)),
+    (2, H, W) float32, started in the background (:func:`in_background`) on a DIS object of its own."""
+    algo = cv2.DISOpticalFlow_create(code)
+    if finest is not None:
+        algo.setFinestScale(finest)
+    return in_background(lambda: np.moveaxis(algo.calc(u1, u0, None), -1, 0))
 
 
 def moves_far(flow: np.ndarray, min_motion: float) -> bool:
@@ -215,7 +249,7 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, initial_flow: np
     and the source ``cfg.initialisation`` computes. Empty: the pyramid alone."""
     out = []
     if initial_flow is not None:
-        out.append(Candidate("initial_flow", initial_flow.astype(np.float32, copy=False)))
+        out.append(Candidate(INITIAL_FLOW, initial_flow.astype(np.float32, copy=False)))
     if previous_flow is not None and cfg.temporal_init:
         out.append(Candidate("previous", propagated_flow(i0, previous_flow)))
     source = cfg.initialisation
@@ -237,4 +271,4 @@ def beyond_reach(candidates: list[Candidate], min_motion: float) -> list[Candida
     spent, not accuracy."""
     # a DIS candidate says whether dis_candidates found it moves far (same threshold): not judged twice
     return [c for c in candidates
-            if c.name == "initial_flow" or (c.far if c.far is not None else moves_far(c.flow, min_motion))]
+            if c.name == INITIAL_FLOW or (c.far if c.far is not None else moves_far(c.flow, min_motion))]

@@ -50,6 +50,10 @@ def build_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float, 
 def resize_field(f: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Bilinear resize of every leading channel of f (..., h, w) to (..., H, W); values unchanged."""
     h, w = shape
+    if f.ndim == 3 and f.shape[0] <= 4 and f.transpose(1, 2, 0).flags.c_contiguous:
+        # a channel-first view of interleaved data (an OpenCV flow, moveaxis'd): one call, no per-channel copies
+        return np.ascontiguousarray(np.moveaxis(cv2.resize(f.transpose(1, 2, 0), (w, h),
+                                                           interpolation=cv2.INTER_LINEAR).reshape(h, w, -1), -1, 0))
     flat = f.reshape((-1,) + f.shape[-2:])
     out = np.empty((flat.shape[0], h, w), dtype=f.dtype)
     for ch, dst in zip(flat, out, strict=True):
