@@ -2,6 +2,7 @@
 DIS medium and ultrafast timed on the same frames in the same loop.
 
     .venv-bench/bin/python -m bench.stage_profile --regimes fine_320,fine_640,large --out bench/results/x.json
+    .venv-bench/bin/python -m bench.stage_profile --regimes large --presets "realtime;realtime:init_finest_level=0"
 
 Stages are timed by wrapping the functions the engine calls (photometric stage, initialisation, pyramid, the
 per-level warp source, the backend's linearisation and primal-dual iterations, median filters, the state's
@@ -13,6 +14,7 @@ regimes use the suite's ``tune`` seeds (quick set: 4 pairs), ``large`` the pairs
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 import time
 from collections.abc import Callable
@@ -127,15 +129,14 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=8, help="timed passes over the pairs (large: a quarter)")
     ap.add_argument("--large", type=Path, default=data.LARGE_DATA)
     ap.add_argument("--out", type=Path, default=Path("bench/results/stage_profile.json"))
-    ap.add_argument("--presets", default=",".join(PRESETS),
+    ap.add_argument("--presets", default=";".join(PRESETS),
                     help="';'-separated PRESET[:key=value,...] specs (default: %(default)s)")
     args = ap.parse_args()
-    result = {"command": "python -m bench.stage_profile " + " ".join(sys.argv[1:]), "machine": machine(),
+    result = {"command": "python -m bench.stage_profile " + shlex.join(sys.argv[1:]), "machine": machine(),
               "unit": "ms per call", "regimes": {}}
     for regime in args.regimes.split(","):
         rounds = max(1, args.rounds // 4) if regime == "large" else args.rounds
-        result["regimes"][regime] = profile(regime, rounds, args.large, tuple(args.presets.replace(",", ";").split(";"))
-                                           if ":" not in args.presets else tuple(args.presets.split(";")))
+        result["regimes"][regime] = profile(regime, rounds, args.large, tuple(args.presets.split(";")))
     write_json(args.out, result)
     print(table(result))
 
