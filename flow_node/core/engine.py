@@ -95,9 +95,10 @@ def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, on_level: OnLevel,
     """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with the candidates there (``on_level``, from
     :func:`candidates_on_level`); returns the fused flow and the per-pixel choice (0 = ``flow``). On the
     start level (``final`` False) candidates are preferred (FUSION_MARGIN) and forward-backward consistent
-    pixels trusted more; after the refinement (``final``) a candidate must be clearly better than the
-    refined flow (FINAL_MARGIN), which is then usually the more accurate one, and consistent where it can be
-    checked. The backend's fusion (numpy reference or numba kernels, same results)."""
+    pixels trusted more; after the refinement (``final``) the same with FINAL_MARGIN (a candidate is taken
+    where it costs less than that times the refined flow, a consistent one at CONSISTENT_COST of its cost:
+    BENCHMARKS.md, "Large motions at a bounded cost", measures what that keeps of the refinement). The
+    backend's fusion (numpy reference or numba kernels, same results)."""
     flows, trusted = [flow, *on_level[0]], [None, *on_level[1]]
     if final:
         return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted, FINAL_MARGIN,
