@@ -10,9 +10,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backends import select_backend
+from .census import reliability as census_reliability
 from .config import FlowConfig
 from .engine import estimate_pair
 from .errors import InputError, NonFiniteResult
+from .photometric import compares_signatures
 from .refine import SolveStats
 
 log = logging.getLogger("flow_node")
@@ -147,7 +149,10 @@ class FlowEstimator:
         start = time.perf_counter()
         flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
         ensure_finite(flow)
-        unexplained = self._backend.reliability(*normalised, flow)
+        if compares_signatures(self._config.photometric):
+            unexplained = census_reliability(*normalised, flow, self._backend.warper.sample)
+        else:
+            unexplained = self._backend.reliability(*normalised, flow)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 from typing import NamedTuple
 
+from .census import CensusForm, LevelSignature, census_form, level_signature
 from .errors import ConfigError
 from .fusion import Fuse, fuse
 from .initialise import Consistent, forward_backward_consistent
@@ -19,8 +20,9 @@ log = logging.getLogger("flow_node")
 
 class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
-    reliability figure, the fusion and its forward-backward check (same semantics in every backend; the
-    defaults are the numpy references, the linearisation on ``warper``)."""
+    reliability figure, the fusion and its forward-backward check, and the census data term's level
+    signature and per-warp form (same semantics in every backend; the defaults are the numpy references,
+    the linearisation on ``warper``)."""
 
     name: str
     solve: LevelSolver
@@ -29,6 +31,8 @@ class Backend(NamedTuple):
     reliability: Reliability = reliability
     fuse: Fuse = fuse
     consistent: Consistent = forward_backward_consistent
+    signature: LevelSignature = level_signature
+    census_form: CensusForm = census_form
 
 
 NUMPY = Backend("numpy", solve_numpy, NUMPY_WARPER)
@@ -71,7 +75,7 @@ def select_backend(name: str, threads: int = 0) -> Backend:
         log.info("flow_node backend: numpy (reference, requested)")
         return NUMPY
     try:
-        from . import numba_backend, numba_fusion
+        from . import numba_backend, numba_census, numba_fusion
     except ImportError as exc:
         if name == "numba":
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
@@ -81,4 +85,5 @@ def select_backend(name: str, threads: int = 0) -> Backend:
     log.info("flow_node backend: numba (%d thread%s, kernel cache %s)", used, "" if used == 1 else "s",
              numba_backend.cache_dir())
     return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER, numba_backend.linearise_numba,
-                   numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba)
+                   numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
+                   numba_census.level_signature_numba, numba_census.census_form_numba)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .census import form_residual
 from .models import residual
 from .operators import div
 from .solver import LevelSolver, PDState, Problem, SolveParams
@@ -14,14 +15,21 @@ def bregman(problem: Problem, state: PDState, p: SolveParams, solve: LevelSolver
     original c, which is the paper's b-update written on the data. L1 data: the original form, the
     linear term -alpha <b_k, v> in G with b_k = (K* y_k)_v / alpha = -div(y_k / alpha), the subgradient
     of R at v_k that the dual variable provides (the solver's y is already y / alpha, see solver.py).
+    A quadratic (census) data term ``problem.q`` is shifted the same way for L2: its linear part g gets
+    the gradient T v_k + g added (the b-update of 1/2 |A v - f|^2 written on g = -A^T f); for L1 (whose census
+    term is a majoriser, census.py) the subgradient form as above, which holds for any data term.
     """
     total = 0
-    c_shift = problem.c
+    c_shift, q_shift = problem.c, problem.q
     for _ in range(n):
-        if p.spec.data == "l2":
+        if p.spec.data == "l2" and problem.q is not None:
+            q_shift = q_shift.copy()
+            q_shift[3:] += form_residual(problem.q, state.v)
+            step = Problem(problem.a, problem.c, q=q_shift)
+        elif p.spec.data == "l2":
             c_shift = c_shift + residual(state.v, problem.a, problem.c)
             step = Problem(problem.a, c_shift)
         else:
-            step = Problem(problem.a, problem.c, -div(state.y))
+            step = Problem(problem.a, problem.c, -div(state.y), q=problem.q)
         total += solve(step, state, p)
     return total

@@ -84,9 +84,11 @@ class FlowConfig:
     ``alpha1`` its alpha_1, both absolute.
     """
 
-    photometric: str = _f("normalise", "photometric preprocessing of each pair: normalise (each frame's 2nd-98th "
-                          "percentile range to [0, 1]: bit depth, contrast and exposure invariant), "
-                          "structure_texture (normalise, then Wedel's texture part), none (grey / max)",
+    photometric: str = _f("census", "what the data term compares: census (each pixel's soft census signature, its "
+                          "3x3 differences over their local contrast: invariant to tone curves, gain fields and "
+                          "flicker), normalise (grey values on the pair's 2nd-98th percentile range; an exposure "
+                          "change is detected and undone), local_contrast, structure_texture (grey values after "
+                          "local normalisation / Wedel's texture part), none (grey / max)",
                           choices=PHOTOMETRIC)
     model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1); choosing a "
                     "model without alpha/alpha1 also selects its calibrated weights", choices=MODELS)
@@ -275,7 +277,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # quality: many short warps per level on a fine pyramid (Middlebury <= 0.30); balanced: 2 x 15, alpha
     # 0.035 (ahead of DIS medium on sensor noise); realtime: 4 x 6 on the coarse levels, 2 x 16 at full size
     # (the level that costs); fastest: half size, 4 warps per level, 10 iterations per coarse warp.
-    "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
+    "quality": dict(model="l1_tv", alpha=0.045, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,

@@ -70,6 +70,23 @@ def prox_data_l1(vt: np.ndarray, a: np.ndarray, c: np.ndarray, tau: float) -> np
 PROX_DATA = {"l2": prox_data_l2, "l1": prox_data_l1}
 
 
+def prox_data_quadratic(vt: np.ndarray, q: np.ndarray, tau: float) -> np.ndarray:
+    """argmin_v |v - vt|^2 / 2 + tau (v^T T v / 2 + g . v) for a per-pixel quadratic data term (the census
+    data term collapsed over its channels, census.py): q (5, H, W) = (T11, T12, T22, g1, g2), T positive
+    semi-definite. Pointwise 2 x 2 solve: (I + tau T) v = vt - tau g."""
+    m00, m01, m11 = 1.0 + tau * q[0], tau * q[1], 1.0 + tau * q[2]
+    r0, r1 = vt[0] - tau * q[3], vt[1] - tau * q[4]
+    det = m00 * m11 - m01 * m01
+    return np.stack([(m11 * r0 - m01 * r1) / det, (m00 * r1 - m01 * r0) / det])
+
+
+def quadratic_data(v: np.ndarray, q: np.ndarray) -> float:
+    """v^T T v / 2 + g . v summed over pixels (the quadratic data term of :func:`prox_data_quadratic`)."""
+    v, q = v.astype(np.float64), q.astype(np.float64)
+    return float(np.sum(0.5 * (q[0] * v[0] ** 2 + 2 * q[1] * v[0] * v[1] + q[2] * v[1] ** 2)
+                        + q[3] * v[0] + q[4] * v[1]))
+
+
 # ------------------------------------------------------------------------------- regulariser (dual side)
 def prox_dual_l2(yt: np.ndarray, sigma: float, alpha: float) -> np.ndarray:
     """prox of sigma F* with F = (alpha/2)|.|^2, F* = |y|^2 / (2 alpha): yt / (1 + sigma/alpha)."""
@@ -117,10 +134,14 @@ def apply_k_adjoint(spec: ModelSpec, y: np.ndarray, z: np.ndarray | None) -> tup
 
 # ------------------------------------------------------------------------------------------- energy
 def energy(spec: ModelSpec, v: np.ndarray, w: np.ndarray | None, a: np.ndarray, c: np.ndarray,
-           alpha: float, alpha1: float, tv_norm: str) -> float:
-    """The primal energy G + F(K .) of the model at (v, w) (sums over pixels, float64)."""
+           alpha: float, alpha1: float, tv_norm: str, q: np.ndarray | None = None) -> float:
+    """The primal energy G + F(K .) of the model at (v, w) (sums over pixels, float64); with a quadratic
+    data term ``q`` (:func:`prox_data_quadratic`) that one instead of the model's data term on (a, c)."""
     r = residual(v, a, c).astype(np.float64)
-    data = 0.5 * float(np.sum(r * r)) if spec.data == "l2" else float(np.abs(r).sum())
+    if q is not None:
+        data = quadratic_data(v, q)
+    else:
+        data = 0.5 * float(np.sum(r * r)) if spec.data == "l2" else float(np.abs(r).sum())
     k1, k2 = apply_k(spec, v.astype(np.float64), None if w is None else w.astype(np.float64))
     if spec.regulariser == "l2":
         reg = 0.5 * alpha * float(np.sum(k1 * k1))

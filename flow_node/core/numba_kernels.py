@@ -74,6 +74,19 @@ def prox_data(vt0, vt1, a0, a1, c, tau_d, data_l1):  # noqa: ANN001, ANN201
     return vt0 + step * a0, vt1 + step * a1
 
 
+@njit(**_JIT)
+def prox_quadratic(vt0, vt1, t11, t12, t22, g0, g1, tau_d):  # noqa: ANN001, ANN201
+    """prox of tau_d * (v^T T v / 2 + g . v) at one pixel (models.prox_data_quadratic): the 2 x 2 solve
+    (I + tau_d T) v = vt - tau_d g. -> v_new."""
+    m00 = _ONE + tau_d * t11
+    m01 = tau_d * t12
+    m11 = _ONE + tau_d * t22
+    r0 = vt0 - tau_d * g0
+    r1 = vt1 - tau_d * g1
+    inv = _ONE / (m00 * m11 - m01 * m01)
+    return (m11 * r0 - m01 * r1) * inv, (m00 * r1 - m01 * r0) * inv
+
+
 # ------------------------------------------------------------------------------------ row updates
 @njit(**_JIT)
 def z_row(i, ir, rm, w_bar, z, sigma, rel1, iso):  # noqa: ANN001, ANN201
@@ -172,9 +185,10 @@ def _make_passes(parallel: bool):  # noqa: ANN202
             if reg == 3:
                 z_row(i, ir, rm, w_bar, z, sigma, rel1, iso)
 
-    def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b):  # noqa: ANN001, ANN202
+    def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad):  # noqa: ANN001, ANN202
         """One primal step over the whole image, in place on v, v_bar (and w, w_bar); returns
-        sum |v_new - v|^2. xbuf: (threads, 2, W + 1) scratch for the x-part of div y (see below)."""
+        sum |v_new - v|^2. xbuf: (threads, 2, W + 1) scratch for the x-part of div y (see below). ``quad``:
+        ``a`` is a quadratic data term (5, H, W) (:func:`prox_quadratic`; ``c`` unused), else rho = a . v + c."""
         h, wd = v.shape[1], v.shape[2]
         total = 0.0
         for i in prange(h):
@@ -196,8 +210,12 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                 div0 = q[0, j + 1] - q[0, j] + y[1, 0, i, j] * rd - y[1, 0, iu, j] * ru
                 div1 = q[1, j + 1] - q[1, j] + y[1, 1, i, j] * rd - y[1, 1, iu, j] * ru
                 v0, v1 = v[0, i, j], v[1, i, j]
-                n0, n1 = prox_data(v0 + tau * (div0 + b[0, ib, j]), v1 + tau * (div1 + b[1, ib, j]),
-                                   a[0, i, j], a[1, i, j], c[i, j], tau_d, data_l1)
+                vt0, vt1 = v0 + tau * (div0 + b[0, ib, j]), v1 + tau * (div1 + b[1, ib, j])
+                if quad:
+                    n0, n1 = prox_quadratic(vt0, vt1, a[0, i, j], a[1, i, j], a[2, i, j], a[3, i, j], a[4, i, j],
+                                            tau_d)
+                else:
+                    n0, n1 = prox_data(vt0, vt1, a[0, i, j], a[1, i, j], c[i, j], tau_d, data_l1)
                 d0, d1 = n0 - v0, n1 - v1
                 v_bar[0, i, j] = n0 + d0
                 v_bar[1, i, j] = n1 + d1
@@ -223,19 +241,20 @@ dual_pass_ser, primal_pass_ser = _make_passes(False)
 
 @njit(**_JIT)
 def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN201
-            data_l1, reg, iso, has_b, iterations, tolerance, check_every, parallel):
+            data_l1, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad):
     """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
     per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
-    cheaper on small levels). Returns the number of iterations run."""
+    cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass). Returns the
+    number of iterations run."""
     n = 2.0 * v.shape[1] * v.shape[2]
     k = 0
     for k in range(1, iterations + 1):
         if parallel:
             dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso)
-            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b)
+            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad)
         else:
             dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso)
-            ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b)
+            ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad)
         if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
             break
     return k

@@ -42,7 +42,8 @@ import numpy as np
 from .operators import div, grad
 from .warping import Sample, sample_coefficients
 
-PHOTOMETRIC = ("normalise", "local_contrast", "structure_texture", "none")
+PHOTOMETRIC = ("census", "normalise", "local_contrast", "structure_texture", "none")
+SIGNATURE_MODES = ("census",)  # modes whose data term compares census signatures (census.py), not grey values
 PERCENTILES = (2.0, 98.0)
 STRIDE = 3
 MIN_SPAN = 1e-6  # a pair whose robust range is below this (flat) is only shifted, not scaled
@@ -109,6 +110,34 @@ def quantisation_step(ordered: np.ndarray) -> float:
     return float(gaps.min()) if gaps.size else 0.0
 
 
+def compares_signatures(mode: str) -> bool:
+    """Whether the data term of photometric ``mode`` compares census signatures (census.py) instead of grey
+    values: the refinement then builds the census quadratic form per warp and reliability judges signatures."""
+    return mode in SIGNATURE_MODES
+
+
+def normalise_frame(img: np.ndarray, noise_gain: float = 1.0) -> np.ndarray:
+    """One frame (H, W) float32 with its own robust range (2nd and 98th percentiles) mapped to [0, 1], and
+    coarsely quantised content treated as in :func:`normalise_pair` (presmoothed, contrast shrunk). The
+    ``census`` mode's map: its data term is invariant to each frame's gain and offset, so a map per frame
+    costs nothing there, and it gives the census EPS the same meaning in both frames."""
+    ordered = sorted_sample(img)
+    lo, hi = quantiles(ordered, PERCENTILES)
+    return affine_normalised(img, lo, hi, quantisation_step(ordered), noise_gain)
+
+
+def affine_normalised(img: np.ndarray, lo: float, hi: float, step: float, noise_gain: float) -> np.ndarray:
+    """img mapped by (img - lo) / (hi - lo), or to [0, STEP_REF / rel] with rel = step * noise_gain / (hi - lo)
+    when rel > STEP_REF, then presmoothed by QUANT_SIGMA (unless noise_gain < 1); see :func:`normalise_pair`."""
+    span = hi - lo if hi - lo > MIN_SPAN else 1.0
+    rel = step * noise_gain / span
+    scale = np.float32(min(1.0, STEP_REF / rel) / span if rel > 0 else 1.0 / span)
+    out = (img - np.float32(lo)) * scale
+    if rel > STEP_REF and noise_gain >= 1.0:  # else the pyramid's anti-alias blur (>= 1.4 px) does it
+        out = cv2.GaussianBlur(out, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)
+    return out
+
+
 def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`normalise_pair` without its exposure flag."""
     return normalise_pair(i0, i1)[:2]
@@ -134,13 +163,8 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> t
         i1 = i1 * np.float32(gain) + np.float32(offset)
         s1 = s1 * gain + offset
     lo, hi = 0.5 * (quantiles(s0, PERCENTILES) + quantiles(s1, PERCENTILES))
-    span = hi - lo if hi - lo > MIN_SPAN else 1.0
-    rel = quantisation_step(s0) * noise_gain / span
-    scale = np.float32(min(1.0, STEP_REF / rel) / span if rel > 0 else 1.0 / span)
-    n0, n1 = (i0 - np.float32(lo)) * scale, (i1 - np.float32(lo)) * scale
-    if rel > STEP_REF and noise_gain >= 1.0:  # else the pyramid's anti-alias blur (>= 1.4 px) does it
-        blur = lambda x: cv2.GaussianBlur(x, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)  # noqa: E731
-        n0, n1 = blur(n0), blur(n1)
+    step = quantisation_step(s0)
+    n0, n1 = (affine_normalised(img, lo, hi, step, noise_gain) for img in (i0, i1))
     return n0, n1, (gain, offset) != (1.0, 0.0)
 
 
@@ -177,8 +201,13 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
 def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0
           ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
-    The second is the ``normalise`` result in every mode, so the reliability figure has one meaning.
-    ``noise_gain``: see :func:`normalise_pair`."""
+    The second is the ``normalise`` result in every mode but ``census``, so the reliability figure has one
+    meaning; ``census`` normalises each frame on its own (:func:`normalise_frame`, no exposure detection:
+    its data term needs none) and returns that pair twice, for census.reliability. ``noise_gain``: see
+    :func:`normalise_pair`."""
+    if compares_signatures(mode):
+        pair = normalise_frame(i0, noise_gain), normalise_frame(i1, noise_gain)
+        return pair, pair
     n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain)
     if mode == "none":
         return (i0, i1), (n0, n1)

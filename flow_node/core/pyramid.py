@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from .config import FlowConfig
+from .photometric import compares_signatures
 from .solver import PDState
 
 ANTIALIAS = 0.7  # blur (px of the finer level, times 1/scale) of every step when the finest solved level is coarser
@@ -121,7 +122,9 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig) -> Pyramid:
     """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
     level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
     finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
-    flow, which must not have converged to an aliased texture's wrong minimum either."""
+    flow, which must not have converged to an aliased texture's wrong minimum either. With the census data
+    term every step is anti-aliased too: it normalises contrast away, so an aliased remnant of fine texture
+    on a coarse level -- faint in grey values -- would weigh as much as real structure there."""
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
-    antialias = len(shapes) if min(cfg.finest_level, len(shapes) - 1) > 0 else 0
+    antialias = len(shapes) if min(cfg.finest_level, len(shapes) - 1) > 0 or compares_signatures(cfg.photometric) else 0
     return Pyramid(shapes, *(build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1)))

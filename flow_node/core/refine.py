@@ -16,10 +16,12 @@ import numpy as np
 
 from .backends import Backend
 from .bregman import bregman
+from .census import CENSUS
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .operators import image_gradient, warp_source
+from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
 from .workspace import scratch
@@ -77,7 +79,9 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked), run the backend's solver and
     median-filter the flow; then ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives on ``level``
     and is updated in place. The level's warp source and frame 0's gradient are scratch arrays reused from call
-    to call (workspace.py). Returns (iterations, Bregman iterations)."""
+    to call (workspace.py). With the census data term (``cfg.photometric``, :func:`compares_signatures`)
+    each warp's problem is the census quadratic form (census.py) built on the same linearisation: frame 0's
+    signature once per level, the warped frame 1's per warp. Returns (iterations, Bregman iterations)."""
     warps, per_warp = level_schedule(cfg, level == finest_level(pyr, cfg))
     params = level_params(cfg, level, per_warp)
     i0, i1 = pyr.i0[level], pyr.i1[level]
@@ -86,13 +90,17 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
                        out=scratch("refine.source", (3, h, w)))
     g0 = (image_gradient(i0, cfg.gradient_scheme, out=scratch("refine.grad0", (2, h, w)))
           if cfg.gradient_scheme == "interpolated" else None)
+    census = compares_signatures(cfg.photometric)
+    f0, fg0 = backend.signature(i0, CENSUS) if census else (None, None)
+    robust = params.spec.data == "l1"
     iterations = 0
     for _ in range(warps):
         a, c = backend.linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
-        iterations += backend.solve(Problem(a, c), state, params)
+        q = backend.census_form(i0, f0, fg0, a, c, state.v, robust, CENSUS) if census else None
+        iterations += backend.solve(Problem(a, c, q=q), state, params)
         if cfg.median_filter:
             state.v = median_filter(state.v, cfg.median_filter)
-    extra = bregman(Problem(a, c), state, params, backend.solve, bregman_steps) if bregman_steps else 0
+    extra = bregman(Problem(a, c, q=q), state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models import PROX_DATA, ModelSpec, project_dual_tv, prox_dual_l2
+from .models import PROX_DATA, ModelSpec, project_dual_tv, prox_data_quadratic, prox_dual_l2
 from .operators import div, grad
 
 CHECK_EVERY = 10  # iterations between evaluations of the stopping rule
@@ -51,11 +51,15 @@ class PDState:
 
 @dataclass(frozen=True)
 class Problem:
-    """One linearised problem: rho(v) = a . v + c, and the Bregman linear term -alpha <b, v> (b may be None)."""
+    """One linearised problem: rho(v) = a . v + c, and the Bregman linear term -alpha <b, v> (b may be None).
+
+    ``q`` (5, H, W), when given, is a multi-channel data term collapsed to a quadratic form per pixel (the
+    census data term, census.py); it then replaces the model's data term on (a, c)."""
 
     a: np.ndarray
     c: np.ndarray
     b: np.ndarray | None = None
+    q: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -83,7 +87,7 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
     tau_data = tau / p.alpha  # prox of tau * (1/alpha) D
     rel1 = p.alpha1 / p.alpha  # weight of S(w) relative to the first TV term
     prox_data = PROX_DATA[spec.data]
-    a, c = problem.a, problem.c
+    a, c, q = problem.a, problem.c, problem.q
     shift = None if problem.b is None else tau * problem.b  # linear term -<b, v> of E / alpha
     v, y, w, z = state.v, state.y, state.w, state.z
     v_bar, w_bar = v.copy(), (None if w is None else w.copy())
@@ -100,7 +104,7 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
         vt = v + tau * div(y)
         if shift is not None:
             vt += shift
-        v_new = prox_data(vt, a, c, tau_data)
+        v_new = prox_data(vt, a, c, tau_data) if q is None else prox_data_quadratic(vt, q, tau_data)
         if w is not None:
             wt = w + tau * (y if z is None else y + div(z))
             w_new = wt / (1.0 + tau * rel1) if spec.regulariser == "tv_l2" else wt

@@ -1,0 +1,168 @@
+"""The census data term: what it compares, and its linearisation (numpy reference; numba: numba_census.py).
+
+Brightness constancy compares grey values, so any change of the grey values between the frames -- a tone
+curve, a gain field, flicker -- reads as motion. The census data term compares, at every pixel, how its
+grey value relates to its eight neighbours', normalised by the local contrast (a soft census signature,
+after Stein 2004 and its use inside TV-L1 by Mueller et al. 2011 and Ranftl et al. 2012):
+
+    F_k(I)(x) = GAIN * (I(x + d_k) - I(x)) / (s(x) + EPS),   s(x) = sqrt(mean_k (I(x + d_k) - I(x))^2)
+
+for the offsets d_k of the 3 x 3 neighbourhood (K = 8 channels). Over one pixel any smooth monotonic tone
+curve is affine to first order, and a smooth gain field is a constant: both scale the differences and s
+alike, so F does not change (exactly for a gain and offset, to second order in the local grey-value span
+for a curve). EPS (in units of the frame's robust range) keeps flat, noise-only areas from being
+amplified.
+
+Each channel is linearised like the grey value (paper, "Large Displacements"): with W = I1(x + v0) the
+warped frame 1 and a_k the channel's gradient (the mean of frame 0's and of the warped one's, as the
+``interpolated`` scheme does for grey values), rho_k(v) = a_k . v + c_k. The model's data term is then
+
+    l2: 1/2 sum_k rho_k^2          l1: sum_k |rho_k|  (solved by majorise-minimise, see below)
+
+Both are collapsed per pixel into one quadratic form 1/2 v^T T v + g . v (+ const): T = sum_k w_k a_k a_k^T,
+g = sum_k w_k c_k a_k, stored as (5, H, W) = (T11, T12, T22, g1, g2); the solver's data prox is then a 2 x 2
+solve (models.prox_data_quadratic). For l2, w_k = 1. For l1, |rho| is majorised at the linearisation point by
+rho^2 / (2 |rho_k(v0)|) (+ const) -- iteratively reweighted least squares, one reweighting per warp --
+with w_k = 1 / sqrt(rho_k(v0)^2 + DELTA^2): each warp minimises an upper bound of the L1 data term that
+touches it at v0, so the warps decrease it. A pixel whose x + v0 leaves the image has T = g = 0 (no data
+term), as for grey values.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .photometric import reliability_stride
+from .warping import Sample, sample_coefficients
+
+# the 8 neighbours (dy, dx) of the 3 x 3 neighbourhood
+OFFSETS: tuple[tuple[int, int], ...] = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
+FORM_CHANNELS = 5  # T11, T12, T22, g1, g2
+
+
+@dataclass(frozen=True)
+class CensusParams:
+    """The census data term's constants (the module doc's names).
+
+    ``gain``: scale of the signature (sets the data term's weight against the regulariser's alpha);
+    ``eps``: contrast (of the frame's robust range) below which differences are damped, not normalised;
+    ``delta``: residual (signature units) below which the L1 majoriser is quadratic."""
+
+    gain: float = 0.1
+    eps: float = 0.01
+    delta: float = 0.2
+
+
+CENSUS = CensusParams()
+
+
+def shifted(img: np.ndarray, dy: int, dx: int) -> np.ndarray:
+    """img(x + (dy, dx)) on img's grid, edge values repeated outside. (H, W) -> (H, W)."""
+    h, w = img.shape
+    padded = np.pad(img, 1, mode="edge")
+    return padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+
+
+def signature(img: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
+    """The soft census signature F(img) of the module doc: (H, W) float32 -> (K, H, W) float32."""
+    img = img.astype(np.float32, copy=False)
+    diffs = np.stack([shifted(img, dy, dx) - img for dy, dx in OFFSETS])
+    contrast = np.sqrt(np.mean(diffs * diffs, axis=0))
+    return (diffs * (np.float32(params.gain) / (contrast + np.float32(params.eps)))).astype(np.float32)
+
+
+def signature_gradient(f: np.ndarray) -> np.ndarray:
+    """Central differences of every channel of f (K, H, W): (2, K, H, W) [x, y], zero on the image border
+    (as the paper's central scheme)."""
+    g = np.zeros((2,) + f.shape, np.float32)
+    g[0, :, :, 1:-1] = 0.5 * (f[:, :, 2:] - f[:, :, :-2])
+    g[1, :, 1:-1, :] = 0.5 * (f[:, 2:, :] - f[:, :-2, :])
+    return g
+
+
+def warped_frame(i0: np.ndarray, a: np.ndarray, c: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Frame 1 sampled at x + v0, recovered from the grey-value linearisation (a, c) around v0 (for every
+    gradient scheme c = I1(x + v0) - I0 - a . v0), and the mask of pixels whose x + v0 leaves the image
+    (there a = c = 0; W is set to I0). (H, W) float32 and bool."""
+    outside = (a[0] == 0) & (a[1] == 0) & (c == 0)
+    warped = c + a[0] * v0[0] + a[1] * v0[1] + i0
+    return np.where(outside, i0, warped).astype(np.float32), outside
+
+
+def quadratic_form(f0: np.ndarray, g0: np.ndarray, warped: np.ndarray, outside: np.ndarray, v0: np.ndarray,
+                   robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
+    """The census data term around v0 collapsed to (T11, T12, T22, g1, g2), (5, H, W) float32 (module doc).
+
+    f0 (K, H, W), g0 (2, K, H, W): frame 0's signature and its gradient on this level; ``warped`` (H, W) and
+    ``outside`` from :func:`warped_frame`; v0 (2, H, W) px; ``robust``: the L1 data term's weights (else 1)."""
+    f1 = signature(warped, params)
+    g1 = signature_gradient(f1)
+    ax, ay = 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1])
+    r0 = f1 - f0
+    c = r0 - ax * v0[0] - ay * v0[1]
+    wk = 1.0 / np.sqrt(r0 * r0 + np.float32(params.delta) ** 2) if robust else np.ones_like(r0)
+    wk = wk * ~outside
+    wax, way = wk * ax, wk * ay
+    return np.stack([(wax * ax).sum(0), (wax * ay).sum(0), (way * ay).sum(0),
+                     (wax * c).sum(0), (way * c).sum(0)]).astype(np.float32)
+
+
+def form_residual(form: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The gradient T v + g of the quadratic form at v (2, H, W): (2, H, W); zero at its minimiser."""
+    return np.stack([form[0] * v[0] + form[1] * v[1] + form[3], form[1] * v[0] + form[2] * v[1] + form[4]])
+
+
+def level_signature(i0: np.ndarray, params: CensusParams = CENSUS) -> tuple[np.ndarray, np.ndarray]:
+    """Frame 0's signature (K, H, W) and its gradient (2, K, H, W) on one pyramid level (computed once per
+    level, used by every warp there)."""
+    f0 = signature(i0, params)
+    return f0, signature_gradient(f0)
+
+
+def census_form(i0: np.ndarray, f0: np.ndarray, g0: np.ndarray, a: np.ndarray, c: np.ndarray, v0: np.ndarray,
+                robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
+    """One warp's census data term: the quadratic form (5, H, W) around v0 (2, H, W), from frame 0 (H, W),
+    its :func:`level_signature` and the grey-value linearisation (a, c) around v0 (which carries the warped
+    frame 1, :func:`warped_frame`). ``robust``: the L1 data term (else L2)."""
+    warped, outside = warped_frame(i0, a, c, v0)
+    return quadratic_form(f0, g0, warped, outside, v0, robust, params)
+
+
+# level_signature(i0, params) -> (f0, g0) and census_form(i0, f0, g0, a, c, v0, robust, params) -> q:
+# the numpy references above or a backend's kernels (numba_census.py)
+# (the numba kernels take frame 0's gradient inside the form kernel: their level signature's second item is None)
+LevelSignature = Callable[[np.ndarray, CensusParams], tuple[np.ndarray, np.ndarray | None]]
+CensusForm = Callable[[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, np.ndarray, bool,
+                       CensusParams], np.ndarray]
+
+
+OUTLIER = 0.5  # mean |signature residual| / gain above which a pixel is unexplained (see reliability)
+
+
+def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients,
+                params: CensusParams = CENSUS) -> float:
+    """photometric.reliability for the census data term: the fraction of sampled pixels (the same stride)
+    whose signature is not explained by the flow, i.e. whose mean |F(I1)(x + flow) - F(I0)(x)| over the K
+    channels exceeds OUTLIER (in units of the gain). F(I1) at x + flow is the signature of I1 sampled (Keys)
+    at x + flow and its 8 neighbours. Invariant to what the data term is invariant to, so a tone change the
+    flow handles does not read as unexplained. i0, i1 (H, W) as the solver saw them; flow (H, W, 2) px."""
+    h, w = i0.shape
+    s = reliability_stride(h, w)
+    map_x = np.arange(0, w, s, dtype=np.float32)[None, :] + flow[::s, ::s, 0]
+    map_y = np.arange(0, h, s, dtype=np.float32)[:, None] + flow[::s, ::s, 1]
+    inside = (map_x >= 1) & (map_x <= w - 2) & (map_y >= 1) & (map_y <= h - 2)
+    if not inside.any():
+        return 1.0
+    offsets = ((0, 0),) + OFFSETS
+    mx = np.concatenate([map_x + dx for _, dx in offsets])
+    my = np.concatenate([map_y + dy for dy, _ in offsets])
+    values = sample(np.asarray(i1, np.float32), mx, my, "keys").reshape((len(offsets),) + map_x.shape)
+    diffs = values[1:] - values[0]
+    contrast = np.sqrt(np.mean(diffs * diffs, axis=0))
+    f1 = diffs / (contrast + np.float32(params.eps))
+    f0 = signature(i0, params)[:, ::s, ::s] / np.float32(params.gain)
+    residual = np.mean(np.abs(f1 - f0), axis=0)
+    return float(np.mean(residual[inside] > OUTLIER))

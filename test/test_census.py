@@ -1,0 +1,180 @@
+"""The census data term (core/census.py; numba: core/numba_census.py): invariance of the signature, the
+collapsed quadratic form against its definition, the prox, the numba kernels against the numpy oracle, and
+the engine under tone curves and gain fields that the grey-value data term cannot take."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from synth import constant_flow, interior, pair_from_flow, rotation_flow, texture
+
+from flow_node.core import census
+from flow_node.core.api import FlowEstimator
+from flow_node.core.census import CensusParams, census_form, level_signature, quadratic_form, signature
+from flow_node.core.config import FlowConfig
+from flow_node.core.metrics import aee
+from flow_node.core.models import MODEL_SPECS, prox_data_quadratic, quadratic_data
+from flow_node.core.numba_backend import WARPER, solve_numba
+from flow_node.core.numba_census import census_form_numba, level_signature_numba
+from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
+
+H, W = 36, 48
+AGREE = 1e-5
+
+
+def rng_image(seed: int, h: int = H, w: int = W) -> np.ndarray:
+    return texture(h, w, seed=seed, cell=2).image
+
+
+def random_linearisation(seed: int) -> tuple[np.ndarray, ...]:
+    """A frame, a grey-value linearisation (a, c) with an 'outside' corner (a = c = 0) and a flow v0."""
+    rng = np.random.default_rng(seed)
+    i0 = rng_image(seed)
+    a = (0.2 * rng.standard_normal((2, H, W))).astype(np.float32)
+    c = (0.1 * rng.standard_normal((H, W))).astype(np.float32)
+    a[:, :4, :5] = 0.0
+    c[:4, :5] = 0.0
+    v0 = rng.standard_normal((2, H, W)).astype(np.float32)
+    return i0, a, c, v0
+
+
+def test_signature_is_invariant_to_gain_offset_and_smooth_gain_fields() -> None:
+    h, w = 96, 128
+    img = rng_image(1, h, w)
+    exact = CensusParams(eps=0.0)
+    ref = signature(img, exact)
+    np.testing.assert_allclose(signature(1.7 * img - 0.3, exact), ref, atol=1e-4)
+    ys, xs = np.mgrid[0:h, 0:w]
+    field = (0.8 + 0.4 * xs / w + 0.1 * ys / h).astype(np.float32)  # an illumination gradient 0.8 -> 1.3
+    # a smooth gain changes the 3 x 3 differences only through its variation over one pixel (0.3 % here)
+    assert np.abs(signature(field * img, exact) - ref).mean() < 0.05 * np.abs(ref).mean()
+    # a grey-value comparison sees the whole gain difference
+    assert np.abs(field * img - img).mean() > 0.1 * img.mean()
+
+
+def test_signature_under_a_tone_curve_changes_far_less_than_grey_values() -> None:
+    img = rng_image(2)
+    ref = signature(img)
+    curved = img**0.5  # gamma 2 on the grey values
+    rel_sig = np.abs(signature(curved) - ref).mean() / np.abs(ref).mean()
+    rel_grey = np.abs(curved - img).mean() / img.mean()
+    assert rel_sig < 0.1 and rel_grey > 0.25
+
+
+def test_quadratic_form_is_the_sum_of_squared_channel_residuals() -> None:
+    """L2: 1/2 v^T T v + g . v + const = 1/2 sum_k (a_k . v + c_k)^2 for any v (checks T and g channel by
+    channel against the linearisation written out)."""
+    i0, a, c, v0 = random_linearisation(3)
+    f0, g0 = level_signature(i0)
+    warped, outside = census.warped_frame(i0, a, c, v0)
+    q = quadratic_form(f0, g0, warped, outside, v0, robust=False)
+    f1 = signature(warped)
+    g1 = census.signature_gradient(f1)
+    ax, ay = 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1])
+    ck = f1 - f0 - ax * v0[0] - ay * v0[1]
+    rng = np.random.default_rng(4)
+    values = []
+    for v in (rng.standard_normal((2, H, W)), rng.standard_normal((2, H, W)), np.zeros((2, H, W))):
+        rho = (ax * v[0] + ay * v[1] + ck) * ~outside
+        values.append(0.5 * float(np.sum(rho.astype(np.float64) ** 2)) - quadratic_data(v, q))
+    np.testing.assert_allclose(values, values[-1], rtol=0, atol=1e-3 * abs(values[-1]) + 1e-4)
+    assert np.all(q[:, outside] == 0)  # no data term where x + v0 leaves the image
+
+
+def test_robust_form_majorises_the_l1_term_touching_at_v0() -> None:
+    """L1: with the weights 1 / sqrt(rho_k(v0)^2 + delta^2) the form's gradient at v0 is the smoothed L1
+    term's gradient sum_k rho_k / sqrt(rho_k^2 + delta^2) a_k (IRLS)."""
+    i0, a, c, v0 = random_linearisation(5)
+    f0, g0 = level_signature(i0)
+    warped, outside = census.warped_frame(i0, a, c, v0)
+    q = quadratic_form(f0, g0, warped, outside, v0, robust=True)
+    f1 = signature(warped)
+    g1 = census.signature_gradient(f1)
+    ax, ay = 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1])
+    r0 = f1 - f0
+    smooth = r0 / np.sqrt(r0 * r0 + census.CENSUS.delta**2) * ~outside
+    expect = np.stack([(smooth * ax).sum(0), (smooth * ay).sum(0)])
+    np.testing.assert_allclose(census.form_residual(q, v0), expect, atol=1e-5)
+
+
+def test_prox_of_the_quadratic_data_term_is_optimal() -> None:
+    rng = np.random.default_rng(6)
+    m = rng.standard_normal((2, 2, H, W)).astype(np.float32)
+    t = np.einsum("ikhw,jkhw->ijhw", m, m)  # positive semi-definite per pixel
+    q = np.stack([t[0, 0], t[0, 1], t[1, 1], *rng.standard_normal((2, H, W))]).astype(np.float32)
+    vt = rng.standard_normal((2, H, W)).astype(np.float32)
+    tau = 0.37
+    v = prox_data_quadratic(vt, q, tau)
+    # optimality: v - vt + tau (T v + g) = 0
+    np.testing.assert_allclose(v - vt + tau * census.form_residual(q, v), 0.0, atol=2e-4)
+
+
+def test_numba_signature_and_form_match_numpy() -> None:
+    i0, a, c, v0 = random_linearisation(7)
+    f0, g0 = level_signature(i0)
+    f0_fast, _ = level_signature_numba(i0, census.CENSUS)
+    np.testing.assert_allclose(f0_fast, f0, atol=AGREE)
+    for robust in (False, True):
+        ref = census_form(i0, f0, g0, a, c, v0, robust)
+        fast = census_form_numba(i0, f0_fast, None, a, c, v0, robust, census.CENSUS)
+        assert np.abs(ref).max() > 0.1
+        np.testing.assert_allclose(fast, ref, atol=AGREE * max(1.0, float(np.abs(ref).max())))
+
+
+@pytest.mark.parametrize("model", ["l1_tv", "l2_tv", "l1_tv_tv"])
+def test_numba_solver_with_a_quadratic_data_term_matches_numpy(model: str) -> None:
+    i0, a, c, v0 = random_linearisation(8)
+    f0, g0 = level_signature(i0)
+    q = census_form(i0, f0, g0, a, c, v0, MODEL_SPECS[model].data == "l1")
+    spec = MODEL_SPECS[model]
+    params = SolveParams(spec, 0.05, 0.3, "isotropic", 30, 0.0)
+    ref, fast = (PDState.zeros(spec, (H, W)) for _ in range(2))
+    ref.v[:] = fast.v[:] = v0
+    solve_numpy(Problem(a, c, q=q), ref, params)
+    solve_numba(Problem(a, c, q=q), fast, params)
+    assert np.abs(ref.v - v0).max() > 1e-2
+    np.testing.assert_allclose(fast.v, ref.v, atol=AGREE)
+    np.testing.assert_allclose(fast.y, ref.y, atol=AGREE)
+
+
+def tone_variants(i1: np.ndarray) -> dict[str, np.ndarray]:
+    """What a camera does to frame 2 (float, unclipped textures in [0.05, 0.95])."""
+    h, w = i1.shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    r2 = ((xs - w / 2) ** 2 + (ys - h / 2) ** 2) / ((w / 2) ** 2 + (h / 2) ** 2)
+    return {"unchanged": i1, "gamma 0.5": i1**2.0, "gamma 2": np.sqrt(i1), "vignette": i1 * (1.1 - 0.3 * r2),
+            "gradient": i1 * (0.8 + 0.4 * xs / w)}
+
+
+@pytest.mark.parametrize("flow_kind", ["shift", "rotation"])
+def test_census_flow_holds_under_tone_curves_and_gain_fields(flow_kind: str) -> None:
+    h, w = 72, 96
+    tex = texture(h, w, seed=11)
+    gt = constant_flow(h, w, 1.3, -0.7) if flow_kind == "shift" else rotation_flow(h, w, 2.0)
+    i0, i1 = pair_from_flow(tex, gt)
+    cfg = FlowConfig.preset("realtime").replace(photometric="census", initialisation="none")
+    grey = FlowConfig.preset("realtime").replace(photometric="normalise", initialisation="none")
+    est, est_grey = FlowEstimator(cfg), FlowEstimator(grey)
+    errors = {}
+    for name, frame in tone_variants(i1).items():
+        result = est.estimate(i0, frame.astype(np.float32))
+        errors[name] = aee(interior(result.flow), interior(gt))
+        assert result.unexplained < 0.3, (name, result.unexplained)  # the flow explains the pair
+    base = errors["unchanged"]
+    assert base < 0.05
+    for name, err in errors.items():
+        assert err < max(1.5 * base, base + 0.02), (name, errors)
+    # the grey-value data term is thrown by the same gamma curve
+    assert aee(interior(est_grey.estimate(i0, tone_variants(i1)["gamma 2"]).flow), interior(gt)) > 3 * base
+
+
+def test_census_reliability_flags_a_wrong_flow_and_passes_a_right_one_under_gamma() -> None:
+    h, w = 72, 96
+    tex = texture(h, w, seed=12)
+    gt = constant_flow(h, w, 2.5, 1.0)
+    i0, i1 = pair_from_flow(tex, gt)
+    curved = np.sqrt(i1)
+    right = census.reliability(i0, curved, gt, WARPER.sample)
+    wrong = census.reliability(i0, curved, np.zeros_like(gt), WARPER.sample)
+    assert right < 0.1 and wrong > 0.5
+    assert census.reliability(i0, curved, gt) == pytest.approx(right, abs=1e-6)  # numpy sampling, same figure
