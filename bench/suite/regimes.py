@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from . import data, synthetic
+from . import data, photometric, synthetic
 from .data import Sample
 
 
@@ -42,6 +42,11 @@ REGIMES: dict[str, Regime] = {r.name: r for r in (
     Regime("exposure", "Fine textures 320x240, frame 2 with gain 0.75-1.33 and an offset", synthetic.exposure),
     Regime("low_contrast", "Fine textures 320x240 spanning 24 or 10 grey levels", synthetic.low_contrast),
     Regime("flat", "Fine textures 320x240 with ~half the area flat", synthetic.flat_areas),
+    Regime("photometric", "Fine textures 320x240 (grey 0.04-0.96), frame 2 under the split's photometric families "
+           "(tune: gamma, vignetting, clipping; report: S-curve, log/knee, illumination, flicker, white balance "
+           "(RGB), low light)", photometric.synthetic_photometric),
+    Regime("photometric_real", "Middlebury pairs, frame 2 under the split's photometric families (images the same "
+           "in every split)", photometric.middlebury_photometric),
     Regime("bags", "The bundled bags (128x96; mono8, mono16, rgb8, png; noise and brightness in 'objects')",
            lambda split, q: data.bags(q), seeded=False),
 )}
