@@ -1,7 +1,8 @@
 """The suite's regimes: a name, a one-line title, and how to build its samples for a split.
 
 Recorded data (Middlebury, large motions, bags) is the same in every split; the synthetic regimes draw
-their seeds from the split (see :mod:`.synthetic`).
+their seeds from the split (see :mod:`.synthetic`), the photometric regimes their families of changes (see
+:mod:`.photometric`), and ``real_exact`` its photographs and shifts (see :mod:`.realexact`).
 """
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from . import data, photometric, synthetic
+from . import data, photometric, realexact, synthetic
 from .data import Sample
 
 
@@ -47,6 +48,10 @@ REGIMES: dict[str, Regime] = {r.name: r for r in (
            "(RGB), low light)", photometric.synthetic_photometric),
     Regime("photometric_real", "Middlebury pairs, frame 2 under the split's photometric families (images the same "
            "in every split)", photometric.middlebury_photometric),
+    Regime("real_exact", "Real photographs moved by integer shifts and block-averaged by 2-4 (exact sub-pixel "
+           "flow), with a foreground cut from another photograph; grey and RGB", realexact.real_exact),
+    Regime("real_exact_photometric", "The real_exact pairs, frame 2 under the split's photometric families",
+           realexact.real_exact_photometric),
     Regime("bags", "The bundled bags (128x96; mono8, mono16, rgb8, png; noise and brightness in 'objects')",
            lambda split, q: data.bags(q), seeded=False),
 )}
