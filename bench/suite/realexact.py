@@ -205,6 +205,7 @@ def _frames(spec: Spec, colour: bool) -> tuple[np.ndarray, np.ndarray]:
 
 
 def has_colour(spec: Spec) -> bool:
+    """Whether both photographs of ``spec`` are RGB (then the pair also comes as an RGB sample)."""
     return photograph(spec.background).ndim == 3 and photograph(spec.foreground).ndim == 3
 
 

@@ -47,7 +47,8 @@ REGIMES: dict[str, Regime] = {r.name: r for r in (
            "(tune: gamma, vignetting, clipping; report: S-curve, log/knee, illumination, flicker, white balance "
            "(RGB), low light)", photometric.synthetic_photometric),
     Regime("photometric_real", "Middlebury pairs, frame 2 under the split's photometric families (images the same "
-           "in every split)", photometric.middlebury_photometric),
+           "in every split; without DualTVL1, which takes 10-30 s per pair on them)",
+           photometric.middlebury_photometric, exclude=("dualtvl1",)),
     Regime("real_exact", "Real photographs moved by integer shifts and block-averaged by 2-4 (exact sub-pixel "
            "flow), with a foreground cut from another photograph; grey and RGB", realexact.real_exact),
     Regime("real_exact_photometric", "The real_exact pairs, frame 2 under the split's photometric families",
