@@ -50,7 +50,7 @@ $(BENCH_STAMP): bench/requirements.txt requirements.txt setup.py
 
 bench-venv: $(BENCH_STAMP)
 
-# The broad accuracy suite (issue 11): every preset and the peers on every regime, one run (~45 min);
+# The broad accuracy suite (issue 11): every preset and the peers on every regime, one run (~20-30 min);
 # writes bench/results/suite.{json,md,png} and the generated section of BENCHMARKS.md.
 bench: $(BENCH_STAMP)
 	nice $(BENCH_VENV)/bin/python -m bench.suite --update-benchmarks
