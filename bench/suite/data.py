@@ -21,13 +21,17 @@ from ..common import DEFAULT_DATA, REPO, SEQUENCES
 
 LARGE_DATA = REPO.parent / "shared" / "data" / "large"
 BAGS = REPO / "bags"
+MIDDLEBURY_QUICK = ("Dimetrodon", "Grove3", "RubberWhale")
+LUMA = np.array([0.299, 0.587, 0.114])  # BT.601, as flow_node.bag.scenes.render_grey_pair
 
 
 @dataclass(frozen=True)
 class Sample:
     """One pair: frames f0, f1 ((H, W) or (H, W, 3); uint8, uint16 or float32 in [0, 1]), ground truth
-    (H, W, 2) float32 px (>= 1e9 or non-finite = unknown), content bit depth, and a variant label that the
-    report groups by (e.g. '10 bit', 'gain 1.25 -0.02'; '' = none)."""
+    (H, W, 2) float32 px (>= 1e9 or non-finite = unknown), content bit depth, a variant label that the
+    report groups by (e.g. '10 bit', 'gain 1.25 -0.02'; '' = none), and optionally the occluded pixels of
+    frame 0 ((H, W) bool, True = not visible in frame 1 or leaving the image; their ground truth stays
+    known, and the scores add ``aee_noc`` over the known pixels that are not occluded)."""
 
     name: str
     f0: np.ndarray
@@ -35,6 +39,7 @@ class Sample:
     gt: np.ndarray
     bits: int = 8
     variant: str = ""
+    occluded: np.ndarray | None = None
 
     @property
     def size(self) -> tuple[int, int]:
@@ -46,12 +51,20 @@ def _grey_file(path: Path) -> np.ndarray:
     return to_grey(read_image(path), path.name)
 
 
+def read_float(path: Path) -> np.ndarray:
+    """An 8-bit PNG as float64 in [0, 1]: (H, W) grey or (H, W, 3) RGB (alpha dropped)."""
+    img = read_image(path)
+    if img.dtype != np.uint8:
+        raise ValueError(f"{path}: expected an 8-bit image, got {img.dtype}")
+    return (img[..., :3] if img.ndim == 3 else img).astype(np.float64) / 255.0
+
+
 def middlebury(quick: bool, data: Path = DEFAULT_DATA) -> list[Sample]:
     """The 8 Middlebury training pairs frame10 -> frame11 (quick: 3 of them), grey float32 [0, 1] (BT.601
     luma, as bench/common.py hands them to every method)."""
     if not data.is_dir():
         raise FileNotFoundError(f"Middlebury data not found at {data}")
-    names = ("Dimetrodon", "Grove3", "RubberWhale") if quick else SEQUENCES
+    names = MIDDLEBURY_QUICK if quick else SEQUENCES
     return [Sample(n, _grey_file(data / n / "frame10.png"), _grey_file(data / n / "frame11.png"),
                    read_flo(data / n / "flow10.flo")) for n in names]
 

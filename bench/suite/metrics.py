@@ -40,11 +40,14 @@ def ause(flow: np.ndarray, gt: np.ndarray, confidence: np.ndarray) -> float:
     return float(np.mean(_curve(err, by_conf) - _curve(err, oracle)))
 
 
-def score_pair(out: Any, gt: np.ndarray) -> dict[str, float]:
-    """AEE (px), AE (deg), and AUSE if ``out`` = (flow, confidence) has a confidence."""
+def score_pair(out: Any, gt: np.ndarray, occluded: np.ndarray | None = None) -> dict[str, float]:
+    """AEE (px), AE (deg), AUSE if ``out`` = (flow, confidence) has a confidence, and with ``occluded``
+    ((H, W) bool) ``aee_noc``, the AEE over the known pixels that are not occluded."""
     flow, conf = (out if isinstance(out, tuple) else (out, None))
     flow = np.asarray(flow, np.float32)
     res = {"aee": aee(flow, gt), "ae": angular_error(flow, gt)}
+    if occluded is not None:
+        res["aee_noc"] = aee(flow, np.where(occluded[..., None], np.inf, gt))
     if conf is not None:
         res["ause"] = ause(flow, gt, conf)
     return res
@@ -56,9 +59,10 @@ def _mean(rows: list[dict[str, Any]], key: str) -> float | None:
 
 
 def summarise(per_pair: dict[str, dict[str, Any]]) -> dict[str, Any]:
-    """Means over the pairs (and per variant) of aee, ae, seconds (the per-pair medians), ause."""
+    """Means over the pairs (and per variant) of aee, ae, seconds (the per-pair medians), ause, aee_noc
+    (the last two over the pairs that have them)."""
     rows = list(per_pair.values())
-    out: dict[str, Any] = {k: _mean(rows, k) for k in ("aee", "ae", "seconds", "ause")}
+    out: dict[str, Any] = {k: _mean(rows, k) for k in ("aee", "ae", "seconds", "ause", "aee_noc")}
     if out["ause"] is not None and out["aee"]:
         out["ause_rel"] = out["ause"] / out["aee"]
     variants = list(dict.fromkeys(r["variant"] for r in rows if r["variant"]))  # in order of appearance

@@ -1,7 +1,8 @@
 """The suite's regimes: a name, a one-line title, and how to build its samples for a split.
 
 Recorded data (Middlebury, large motions, bags) is the same in every split; the synthetic regimes draw
-their seeds from the split (see :mod:`.synthetic`).
+their seeds from the split (see :mod:`.synthetic`), the photometric regimes their families of changes (see
+:mod:`.photometric`), and ``real_exact`` its photographs and shifts (see :mod:`.realexact`).
 """
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from . import data, synthetic
+from . import data, photometric, realexact, synthetic
 from .data import Sample
 
 
@@ -42,6 +43,16 @@ REGIMES: dict[str, Regime] = {r.name: r for r in (
     Regime("exposure", "Fine textures 320x240, frame 2 with gain 0.75-1.33 and an offset", synthetic.exposure),
     Regime("low_contrast", "Fine textures 320x240 spanning 24 or 10 grey levels", synthetic.low_contrast),
     Regime("flat", "Fine textures 320x240 with ~half the area flat", synthetic.flat_areas),
+    Regime("photometric", "Fine textures 320x240 (grey 0.04-0.96), frame 2 under the split's photometric families "
+           "(tune: gamma, vignetting, clipping; report: S-curve, log/knee, illumination, flicker, white balance "
+           "(RGB), low light)", photometric.synthetic_photometric),
+    Regime("photometric_real", "Middlebury pairs, frame 2 under the split's photometric families (images the same "
+           "in every split; without DualTVL1, which takes 10-30 s per pair on them)",
+           photometric.middlebury_photometric, exclude=("dualtvl1",)),
+    Regime("real_exact", "Real photographs moved by integer shifts and block-averaged by 2-4 (exact sub-pixel "
+           "flow), with a foreground cut from another photograph; grey and RGB", realexact.real_exact),
+    Regime("real_exact_photometric", "The real_exact pairs, frame 2 under the split's photometric families",
+           realexact.real_exact_photometric),
     Regime("bags", "The bundled bags (128x96; mono8, mono16, rgb8, png; noise and brightness in 'objects')",
            lambda split, q: data.bags(q), seeded=False),
 )}

@@ -50,14 +50,15 @@ def quantise(img: np.ndarray, bits: int) -> np.ndarray:
 
 
 def scene_for(index: int, seed: int, size: tuple[int, int], contrast: float | None = None,
-              flat: bool = False) -> tuple[Scene, str]:
+              flat: bool = False, span: tuple[float, float] = (0.1, 0.72)) -> tuple[Scene, str]:
     """The scene of ``seed`` at ``size`` (width, height) and its label 'motion/band': motion kind and band
-    cycle with ``index``; ``contrast`` (fraction of full scale) narrows the grey range about 0.41;
-    ``flat`` blends about half the area to a constant grey."""
+    cycle with ``index``; the texture's grey range is ``span`` (the same texture and motion for any span),
+    or with ``contrast`` (fraction of full scale) a narrower range about 0.41; ``flat`` blends about half
+    the area to a constant grey."""
     kind = FINE_MOTIONS[index % len(FINE_MOTIONS)]
     band = tuple(BANDS)[index % len(BANDS)]  # 4 motions x 3 bands: every combination in 12 seeds
     rng = np.random.default_rng(seed)
-    lo, hi = (0.1, 0.72) if contrast is None else (0.41 - contrast / 2, 0.41 + contrast / 2)
+    lo, hi = span if contrast is None else (0.41 - contrast / 2, 0.41 + contrast / 2)
     tex = BandTexture.band(rng, *BANDS[band], lo=lo, hi=hi)
     motion = fine_motion(kind, size, rng)
     if flat:
