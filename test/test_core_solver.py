@@ -19,8 +19,9 @@ BOUND = {"l2_l2": 0.008, "l2_tv": 0.015, "l1_tv": 0.005, "l1_tv_l2": 0.005, "l1_
 
 
 def small_config(model: str, **kw) -> FlowConfig:
+    # the paper's data terms on grey values (the census data term has its own tests: test_census.py)
     base = dict(model=model, alpha=ALPHA[model], backend="numpy", levels=3, warps=3, iterations=50,
-                median_filter=0)
+                median_filter=0, photometric="normalise")
     base.update(kw)
     return FlowConfig(**base)
 

@@ -21,6 +21,7 @@ from synth import constant_flow, interior, pair_from_flow, rotation_flow, textur
 from flow_node.core import numba_backend
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
+from flow_node.core.census import census_form, level_signature
 from flow_node.core.config import MODELS, FlowConfig
 from flow_node.core.errors import ConfigError
 from flow_node.core.fusion import fuse
@@ -28,6 +29,7 @@ from flow_node.core.initialise import forward_backward_consistent
 from flow_node.core.metrics import aee
 from flow_node.core.models import MODEL_SPECS
 from flow_node.core.numba_backend import WARPER, linearise_numba, reliability_numba, solve_numba
+from flow_node.core.numba_census import census_form_numba, level_signature_numba
 from flow_node.core.numba_fusion import consistent_numba, fuse_numba
 from flow_node.core.operators import linearise
 from flow_node.core.photometric import reliability
@@ -238,8 +240,10 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
         logger.setLevel(old)
 
 
-NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability, fuse, forward_backward_consistent)
-NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, reliability_numba, fuse_numba, consistent_numba)
+NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability, fuse, forward_backward_consistent,
+                level_signature, census_form)
+NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, reliability_numba, fuse_numba, consistent_numba,
+                level_signature_numba, census_form_numba)
 
 
 def test_backend_selection_and_log() -> None:
