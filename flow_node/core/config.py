@@ -247,14 +247,16 @@ class FlowConfig:
 
 
 # The calibrated weights of each model: the defaults of alpha/alpha1 when a model is chosen without them.
-# On normalised pairs (photometric="normalise") with the default pyramid, the best of a grid on the 8
-# Middlebury pairs (`python -m bench.accuracy --model-search`; BENCHMARKS.md, "Model-aware weights").
+# For the census data term (the default, issue 25) with the default pyramid, the best of a small grid on the 8
+# Middlebury pairs (docs/engine.md, "Model-aware weights"): mean AEE l2_l2 0.405, l2_tv 0.353, l1_tv 0.349,
+# l1_tv_l2 0.352, l1_tv_tv 0.369. The grey-value data term's (photometric=normalise; `python -m bench.accuracy
+# --model-search`) were alpha 0.0003 / 0.0002 / 0.03 / 0.03 / 0.02.
 MODEL_WEIGHTS: dict[str, dict[str, float]] = {
-    "l2_l2": dict(alpha=0.0003, alpha1=0.5),
-    "l2_tv": dict(alpha=0.0002, alpha1=0.5),
-    "l1_tv": dict(alpha=0.03, alpha1=0.5),
-    "l1_tv_l2": dict(alpha=0.03, alpha1=0.5),
-    "l1_tv_tv": dict(alpha=0.02, alpha1=0.5),
+    "l2_l2": dict(alpha=0.02, alpha1=0.5),
+    "l2_tv": dict(alpha=0.01, alpha1=0.5),
+    "l1_tv": dict(alpha=0.045, alpha1=0.5),
+    "l1_tv_l2": dict(alpha=0.045, alpha1=0.5),
+    "l1_tv_tv": dict(alpha=0.03, alpha1=0.5),
 }
 
 
