@@ -94,3 +94,56 @@ FASTDDS_BUILTIN_TRANSPORTS=UDPv4 launch_until_warm launch3
 grep -q "middleware rmw_fastrtps_cpp, built-in transports UDPv4" "$log/launch3" \
   || fail "launch overrode FASTDDS_BUILTIN_TRANSPORTS: $(cat "$log/launch3")"
 echo "ok: ros2 launch keeps the user's FASTDDS_BUILTIN_TRANSPORTS"
+
+# the managed (lifecycle) node through the ros2 lifecycle CLI (docs/node.md, "Managed (lifecycle) node")
+life() { graph ros2 lifecycle "$1" /smoke_life ${2:+"$2"}; }
+flow_within() { timeout "$1" ros2 topic echo --once /smoke_life/flow_pair sensor_msgs/msg/TimeReference 2>&1; }
+start managed ros2 run flow_node flow_node --ros-args -r __node:=smoke_life -r image:=/smoke/life \
+  --params-file "$share/config/fastest.yaml" -p managed:=true
+for _ in $(seq 60); do v=$(life get); has "$v" "^unconfigured \[1\]" && break; sleep 1; done
+has "$v" "^unconfigured \[1\]" || fail "managed node not waiting unconfigured: $v $(cat "$log/managed")"
+has "$(param /smoke_life preset)" "String value is: fastest" || fail "unconfigured: parameter service"
+has "$(life set configure)" "Transitioning successful" || fail "lifecycle set configure: $(cat "$log/managed")"
+has "$(life get)" "^inactive \[2\]" || fail "configure did not make it inactive: $(life get)"
+grep -q "engine warm-up" "$log/managed" || fail "configure returned before the warm-up: $(cat "$log/managed")"
+start play2 ros2 run flow_node flow_bag play "$bag" --loop --topic-remap /camera/image_raw:=/smoke/life
+sleep 2
+out=$(flow_within 6)
+! has "$out" "earlier_frame" || fail "an inactive node published flow: $out"
+has "$(graph ros2 param set /smoke_life iterations 7)" "Set parameter successful" || fail "inactive: param set"
+has "$(param /smoke_life iterations)" "Integer value is: 7" || fail "inactive: param get"
+diag=$(timeout 10 ros2 topic echo --once /diagnostics diagnostic_msgs/msg/DiagnosticArray 2>&1)
+has "$diag" "value: inactive" || fail "diagnostics do not report the lifecycle state: $diag"
+echo "ok: ros2 lifecycle get/set configure; inactive: no flow while frames come, parameters answer, diagnostics say so"
+has "$(life set activate)" "Transitioning successful" || fail "lifecycle set activate: $(cat "$log/managed")"
+has "$(life get)" "^active \[3\]" || fail "activate: $(life get)"
+out=$(flow_within 20)
+has "$out" "source: earlier_frame" || fail "no flow once active: $out $(cat "$log/managed")"
+has "$(life set deactivate)" "Transitioning successful" || fail "lifecycle set deactivate: $(cat "$log/managed")"
+has "$(life get)" "^inactive \[2\]" || fail "deactivate: $(life get)"
+sleep 1
+out=$(flow_within 6)
+! has "$out" "earlier_frame" || fail "flow after deactivate: $out"
+has "$(param /smoke_life iterations)" "Integer value is: 7" || fail "deactivate lost the parameters"
+echo "ok: ros2 lifecycle set activate (flow) and deactivate (no flow, parameters kept)"
+stop play2
+has "$(life set shutdown)" "Transitioning successful" || fail "lifecycle set shutdown: $(cat "$log/managed")"
+for _ in $(seq 20); do kill -0 "$pid_managed" 2>/dev/null || break; sleep 0.5; done
+rc=0; wait "$pid_managed" || rc=$?
+[ "$rc" = 0 ] || fail "managed node exit code $rc after shutdown: $(cat "$log/managed")"
+! grep -q Traceback "$log/managed" || fail "managed node traceback: $(cat "$log/managed")"
+echo "ok: ros2 lifecycle set shutdown: the process exits 0"
+
+# the launch file brings a managed node to active itself, or leaves it to a manager
+start launch4 ros2 launch flow_node flow_node.launch.py node_name:=smoke_lm managed:=true
+for _ in $(seq 60); do v=$(graph ros2 lifecycle get /smoke_lm); has "$v" "^active \[3\]" && break; sleep 1; done
+has "$v" "^active \[3\]" || fail "launch managed:=true did not activate: $v $(cat "$log/launch4")"
+stop launch4
+! grep -qi "traceback\|error" "$log/launch4" || fail "launch managed:=true: $(cat "$log/launch4")"
+start launch5 ros2 launch flow_node flow_node.launch.py node_name:=smoke_lu managed:=true autostart:=false
+for _ in $(seq 60); do v=$(graph ros2 lifecycle get /smoke_lu); has "$v" "^unconfigured" && break; sleep 1; done
+sleep 2
+has "$(graph ros2 lifecycle get /smoke_lu)" "^unconfigured \[1\]" || fail "autostart:=false: $(cat "$log/launch5")"
+has "$(graph ros2 lifecycle set /smoke_lu configure)" "Transitioning successful" || fail "launch5 configure"
+stop launch5
+echo "ok: ros2 launch managed:=true (active on its own) and autostart:=false (waits for a manager)"

@@ -203,7 +203,7 @@ class InProcessRig(Rig):
         self.executor.add_node(self.node)
         self._start()
         _wait(lambda: self.node.ready and self.pub.get_subscription_count() > 0
-              and self.node._pub_flow.get_subscription_count() > 0, 120.0)
+              and self.node._pubs["flow"].get_subscription_count() > 0, 120.0)
         self.backend = self.node._stream.backend
 
     def handled(self) -> int:

@@ -99,7 +99,7 @@ class Harness:
         wait_for(lambda: self.node.ready, 30.0, "engine warm-up")
         wait_for(lambda: self.pub.get_subscription_count() > 0 or self.pub_compressed.get_subscription_count() > 0,
                  10.0, "node subscription matched")
-        wait_for(lambda: self.node._pub_flow.get_subscription_count() > 0, 10.0, "flow subscription matched")
+        wait_for(lambda: self.node._pubs["flow"].get_subscription_count() > 0, 10.0, "flow subscription matched")
 
     def _collector(self, topic: str) -> Callable[[Any], None]:
         def cb(msg: Any) -> None:

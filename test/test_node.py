@@ -25,7 +25,7 @@ from std_srvs.srv import Trigger
 
 from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import array_to_image_fields, image_to_array
-from flow_node.ros import node as node_mod
+from flow_node.ros import messages
 
 AEE_BOUND = 0.25  # px; the same pair through the pipeline directly gives 0.06
 
@@ -262,9 +262,9 @@ def test_every_executable_keeps_freed_memory_before_its_work(module: str, argv: 
 @pytest.mark.parametrize("direct", [True, False])
 def test_published_payload_is_the_array_on_both_message_paths(direct: bool, monkeypatch: pytest.MonkeyPatch) -> None:
     """image_msg hands the numpy payload to publish without a Python copy where the generated class allows it
-    (node._DIRECT_DATA), else through an array.array; over DDS both arrive as exactly the array sent."""
-    assert node_mod._DIRECT_DATA  # the fast path exists on Jazzy; if rosidl changes, this says so
-    monkeypatch.setattr(node_mod, "_DIRECT_DATA", direct)
+    (messages._DIRECT_DATA), else through an array.array; over DDS both arrive as exactly the array sent."""
+    assert messages._DIRECT_DATA  # the fast path exists on Jazzy; if rosidl changes, this says so
+    monkeypatch.setattr(messages, "_DIRECT_DATA", direct)
     ctx = Context()
     rclpy.init(context=ctx)
     try:
@@ -278,7 +278,7 @@ def test_published_payload_is_the_array_on_both_message_paths(direct: bool, monk
         while pub.get_subscription_count() == 0 and time.monotonic() < end:
             executor.spin_once(timeout_sec=0.05)
         flow = np.random.default_rng(5).normal(size=(H, W, 2)).astype(np.float32)
-        msg = node_mod.image_msg(Header(frame_id=FRAME_ID), array_to_image_fields(flow, "32FC2"))
+        msg = messages.image_msg(Header(frame_id=FRAME_ID), array_to_image_fields(flow, "32FC2"))
         assert isinstance(msg.data, np.ndarray) == direct
         while not got and time.monotonic() < end:
             pub.publish(msg)

@@ -17,7 +17,8 @@ def test_confidence_is_published_only_while_subscribed() -> None:
         assert last is not None and last._confidence is None  # nobody subscribed: not even computed
         got: list[Image] = []
         sub = h.client.create_subscription(Image, f"{h.full_name}/confidence", got.append, 10)
-        wait_for(lambda: h.node._pub_conf.get_subscription_count() > 0, 10.0, "confidence subscription matched")
+        wait_for(lambda: h.node._pubs["confidence"].get_subscription_count() > 0, 10.0,
+                 "confidence subscription matched")
         h.send_frame(image(mono8(I0), "mono8", 3_000))  # the pair (I1 -> I0) is the motion reversed
         wait_for(lambda: got, 10.0, "a confidence message")
         msg = got[-1]
@@ -28,7 +29,7 @@ def test_confidence_is_published_only_while_subscribed() -> None:
         assert np.median(conf) > 0.5  # a textured shift solved well: confident in the interior
         assert conf[:, :2].mean() < 0.2  # the motion is -1.5 px in x from I1 to I0: the left edge leaves
         h.client.destroy_subscription(sub)
-        wait_for(lambda: h.node._pub_conf.get_subscription_count() == 0, 10.0, "confidence unsubscribed")
+        wait_for(lambda: h.node._pubs["confidence"].get_subscription_count() == 0, 10.0, "confidence unsubscribed")
         h.send_frame(image(mono8(I1), "mono8", 4_000))
         assert h.node._stats._last._confidence is None
     finally:

@@ -47,7 +47,7 @@ def flood(h: Harness, n: int, start_stamp: int) -> dict[int, float]:
 
 def drained(h: Harness) -> bool:
     """Every frame received so far was handled or replaced, and none waits: the worker is idle."""
-    return h.totals.processed + h.totals.dropped >= h.totals.received and h.node._mailbox._item is None
+    return h.totals.processed + h.totals.dropped >= h.totals.received and h.node._worker.mailbox._item is None
 
 
 def test_flood_keeps_memory_flat_latency_bounded_and_counts_drops() -> None:

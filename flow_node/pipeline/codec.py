@@ -236,7 +236,7 @@ def array_to_image_fields(arr: np.ndarray, encoding: str) -> dict[str, Any]:
     ``arr`` must already be in the encoding's channel order (e.g. B, G, R for bgr8) with the encoding's
     dtype: (H, W) or (H, W, C). Returns ``height, width, encoding, is_bigendian (0), step, data`` with data
     a contiguous 1-D numpy uint8 array (rosbags takes it as is; rclpy's setter would copy it into an
-    ``array.array``, which :func:`flow_node.ros.node.image_msg` avoids). Bayer and YUV encodings are decode-only.
+    ``array.array``, which :func:`flow_node.ros.messages.image_msg` avoids). Bayer and YUV encodings are decode-only.
     """
     enc = _lookup(encoding)
     if enc.kind in ("bayer", "yuv"):

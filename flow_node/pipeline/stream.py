@@ -150,7 +150,7 @@ class FlowStream:
         self._settings = settings if settings is not None else StreamSettings()
         self._estimator = FlowEstimator(self._settings.config)
         self._pending: StreamSettings | None = None
-        self._reset_requested = False
+        self._reset_requested: str | None = None  # the reason of a reset asked for
         self._lock = threading.Lock()
         self._prev: np.ndarray | None = None
         self._prev_key: tuple[tuple[int, ...], str] | None = None
@@ -178,10 +178,10 @@ class FlowStream:
             self._pending = replace(base, **changes)
             return self._pending
 
-    def reset(self) -> None:
-        """Drop the previous frame before the next one (that frame then starts a new pair)."""
+    def reset(self, reason: str = "reset requested") -> None:
+        """Drop the previous frame before the next one (that frame then starts a new pair, for ``reason``)."""
         with self._lock:
-            self._reset_requested = True
+            self._reset_requested = reason
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
         """Compile/warm the engine with the current config; returns seconds."""
@@ -191,8 +191,7 @@ class FlowStream:
         """Apply scheduled settings and reset requests; returns a reset reason or None."""
         with self._lock:
             pending, self._pending = self._pending, None
-            reset, self._reset_requested = self._reset_requested, False
-        reason = "reset requested" if reset else None
+            reason, self._reset_requested = self._reset_requested, None
         if pending is not None:
             if pending.input_scale != self._settings.input_scale:
                 reason = reason or "input_scale changed"
@@ -227,7 +226,7 @@ class FlowStream:
         reason = self._apply_pending()
         grey = self._prepare(frame, channel_order)
         key = (tuple(frame.shape), encoding)
-        if reason is None and self._prev is None:
+        if self._prev is None:  # whatever was asked for before
             reason = "first frame"
         elif reason is None and key != self._prev_key:
             reason = (f"size changed {self._prev_key[0]} -> {key[0]}" if key[0] != self._prev_key[0]

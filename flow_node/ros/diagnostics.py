@@ -81,6 +81,11 @@ class NodeStats:
             self.totals.dropped += int(dropped_previous)
             self._last_input = time.monotonic()
 
+    def dropped(self) -> None:
+        """A received frame was discarded without being handled (the node was deactivated)."""
+        with self._lock:
+            self.totals.dropped += 1
+
     def rejected(self, reason: str) -> None:
         with self._lock:
             self.totals.rejected += 1
@@ -143,13 +148,28 @@ def too_slow(w: Window) -> str | None:
             "(use preset realtime or fastest, or input_scale < 1)")
 
 
-def level_of(w: Window, ready: bool, backend_warning: str | None = None) -> tuple[int, str]:
-    """Level and reason: ERROR if the engine failed or every frame of the period was rejected; WARN while
-    warming up, without input for 3 periods, with rejections, when the solver is slower than the input
-    (:func:`too_slow`), drops more than half the frames, or when a flow of the period left more than
-    UNRELIABLE of its pixels unexplained (photometric.reliability). ``backend_warning`` (the numpy fallback:
-    numba missing) makes any OK a WARN and is appended to every other reason: it lasts as long as the process."""
-    level, reason = _level_of(w, ready)
+def lifecycle_level(state: str, failure: str = "") -> tuple[int, str] | None:
+    """Level and reason of a node that is not active (None when it is: the frame rules apply). Inactive and
+    unconfigured are states a lifecycle manager chose, so OK with the state as the message; after a failed
+    transition (``failure``: "configure failed: <reason>") an ERROR with the reason."""
+    if state == "active":
+        return None
+    if failure:
+        return ERROR, f"{state}: {failure}"
+    what = {"unconfigured": "waiting for configure", "inactive": "frames are not processed until activated",
+            "finalized": "shut down"}.get(state, "in transition")
+    return OK, f"{state}: {what} (lifecycle)"
+
+
+def level_of(w: Window, ready: bool, backend_warning: str | None = None, lifecycle_state: str = "active",
+             failure: str = "") -> tuple[int, str]:
+    """Level and reason: :func:`lifecycle_level` when the node is not active; else ERROR if the engine failed
+    or every frame of the period was rejected; WARN while warming up, without input for 3 periods, with
+    rejections, when the solver is slower than the input (:func:`too_slow`), drops more than half the frames,
+    or when a flow of the period left more than UNRELIABLE of its pixels unexplained
+    (photometric.reliability). ``backend_warning`` (the numpy fallback: numba missing) makes any OK a WARN and
+    is appended to every other reason: it lasts as long as the process."""
+    level, reason = lifecycle_level(lifecycle_state, failure) or _level_of(w, ready)
     if not backend_warning:
         return level, reason
     return (WARN, backend_warning) if level == OK else (level, f"{reason}; {backend_warning}")
@@ -186,12 +206,16 @@ def _ms(values: list[float], fn: str) -> str:
 
 
 def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str, model: str,
-           input_scale: float, resolution: str, backend_warning: str | None = None) -> DiagnosticStatus:
-    """The DiagnosticStatus for one period (name is "<node name>: <task>", as diagnostic_updater does)."""
-    level, message = level_of(w, ready, backend_warning)
+           input_scale: float, resolution: str, backend_warning: str | None = None,
+           lifecycle_state: str = "active", failure: str = "") -> DiagnosticStatus:
+    """The DiagnosticStatus for one period (name is "<node name>: <task>", as diagnostic_updater does);
+    ``lifecycle_state`` is the node's (flow_node.ros.lifecycle), ``failure`` the reason its last transition
+    failed."""
+    level, message = level_of(w, ready, backend_warning, lifecycle_state, failure)
     period = max(w.seconds, 1e-9)
     s = w.summary
     pairs = [
+        ("lifecycle state", lifecycle_state),
         ("input rate (Hz)", f"{w.received / period:.2f}"),
         ("output rate (Hz)", f"{w.published / period:.2f}"),
         ("solve time mean (ms)", _ms(w.solve_times, "mean")),

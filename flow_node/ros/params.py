@@ -73,6 +73,9 @@ def param_specs() -> list[ParamSpec]:
                   read_only=True),
         ParamSpec("warmup", bool, True, "run one small solve at start-up so the first frame is not a JIT "
                   "compile", read_only=True),
+        ParamSpec("managed", bool, False, "lifecycle: false = the node configures and activates itself at "
+                  "start-up; true = it starts unconfigured and waits for a lifecycle manager (ros2 lifecycle "
+                  "set, the launch file's managed:=true)", read_only=True),
     ]
     return specs
 

@@ -52,6 +52,10 @@ def _param_service(name: str, what: str) -> Interface:
     return Interface(f"~/{name}", "reply", f"parameter service (rcl_interfaces/srv/{what}): ros2 param, rqt")
 
 
+def _lifecycle_service(name: str, what: str) -> Interface:
+    return Interface(f"~/{name}", "reply", f"lifecycle service (lifecycle_msgs/srv/{what}): ros2 lifecycle, launch")
+
+
 # Everything the node creates with its default settings, found by trial under Enforce (a missing entry stops
 # the node at start-up, e.g. /rosout, or makes that interface fail). One row per interface.
 INTERFACES: tuple[Interface, ...] = (
@@ -78,6 +82,13 @@ INTERFACES: tuple[Interface, ...] = (
     _param_service("set_parameters_atomically", "SetParametersAtomically"),
     Interface("~/get_type_description", "reply",
               "the message type descriptions of the node's topics (type_description_interfaces, ROS 2 Jazzy)"),
+    Interface("~/transition_event", "publish",
+              "lifecycle state changes (lifecycle_msgs/msg/TransitionEvent): launch, lifecycle managers"),
+    _lifecycle_service("change_state", "ChangeState"),
+    _lifecycle_service("get_state", "GetState"),
+    _lifecycle_service("get_available_states", "GetAvailableStates"),
+    _lifecycle_service("get_available_transitions", "GetAvailableTransitions"),
+    _lifecycle_service("get_transition_graph", "GetAvailableTransitions"),
 )
 
 # What any rclpy node (e.g. a client's own) creates by itself: the rows of INTERFACES that are not flow_node's.
