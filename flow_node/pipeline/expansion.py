@@ -29,9 +29,9 @@ from .robust import (
     TUKEY_ITERATIONS,
     check_flow,
     huber_weight,
-    masked_median,
     median_slopes,
-    robust_scale,
+    medoid_offset,
+    reweight,
     sample_flow,
     sample_step,
     tukey_weight,
@@ -128,8 +128,7 @@ def _affine_start(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.ndarray
     dx, dy = median_slopes(fields, *(np.broadcast_to(a.reshape(r, k, k), (2, r, k, k)) for a in (X, Y, keep)))
     coef = np.zeros((r, 3, 2))
     coef[:, 1, :], coef[:, 2, :] = np.nan_to_num(dx).T, np.nan_to_num(dy).T
-    rest = uv - coef[:, None, 1, :] * X[..., None] - coef[:, None, 2, :] * Y[..., None]
-    coef[:, 0, :] = np.nan_to_num(masked_median(np.moveaxis(rest, -1, 0), keep[None])).T
+    coef[:, 0, :] = medoid_offset(uv - coef[:, None, 1, :] * X[..., None] - coef[:, None, 2, :] * Y[..., None], keep)
     return coef
 
 
@@ -160,12 +159,11 @@ def region_ttc(flow: np.ndarray, confidence: np.ndarray, interval_s: float | Non
     half = np.maximum(1.0, (bounds[:, 2:4] - bounds[:, 0:2]) / 2.0)  # (R, 2) px
     mid = (bounds[:, 0:2] + bounds[:, 2:4] - 1) / 2.0
     X, Y = (px - mid[:, 0:1]) / half[:, 0:1], (py - mid[:, 1:2]) / half[:, 1:2]
-    coef, ok = _affine_start(X, Y, uv, conf, k), np.ones(count, bool)
+    coef, ok, weight = _affine_start(X, Y, uv, conf, k), np.ones(count, bool), None
     for psi, iterations in ((huber_weight, HUBER_ITERATIONS), (tukey_weight, TUKEY_ITERATIONS)):
         for _ in range(iterations):
-            residual = _affine_residual(X, Y, uv, coef)
-            scale = robust_scale(residual, conf)[:, None]
-            previous, (coef, ok) = coef, _affine_fits(X, Y, uv, conf * psi(residual / scale))
+            weight = reweight(_affine_residual(X, Y, uv, coef), conf, weight, psi)
+            previous, (coef, ok) = coef, _affine_fits(X, Y, uv, weight)
             # |X|, |Y| <= 1: no sample's model flow moved by more than the coefficients' changes together
             if np.max(np.abs(coef - previous).sum(axis=1)) < CONVERGED_PX:
                 break

@@ -27,8 +27,8 @@ from .robust import (
     Samples,
     check_flow,
     fit_robust,
-    masked_median,
     median_slopes,
+    medoid_offset,
     sample_flow,
     sample_step,
 )
@@ -160,15 +160,16 @@ class _Frame:
     def similarity_start(self) -> np.ndarray:
         """A robust start (tx, ty, a, b) for :meth:`similarity`: a and b from the median slopes of the
         confident samples (du/dx and dv/dy both estimate a, dv/dx and -du/dy both b), the translation the
-        median of what they leave; zeros where nothing is confident enough."""
+        :func:`~flow_node.pipeline.robust.medoid_offset` of what they leave; zeros where nothing is
+        confident enough."""
         s = self.s
         keep = s.w >= START_CONFIDENCE
         dudx, dudy = median_slopes(s.u, s.x, s.y, keep)
         dvdx, dvdy = median_slopes(s.v, s.x, s.y, keep)
         a, b = np.nan_to_num([(dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0])
-        X, Y, k = self.X * self.half, self.Y * self.half, keep.ravel()
-        tx, ty = np.nan_to_num([masked_median(s.u.ravel() - a * X + b * Y, k),
-                                masked_median(s.v.ravel() - b * X - a * Y, k)])
+        X, Y = self.X * self.half, self.Y * self.half
+        rest = np.stack([s.u.ravel() - a * X + b * Y, s.v.ravel() - b * X - a * Y], axis=-1)
+        tx, ty = medoid_offset(rest, keep.ravel())
         return np.array([tx / self.half, ty / self.half, a, b])
 
     def to_pixels(self, h: np.ndarray) -> np.ndarray:
@@ -184,12 +185,13 @@ def dominant_motion(flow: np.ndarray, confidence: np.ndarray, threshold: MaskThr
                     samples: int = SAMPLES) -> DominantMotion | None:
     """The dominant motion of ``flow`` (H, W, 2) px/frame weighted by ``confidence`` (H, W) in [0, 1].
 
-    On ~``samples`` grid points: a robust similarity first (Huber then Tukey IRLS, confidence as weight),
-    then, from it, a robust homography by Gauss-Newton IRLS on the endpoint error in px. The similarity
-    gives tx, ty, rotation and scale; the homography the inlier share (within ``threshold``, default
-    :class:`MaskThreshold`) and what :func:`moving_mask` compares against. None when fewer than 8
-    samples have confidence > 0 or a fit has no support. Cost: independent of the image size beyond the
-    subsampling (~1 ms).
+    On a regular grid of ~``samples`` points (so the cost hardly depends on the image size): a similarity
+    from a robust start (median slopes, :meth:`_Frame.similarity_start`) refined by IRLS (one Huber step,
+    then Tukey's biweight; confidence times the robust weight), then from it a homography by Gauss-Newton
+    IRLS (biweight) on the endpoint error in px; where that fails, the similarity stands in for it. The
+    similarity gives tx, ty, rotation and scale; the homography the inlier share (within ``threshold``,
+    default :class:`MaskThreshold`) and what :func:`moving_mask` compares against. None when fewer than 8
+    samples have confidence > 0 or the similarity has no support.
     """
     check_flow(flow, confidence)
     threshold = threshold if threshold is not None else MaskThreshold()
@@ -206,8 +208,8 @@ def dominant_motion(flow: np.ndarray, confidence: np.ndarray, threshold: MaskThr
     start = np.array([1 + a, -b, tx, b, 1 + a, ty, 0.0, 0.0])
     hom = fit_robust(frame.homography, start, w, huber_iterations=0)  # the similarity's outliers are far
     if hom is None or not np.all(np.isfinite(hom.params)):
-        return None
-    hp = frame.to_pixels(hom.params)
+        hom = sim  # the similarity stands in (its residual scale with it)
+    hp = frame.to_pixels(hom.params if hom is not sim else start)
     pu, pv = apply_homography(hp, s.x, s.y)
     inlier = ~threshold.deviates(s.u - pu, s.v - pv, pu, pv)
     share = float(np.sum(s.w * inlier) / np.sum(s.w))

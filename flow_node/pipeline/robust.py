@@ -25,6 +25,8 @@ MIN_SCALE_PX = 0.02  # floor of the robust residual scale: an exact flow must no
 HUBER_ITERATIONS = 1  # from a robust start (median_slopes): one Huber step, then the biweight
 TUKEY_ITERATIONS = 5  # at most, then: the redescending stage, residuals beyond TUKEY_C scales weigh nothing
 SLOPE_SPAN = 1 / 8  # median_slopes: pairs this fraction of the grid apart
+START_QUANTILE = 0.25  # the first IRLS scale comes from this quantile of the residuals (reweight)
+START_CANDIDATES = 16  # medoid_offset: candidate samples for the start's offset
 START_CONFIDENCE = 0.5  # samples at least this confident make the robust start (median_slopes)
 CONVERGED_PX = 1e-3  # a step that moves no sample by more than this ends a stage
 
@@ -65,25 +67,45 @@ def sample_flow(flow: np.ndarray, confidence: np.ndarray, step: int) -> Samples:
     return Samples(xs, ys, sub[..., 0], sub[..., 1], np.clip(confidence[o::step, o::step].astype(np.float64), 0.0, 1.0))
 
 
-def masked_median(values: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """The (lower) median along the last axis of ``values`` over the entries where ``keep`` (same shape);
-    NaN where none is kept. Shape: ``values.shape[:-1]``."""
-    if values.ndim == 1:  # one median: a partition, O(n)
+def masked_quantile(values: np.ndarray, keep: np.ndarray, q: float = 0.5) -> np.ndarray:
+    """The ``q`` quantile (lower: the entry of rank floor((n - 1) q)) along the last axis of ``values`` over
+    the entries where ``keep`` (same shape); NaN where none is kept. Shape: ``values.shape[:-1]``."""
+    if values.ndim == 1:  # one quantile: a partition, O(n)
         kept = values[keep]
-        k = (kept.size - 1) // 2
+        k = int((kept.size - 1) * q)
         return np.asarray(np.partition(kept, k)[k] if kept.size else np.nan)
     v = np.where(keep, values, np.inf)
     v.sort(axis=-1)
     n = np.count_nonzero(keep, axis=-1)
-    med = np.take_along_axis(v, (np.maximum(n, 1) - 1)[..., None] // 2, axis=-1)[..., 0]
-    return np.where(n > 0, med, np.nan)
+    rank = (np.maximum(n, 1) - 1) * q
+    out = np.take_along_axis(v, rank.astype(np.int64)[..., None], axis=-1)[..., 0]
+    return np.where(n > 0, out, np.nan)
 
 
-def robust_scale(residual: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """1.4826 x the median residual (px) along the last axis over the samples of nonzero ``weight``: the
-    standard deviation of Gaussian residuals, unmoved by up to half of them being outliers; at least
-    MIN_SCALE_PX. Shape ``residual.shape[:-1]`` (a 0-d array for 1-d input)."""
-    return np.fmax(MIN_SCALE_PX, 1.4826 * masked_median(residual, weight > 0.0))  # fmax: NaN -> the floor
+def masked_median(values: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """:func:`masked_quantile` at 1/2."""
+    return masked_quantile(values, keep, 0.5)
+
+
+def robust_scale(residual: np.ndarray, keep: np.ndarray, q: float = 0.5) -> np.ndarray:
+    """The robust scale px of endpoint residuals along the last axis over the entries where ``keep``:
+    1.4826 x their median, or, from another quantile ``q``, that quantile times what it is to the median
+    for 2-D Gaussian errors (Rayleigh: sqrt(ln 2 / -ln(1 - q))). At least MIN_SCALE_PX (also where nothing
+    is kept). Shape ``residual.shape[:-1]`` (0-d for 1-d input)."""
+    factor = 1.4826 * math.sqrt(math.log(2.0) / -math.log(1.0 - q))
+    return np.fmax(MIN_SCALE_PX, factor * masked_quantile(residual, keep, q))  # fmax: NaN -> the floor
+
+
+def reweight(residual: np.ndarray, confidence: np.ndarray, weight: np.ndarray | None,
+             psi: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """IRLS weights ``confidence`` x psi(r / s) of endpoint residuals r px (arrays (..., n); fits along
+    the last axis). The scale s: on the first iteration (``weight`` None) from the START_QUANTILE quantile
+    of the samples with confidence > 0, so a start inside a group of at least that share of the samples
+    keeps it, even when another group is the larger; afterwards the median of the samples whose current
+    ``weight`` > 0, so a group the biweight has dropped does not return through the scale."""
+    keep = confidence > 0.0 if weight is None else weight > 0.0
+    scale = robust_scale(residual, keep, START_QUANTILE if weight is None else 0.5)
+    return confidence * psi(residual / np.asarray(scale)[..., None])
 
 
 def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -106,6 +128,23 @@ def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndar
     return out[0], out[1]
 
 
+def medoid_offset(rest: np.ndarray, keep: np.ndarray, candidates: int = START_CANDIDATES) -> np.ndarray:
+    """A robust 2-D location of the vectors ``rest`` (..., m, 2) over the entries where ``keep`` (..., m):
+    of ~``candidates`` samples spread over the m, the one whose median distance to the kept samples (to
+    ~4 x ``candidates`` of them spread over the m) is the least (least median of squares over candidates).
+    Unlike the per-component median it is one sample of one group, also when two groups are almost
+    equally large. Shape (..., 2); 0 where nothing is kept."""
+    m = rest.shape[-2]
+    idx, ref = (np.unique(np.rint(np.linspace(0, m - 1, min(m, c))).astype(np.int64))
+                for c in (candidates, 4 * candidates))
+    cand, other = rest[..., idx, :], rest[..., ref, :]  # (..., c, 2), (..., r, 2)
+    d = np.hypot(other[..., None, :, 0] - cand[..., :, None, 0], other[..., None, :, 1] - cand[..., :, None, 1])
+    score = np.where(keep[..., idx], masked_median(d, np.broadcast_to(keep[..., None, ref], d.shape)), np.inf)
+    best = np.argmin(np.nan_to_num(score, nan=np.inf), axis=-1)
+    out = np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
+    return np.where(np.any(keep, axis=-1)[..., None], out, 0.0)
+
+
 def huber_weight(z: np.ndarray) -> np.ndarray:
     """Huber's IRLS weight of residuals ``z`` in robust scales: 1 up to HUBER_K, HUBER_K / z beyond."""
     return np.minimum(1.0, HUBER_K / np.maximum(z, 1e-12))
@@ -125,12 +164,11 @@ Linearise = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 @dataclass(frozen=True)
 class RobustFit:
-    """The result of :func:`fit_robust`: parameters (p,), per-sample endpoint residual (n,) px, final weight
-    (n,) (robust weight times confidence) and the robust residual scale px."""
+    """The result of :func:`fit_robust`: parameters (p,), per-sample endpoint residual (n,) px and its
+    robust scale px (:func:`robust_scale` over the samples the last weights kept)."""
 
     params: np.ndarray
     residual: np.ndarray
-    weight: np.ndarray
     scale: float
 
 
@@ -152,8 +190,8 @@ def fit_robust(linearise: Linearise, start: np.ndarray, confidence: np.ndarray,
                huber_iterations: int = HUBER_ITERATIONS, tukey_iterations: int = TUKEY_ITERATIONS) -> RobustFit | None:
     """Iteratively reweighted (Gauss-Newton) least squares of a flow model on n samples.
 
-    Each iteration takes the endpoint residual r (px) of every sample at the current parameters, the robust
-    scale s (:func:`robust_scale`), and weights confidence x psi(r / s): Huber's for up to
+    Each iteration takes the endpoint residual r (px) of every sample at the current parameters and weights
+    confidence x psi(r / s) (:func:`reweight`, which says where the scale s comes from): Huber's for up to
     ``huber_iterations``, then Tukey's biweight for ``tukey_iterations`` (outliers beyond TUKEY_C scales
     weigh nothing, so samples moving otherwise leave no bias). Both stages stop early once no sample's
     model flow moves by CONVERGED_PX. With a scale that follows the residuals, a fit started far off can
@@ -164,13 +202,12 @@ def fit_robust(linearise: Linearise, start: np.ndarray, confidence: np.ndarray,
     n = confidence.size
     params = np.asarray(start, np.float64).copy()
     jac, err = linearise(params)
-    psi, scale = huber_weight, MIN_SCALE_PX
+    weight = None
     for psi, iterations in ((huber_weight, huber_iterations), (tukey_weight, tukey_iterations)):
         for _ in range(iterations):
-            residual = np.hypot(err[:n], err[n:])
-            scale = float(robust_scale(residual, confidence))
-            step = _step(jac, err, confidence * psi(residual / scale))
-            if step is None:
+            weight = reweight(np.hypot(err[:n], err[n:]), confidence, weight, psi)
+            step = _step(jac, err, weight)
+            if step is None:  # no support left (or none at all)
                 return None
             params = params + step
             moved = float(np.max(np.abs(step @ jac)))  # px: the largest change of a sample's model flow
@@ -178,4 +215,4 @@ def fit_robust(linearise: Linearise, start: np.ndarray, confidence: np.ndarray,
             if moved < CONVERGED_PX:
                 break
     residual = np.hypot(err[:n], err[n:])
-    return RobustFit(params, residual, confidence * psi(residual / scale), scale)
+    return RobustFit(params, residual, float(robust_scale(residual, (confidence if weight is None else weight) > 0)))
