@@ -117,6 +117,35 @@ class MotionAnalysis:
         }
 
 
+# The node's derived topics (relative names: ~/motion/<name>) and their standard message types; the node
+# and ``flow_bag eval --motion`` (flow_node.bag.motion_topics) fill them with the values below.
+MOTION_TOPICS: dict[str, str] = {
+    "motion/dominant": "geometry_msgs/msg/TwistStamped",
+    "motion/homography": "std_msgs/msg/Float64MultiArray",
+    "motion/divergence": "sensor_msgs/msg/Image",
+    "motion/ttc": "std_msgs/msg/Float32MultiArray",
+    "motion/foe": "geometry_msgs/msg/PointStamped",
+    "motion/moving_mask": "sensor_msgs/msg/Image",
+    "motion/detected": "std_msgs/msg/Bool",
+}
+
+
+Vec3 = tuple[float, float, float]
+
+
+def dominant_twist(d: DominantMotion, interval_s: float) -> tuple[Vec3, Vec3]:
+    """``~/motion/dominant`` as a twist of the image content in the camera's optical frame (x right, y down,
+    z forward), per second over the pair's ``interval_s``: linear = (tx, ty px/s, (scale - 1) 1/s: the
+    expansion rate, > 0 approaching), angular = (0, 0, rotation rad/s, positive from +x towards +y)."""
+    return ((d.tx / interval_s, d.ty / interval_s, (d.scale - 1.0) / interval_s),
+            (0.0, 0.0, math.radians(d.rotation_deg) / interval_s))
+
+
+def grid_dims(rows: int, cols: int) -> tuple[tuple[str, int, int], tuple[str, int, int]]:
+    """std_msgs MultiArrayDimension (label, size, stride) of a row-major rows x cols array."""
+    return ("rows", rows, rows * cols), ("cols", cols, cols)
+
+
 def finite_or_none(value: float) -> float | None:
     """``value`` if finite, else None (JSON has no inf or NaN)."""
     return value if math.isfinite(value) else None

@@ -159,10 +159,10 @@ def region_ttc(flow: np.ndarray, confidence: np.ndarray, interval_s: float | Non
     half = np.maximum(1.0, (bounds[:, 2:4] - bounds[:, 0:2]) / 2.0)  # (R, 2) px
     mid = (bounds[:, 0:2] + bounds[:, 2:4] - 1) / 2.0
     X, Y = (px - mid[:, 0:1]) / half[:, 0:1], (py - mid[:, 1:2]) / half[:, 1:2]
-    coef, ok, weight = _affine_start(X, Y, uv, conf, k), np.ones(count, bool), None
+    coef, ok, scale = _affine_start(X, Y, uv, conf, k), np.ones(count, bool), None
     for psi, iterations in ((huber_weight, HUBER_ITERATIONS), (tukey_weight, TUKEY_ITERATIONS)):
         for _ in range(iterations):
-            weight = reweight(_affine_residual(X, Y, uv, coef), conf, weight, psi)
+            weight, scale = reweight(_affine_residual(X, Y, uv, coef), conf, scale, psi)
             previous, (coef, ok) = coef, _affine_fits(X, Y, uv, weight)
             # |X|, |Y| <= 1: no sample's model flow moved by more than the coefficients' changes together
             if np.max(np.abs(coef - previous).sum(axis=1)) < CONVERGED_PX:

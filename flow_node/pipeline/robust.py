@@ -22,7 +22,9 @@ SAMPLES = 1024  # samples a fit looks at, whatever the image size
 HUBER_K = 1.345  # Huber's constant, in robust standard deviations (95 % efficiency for Gaussian noise)
 TUKEY_C = 4.685  # Tukey's biweight cut-off, in robust standard deviations (95 % efficiency)
 MIN_SCALE_PX = 0.02  # floor of the robust residual scale: an exact flow must not make every weight 0 or 1/0
-HUBER_ITERATIONS = 1  # from a robust start (median_slopes): one Huber step, then the biweight
+# Huber steps before the biweight: none from a robust start (median_slopes, medoid_offset), where a Huber
+# step lets a nearly as large second group bend the fit towards it; fit_robust takes more from a poor start
+HUBER_ITERATIONS = 0
 TUKEY_ITERATIONS = 5  # at most, then: the redescending stage, residuals beyond TUKEY_C scales weigh nothing
 SLOPE_SPAN = 1 / 8  # median_slopes: pairs this fraction of the grid apart
 START_QUANTILE = 0.25  # the first IRLS scale comes from this quantile of the residuals (reweight)
@@ -96,16 +98,19 @@ def robust_scale(residual: np.ndarray, keep: np.ndarray, q: float = 0.5) -> np.n
     return np.fmax(MIN_SCALE_PX, factor * masked_quantile(residual, keep, q))  # fmax: NaN -> the floor
 
 
-def reweight(residual: np.ndarray, confidence: np.ndarray, weight: np.ndarray | None,
-             psi: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
-    """IRLS weights ``confidence`` x psi(r / s) of endpoint residuals r px (arrays (..., n); fits along
-    the last axis). The scale s: on the first iteration (``weight`` None) from the START_QUANTILE quantile
-    of the samples with confidence > 0, so a start inside a group of at least that share of the samples
-    keeps it, even when another group is the larger; afterwards the median of the samples whose current
-    ``weight`` > 0, so a group the biweight has dropped does not return through the scale."""
-    keep = confidence > 0.0 if weight is None else weight > 0.0
-    scale = robust_scale(residual, keep, START_QUANTILE if weight is None else 0.5)
-    return confidence * psi(residual / np.asarray(scale)[..., None])
+def reweight(residual: np.ndarray, confidence: np.ndarray, scale: np.ndarray | None,
+             psi: Callable[[np.ndarray], np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """IRLS weights ``confidence`` x psi(r / s) of endpoint residuals r px (arrays (..., n); fits along the
+    last axis) and the scale s used, shape (..., 1). On the first iteration (``scale`` None) s comes from
+    the START_QUANTILE quantile of the samples with confidence > 0, so a start inside a group of at least
+    that share of the samples keeps it even when another group is larger; afterwards from the median of
+    the samples within TUKEY_C previous scales, so a group beyond the biweight's reach does not return
+    through the scale."""
+    if scale is None:
+        scale = robust_scale(residual, confidence > 0.0, START_QUANTILE)[..., None]
+    else:
+        scale = robust_scale(residual, (confidence > 0.0) & (residual < TUKEY_C * scale))[..., None]
+    return confidence * psi(residual / scale), scale
 
 
 def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -165,7 +170,7 @@ Linearise = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 @dataclass(frozen=True)
 class RobustFit:
     """The result of :func:`fit_robust`: parameters (p,), per-sample endpoint residual (n,) px and its
-    robust scale px (:func:`robust_scale` over the samples the last weights kept)."""
+    robust scale px (:func:`robust_scale` over the samples within TUKEY_C of the last iteration's scale)."""
 
     params: np.ndarray
     residual: np.ndarray
@@ -202,10 +207,10 @@ def fit_robust(linearise: Linearise, start: np.ndarray, confidence: np.ndarray,
     n = confidence.size
     params = np.asarray(start, np.float64).copy()
     jac, err = linearise(params)
-    weight = None
+    scale = None
     for psi, iterations in ((huber_weight, huber_iterations), (tukey_weight, tukey_iterations)):
         for _ in range(iterations):
-            weight = reweight(np.hypot(err[:n], err[n:]), confidence, weight, psi)
+            weight, scale = reweight(np.hypot(err[:n], err[n:]), confidence, scale, psi)
             step = _step(jac, err, weight)
             if step is None:  # no support left (or none at all)
                 return None
@@ -215,4 +220,5 @@ def fit_robust(linearise: Linearise, start: np.ndarray, confidence: np.ndarray,
             if moved < CONVERGED_PX:
                 break
     residual = np.hypot(err[:n], err[n:])
-    return RobustFit(params, residual, float(robust_scale(residual, (confidence if weight is None else weight) > 0)))
+    keep = (confidence > 0.0) & (residual < TUKEY_C * (np.inf if scale is None else scale[0]))
+    return RobustFit(params, residual, float(robust_scale(residual, keep)))
