@@ -67,12 +67,13 @@ def _objects(size: tuple[int, int], rng: np.random.Generator, share: float, coun
 
 
 def motion_scene(kind: str, size: tuple[int, int], rng: np.random.Generator, object_share: float = 0.0,
-                 objects: int = 2) -> tuple[Scene, MotionTruth]:
+                 objects: int = 2, ttc_frames: float | None = None) -> tuple[Scene, MotionTruth]:
     """A scene of ``kind`` (one of MOTION_KINDS) at ``size`` (width, height) and its truth.
 
     still: nothing moves; pan: 0.5-3 px/frame in any direction; rotation: 0.5-2 deg/frame either way;
     zoom: scale 1 +- (0.005-0.02) per frame; all about the image centre. approach: a plane with a time to
-    contact log-uniform in TTC_FRAMES, its focus of expansion uniform in the middle half of the image.
+    contact of ``ttc_frames`` (default: log-uniform in TTC_FRAMES), its focus of expansion uniform in the
+    middle half of the image.
     ``objects`` objects covering ``object_share`` (0-0.5) of the image move over the background.
     """
     if kind not in MOTION_KINDS:
@@ -91,7 +92,8 @@ def motion_scene(kind: str, size: tuple[int, int], rng: np.random.Generator, obj
     elif kind == "zoom":
         bg = AffineMotion(c, scale=1.0 + sign * float(rng.uniform(0.005, 0.02)))
     elif kind == "approach":
-        ttc = float(math.exp(rng.uniform(*np.log(TTC_FRAMES))))
+        drawn = float(math.exp(rng.uniform(*np.log(TTC_FRAMES))))
+        ttc = drawn if ttc_frames is None else float(ttc_frames)
         foe = (float(rng.uniform(w / 4, 3 * w / 4)), float(rng.uniform(h / 4, 3 * h / 4)))
         bg = AffineMotion(foe, scale=1.0 + 1.0 / ttc)
     else:

@@ -25,6 +25,7 @@ from .robust import (
     CONVERGED_PX,
     HUBER_ITERATIONS,
     MIN_SCALE_PX,
+    SAMPLES,
     START_CONFIDENCE,
     TUKEY_ITERATIONS,
     check_flow,
@@ -32,6 +33,7 @@ from .robust import (
     median_slopes,
     medoid_offset,
     reweight,
+    robust_scale,
     sample_flow,
     sample_step,
     tukey_weight,
@@ -198,7 +200,7 @@ FOE_MIN_ISOTROPY = 0.05  # smallest / largest eigenvalue of the lines' normal ma
 FOE_MAX_DISTANCE = 4.0  # image diagonals from the centre beyond which a focus is not reported
 
 
-def focus_of_expansion(flow: np.ndarray, confidence: np.ndarray, samples: int = 2048) -> FocusOfExpansion | None:
+def focus_of_expansion(flow: np.ndarray, confidence: np.ndarray, samples: int = SAMPLES) -> FocusOfExpansion | None:
     """The least-squares intersection of the flow lines of ``flow`` (H, W, 2) px/frame, weighted by
     ``confidence`` (H, W) and by |flow|^2 (a longer vector has a better-known direction), made robust by
     Huber IRLS on the point-line distance (px). Each sample x with flow f gives the line x + t f; the focus
@@ -222,8 +224,7 @@ def focus_of_expansion(flow: np.ndarray, confidence: np.ndarray, samples: int = 
         p = np.linalg.solve(a, np.array([np.sum(weight * nx * (nx * s.x + ny * s.y)),
                                          np.sum(weight * ny * (nx * s.x + ny * s.y))]))
         dist = np.abs(nx * (p[0] - s.x) + ny * (p[1] - s.y)) / np.maximum(length, 1e-12)
-        keep = (s.w > 0.0) & (length > 1e-6)
-        spread = max(MIN_SCALE_PX, 1.4826 * float(np.median(dist[keep]))) if keep.any() else MIN_SCALE_PX
+        spread = float(robust_scale(dist.ravel(), ((s.w > 0.0) & (length > 1e-6)).ravel()))
         weight = s.w * huber_weight(dist / spread)
     if math.hypot(p[0] - (w - 1) / 2.0, p[1] - (h - 1) / 2.0) > FOE_MAX_DISTANCE * math.hypot(w, h):
         return None

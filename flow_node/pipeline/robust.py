@@ -25,7 +25,7 @@ MIN_SCALE_PX = 0.02  # floor of the robust residual scale: an exact flow must no
 # Huber steps before the biweight: none from a robust start (median_slopes, medoid_offset), where a Huber
 # step lets a nearly as large second group bend the fit towards it; fit_robust takes more from a poor start
 HUBER_ITERATIONS = 0
-TUKEY_ITERATIONS = 5  # at most, then: the redescending stage, residuals beyond TUKEY_C scales weigh nothing
+TUKEY_ITERATIONS = 5  # biweight steps at most (residuals beyond TUKEY_C scales weigh nothing)
 SLOPE_SPAN = 1 / 8  # median_slopes: pairs this fraction of the grid apart
 START_QUANTILE = 0.25  # the first IRLS scale comes from this quantile of the residuals (reweight)
 START_CANDIDATES = 16  # medoid_offset: candidate samples for the start's offset
