@@ -39,7 +39,7 @@ from .bagio import (
     read_messages,
     stamp_ns,
 )
-from .motion_topics import analyse, motion_messages, motion_record, truth_errors
+from .motion_topics import motion_messages, motion_record, truth_errors
 from .progress import FrameCallback, FrameProgress
 
 NODE_NAMESPACE = "/flow_node"  # the node's default name: its ~/flow is /flow_node/flow
@@ -261,7 +261,7 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
                 continue
             rec = _record(index, out)
             run.records.append(rec)
-            analysis = analyse(out) if result.motion else None
+            analysis = MotionAnalysis.of(out) if result.motion else None
             if analysis is not None:
                 rec.motion = motion_record(analysis, run.detector)
             if writer is not None:

@@ -17,14 +17,7 @@ from ..core.metrics import valid_mask
 from ..pipeline.codec import array_to_image_fields
 from ..pipeline.derived import MOTION_TOPICS, MotionAnalysis, dominant_twist, finite_or_none, grid_dims
 from ..pipeline.motion import MotionDetector
-from ..pipeline.stream import FlowOutput
 from .bagio import image_message, typestore
-
-
-def analyse(out: FlowOutput) -> MotionAnalysis:
-    """The derived outputs of one stream output: its flow in px/frame, its confidence, its pair's interval."""
-    flow = out.flow if out.frame_flow is None else out.frame_flow
-    return MotionAnalysis(flow, out.confidence(), (out.stamp_ns - out.previous_stamp_ns) / 1e9)
 
 
 def _multiarray(kind: str, dims: tuple[tuple[str, int, int], ...], data: np.ndarray) -> Any:

@@ -2,8 +2,7 @@
 
 The per-frame entry for the node and ``flow_bag eval``::
 
-    analysis = MotionAnalysis(out.frame_flow if out.frame_flow is not None else out.flow,
-                              out.confidence(), (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings)
+    analysis = MotionAnalysis.of(out, settings)  # out: the FlowStream's FlowOutput of this pair
     analysis.dominant        # DominantMotion | None   -> ~/motion/dominant, ~/motion/homography
     analysis.divergence      # (H, W) float32 1/frame  -> ~/motion/divergence
     analysis.ttc             # TimeToContact (3x3)     -> ~/motion/ttc
@@ -35,6 +34,7 @@ from .expansion import (
 )
 from .motion import DominantMotion, MaskThreshold, dominant_motion, moving_fraction, moving_mask
 from .robust import SAMPLES, check_flow
+from .stream import FlowOutput
 
 
 @dataclass(frozen=True)
@@ -69,6 +69,13 @@ class MotionAnalysis:
         self.flow, self.confidence = flow, confidence
         self.interval_s = interval_s if interval_s is not None and interval_s > 0.0 else None
         self.settings = settings if settings is not None else MotionSettings()
+
+    @classmethod
+    def of(cls, out: FlowOutput, settings: MotionSettings | None = None) -> MotionAnalysis:
+        """The analysis of a stream's output: its flow in px/frame (``frame_flow`` when ``flow`` is in
+        px/s), its confidence (computed now if it was not) and its pair's interval."""
+        flow = out.flow if out.frame_flow is None else out.frame_flow
+        return cls(flow, out.confidence(), (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings)
 
     @cached_property
     def dominant(self) -> DominantMotion | None:
