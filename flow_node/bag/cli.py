@@ -72,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "default: the node's color_max_flow default)")
     e.add_argument("--png-frames", default="auto",
                    help="frames to draw as PNG: comma-separated indices, 'all', 'none', or 'auto'")
+    e.add_argument("--motion", action="store_true",
+                   help="also write the derived motion outputs (/flow_node/motion/*: dominant motion, homography, "
+                   "divergence, time to contact, focus of expansion, moving mask, motion detected) and report them")
     e.add_argument("--quiet", "-q", action="store_true", help="no progress bar or summary")
     e.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="batch: run on this existing Dask cluster (default: an embedded local cluster)")
@@ -145,7 +148,7 @@ def _run(args: argparse.Namespace) -> int:
     base = config_from_args(args)
     configs = [base if m is None else base.replace(model=m) for m in models]
     opts = EvalOptions(image_topic=args.image_topic, gt_topic=args.gt_topic, max_flow=args.max_flow,
-                       png_frames=args.png_frames, progress=not args.quiet)
+                       png_frames=args.png_frames, progress=not args.quiet, motion=args.motion)
     if is_single_bag(args.bag) and args.scheduler is None and args.workers is None:
         result = run_eval(args.bag[0], args.output, configs, opts)
         for warning in result.warnings:

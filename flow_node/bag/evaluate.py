@@ -23,6 +23,8 @@ from ..core.config import FlowConfig
 from ..core.errors import InputError
 from ..core.metrics import aee, angular_error, confidence_auc, valid_mask
 from ..pipeline.codec import array_to_image_fields, decode, image_to_array
+from ..pipeline.derived import MOTION_TOPICS, MotionAnalysis
+from ..pipeline.motion import MotionDetector
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
 from .bagio import (
     IMAGE,
@@ -37,6 +39,7 @@ from .bagio import (
     read_messages,
     stamp_ns,
 )
+from .motion_topics import motion_messages, motion_record, truth_errors
 from .progress import FrameCallback, FrameProgress
 
 NODE_NAMESPACE = "/flow_node"  # the node's default name: its ~/flow is /flow_node/flow
@@ -48,20 +51,24 @@ UNUSABLE = "image unusable: "  # FrameRecord.skipped prefix of an image that cou
 @dataclass(frozen=True)
 class EvalOptions:
     """Topics (None: detect), colour scale in px (None: the node's default), PNG frame choice ('auto',
-    'all', 'none' or comma-separated frame indices), and whether to show a progress bar."""
+    'all', 'none' or comma-separated frame indices), whether to show a progress bar, and whether to write
+    the derived motion outputs (``--motion``: flow_node.pipeline.derived) too."""
 
     image_topic: str | None = None
     gt_topic: str | None = None
     max_flow: float | None = None
     png_frames: str = "auto"
     progress: bool = True
+    motion: bool = False
 
 
 @dataclass
 class FrameRecord:
     """One processed image: its bag index and stamps; for a pair, time, iterations, magnitude statistics
     and (with ground truth) AEE px, AE degrees and the confidence's ROC AUC against the real error (None
-    when every pixel is right or every one wrong). ``skipped`` holds the reason an image was unusable."""
+    when every pixel is right or every one wrong). ``skipped`` holds the reason an image was unusable.
+    ``motion`` (``--motion``): flow_node.bag.motion_topics.motion_record, with ground truth plus
+    ``vs_ground_truth`` (motion_topics.truth_errors)."""
 
     index: int
     stamp_ns: int
@@ -74,16 +81,18 @@ class FrameRecord:
     confidence_auc: float | None = None
     skipped: str | None = None
     note: str | None = None
+    motion: dict[str, Any] | None = None
 
 
 @dataclass
 class ModelRun:
-    """The records of one configuration over the whole bag."""
+    """The records of one configuration over the whole bag (and its ``motion detected`` flag's state)."""
 
     label: str
     config: FlowConfig
     stream: FlowStream
     records: list[FrameRecord] = field(default_factory=list)
+    detector: MotionDetector = field(default_factory=MotionDetector)
 
     def topic(self, name: str, primary: bool) -> str:
         """Output topic: the node's names for the first model, ``/flow_node/<model>/...`` for the others."""
@@ -115,6 +124,7 @@ class EvalResult:
     wall_seconds: float = 0.0
     warnings: list[str] = field(default_factory=list)  # one line each, for stderr
     recovered: dict[str, Any] | None = None  # what a bag without its MCAP summary still gave (bagio)
+    motion: bool = False  # the derived motion outputs are written and reported (--motion)
 
 
 def read_ground_truth(msg: Any, shape: tuple[int, int], stamp: int) -> np.ndarray:
@@ -151,10 +161,12 @@ def _record(index: int, out: FlowOutput) -> FrameRecord:
                        {"mean": s.mean, "p95": s.p95, "max": s.max})
 
 
-def _score(rec: FrameRecord, out: FlowOutput, gt: np.ndarray) -> None:
+def _score(rec: FrameRecord, out: FlowOutput, gt: np.ndarray, analysis: MotionAnalysis | None) -> None:
     if valid_mask(gt).any():
         rec.aee, rec.ae = aee(out.flow, gt), angular_error(out.flow, gt)
         rec.confidence_auc = confidence_auc(out.confidence(), out.flow, gt)
+        if analysis is not None and rec.motion is not None:
+            rec.motion["vs_ground_truth"] = truth_errors(analysis, gt)
 
 
 def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig], opts: EvalOptions,
@@ -175,13 +187,16 @@ def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig
                                        exclude=(gt_topic,) if gt_topic else ())
         total = sum(c.msgcount for c in image_conns)
         chosen = choose_frames(opts.png_frames, total)
-        result = EvalResult(str(bag), image_conns[0].topic, gt_topic, 0, runs, [], settings[0].color_max_flow)
+        result = EvalResult(str(bag), image_conns[0].topic, gt_topic, 0, runs, [], settings[0].color_max_flow,
+                            motion=opts.motion)
         with BagWriter(out_bag, "mcap") if out_bag is not None else nullcontext() as writer:
             if writer is not None:
                 writer.add_topic(image_conns[0].topic, image_conns[0].msgtype, like=image_conns[0])
                 for k, run in enumerate(runs):
                     for name in OUTPUT_TOPICS:
                         writer.add_topic(run.topic(name, k == 0), IMAGE)
+                    for name, msgtype in MOTION_TOPICS.items() if opts.motion else ():
+                        writer.add_topic(run.topic(name, k == 0), msgtype)
             for run in runs:
                 run.stream.warmup()  # JIT compilation (numba) now, not inside the first frame's time
             if isinstance(reader, RecoveredReader):
@@ -202,7 +217,7 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
             writer: BagWriter | None, progress: FrameProgress) -> None:
     """The single pass over the bag: decode, process per model, write outputs, score against GT."""
     gts: dict[int, Any] = {}  # stamp -> GT message not yet matched
-    pending: dict[int, list[tuple[FrameRecord, FlowOutput]]] = {}  # stamp -> outputs awaiting GT
+    pending: dict[int, list[tuple[FrameRecord, FlowOutput, MotionAnalysis | None]]] = {}  # stamp -> awaiting GT
     shape: tuple[int, int] | None = None
     last_stamp: int | None = None  # stamp of the previous image message, usable or not
     gt_ids = {c.id for c in gt_conns}
@@ -212,8 +227,8 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
         if conn.id in gt_ids:
             if stamp in pending and shape is not None:
                 gt = read_ground_truth(msg, shape, stamp)
-                for rec, out in pending.pop(stamp):
-                    _score(rec, out, gt)
+                for rec, out, analysis in pending.pop(stamp):
+                    _score(rec, out, gt, analysis)
                 _keep_gt(result, stamp, gt)
             else:
                 gts[stamp] = msg
@@ -242,19 +257,26 @@ def _replay(reader: Any, image_conns: list, gt_conns: list, result: EvalResult, 
                 continue
             if out is None:
                 run.records.append(FrameRecord(index, stamp, skipped=run.stream.last_reset_reason))
+                run.detector.reset()
                 continue
             rec = _record(index, out)
             run.records.append(rec)
+            analysis = MotionAnalysis.of(out) if result.motion else None
+            if analysis is not None:
+                rec.motion = motion_record(analysis, run.detector)
             if writer is not None:
                 _write_outputs(writer, run, k == 0, t, msg.header, out)
+            if writer is not None and analysis is not None and rec.motion is not None:
+                for name, m in motion_messages(msg.header, analysis, rec.motion["detected"]):
+                    writer.write(run.topic(name, k == 0), t, m)
             if draw is not None:
                 draw.flows[run.label] = out.flow
             if out.previous_stamp_ns != previous:
                 rec.note = "pair spans an unusable image: not scored against the ground truth"
             elif gt is not None:
-                _score(rec, out, gt)
+                _score(rec, out, gt, analysis)
             else:
-                waiting.append((rec, out))
+                waiting.append((rec, out, analysis))
         if waiting and gt_conns:
             pending[stamp] = waiting
         if draw is not None:

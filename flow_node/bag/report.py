@@ -43,7 +43,32 @@ def summarise_run(run: ModelRun) -> dict[str, Any]:
         "iterations_mean": _stat([r.iterations for r in pairs], np.mean),
         "magnitude_mean": _stat([r.magnitude["mean"] for r in pairs if r.magnitude], np.mean),
         "magnitude_max": _stat([r.magnitude["max"] for r in pairs if r.magnitude], np.max),
+        "motion": summarise_motion(run),
     }
+
+
+def summarise_motion(run: ModelRun) -> dict[str, Any] | None:
+    """The derived motion outputs over the run's pairs (``--motion``; None without): pairs, pairs with
+    ``motion detected``, mean moving fraction, medians of the dominant inlier share, the central TTC (s)
+    and the time all outputs took; with ground truth the medians of their errors against the outputs of
+    the ground-truth flow (motion_topics.truth_errors)."""
+    rows = [r.motion for r in run.records if r.motion is not None]
+    if not rows:
+        return None
+
+    def values(key: str, src: list[dict[str, Any]]) -> list[float]:
+        return [m[key] for m in src if m.get(key) is not None]
+
+    dominant = [m["dominant"] for m in rows if m["dominant"] is not None]
+    out = {"pairs": len(rows), "pairs_detected": sum(bool(m["detected"]) for m in rows),
+           "moving_fraction_mean": _stat(values("moving_fraction", rows), np.mean),
+           "inlier_share_median": _stat(values("inlier_share", dominant), np.median),
+           "ttc_centre_seconds_median": _stat(values("ttc_centre_seconds", rows), np.median),
+           "seconds_mean": _stat(values("seconds", rows), np.mean)}
+    truth = [m["vs_ground_truth"] for m in rows if "vs_ground_truth" in m]
+    for key in ("translation_err_px", "rotation_err_deg", "ttc_centre_rel_err", "mask_iou"):
+        out[f"{key}_median"] = _stat(values(key, truth), np.median)
+    return out
 
 
 def ratio_ranking(scores: Mapping[Any, Mapping[str, tuple[float, float]]], labels: Sequence[str],
@@ -116,6 +141,7 @@ def to_markdown(result: EvalResult, pngs: list[str]) -> str:
                      f"{_fmt(s['confidence_auc_mean'])} | {_fmt(ms['seconds_mean'], 1)} | "
                      f"{_fmt(ms['seconds_median'], 1)} | "
                      f"{_fmt(s['magnitude_mean'])} |")
+    lines += _motion_markdown(result.runs)
     rank = ranking(result.runs)
     if rank:
         lines += ["", "## Ranking (as the paper's Table 1)", "",
@@ -146,6 +172,29 @@ def to_markdown(result: EvalResult, pngs: list[str]) -> str:
     if pngs:
         lines += ["", "## Pictures", ""] + [f"![{p}]({p})" for p in pngs]
     return "\n".join(lines) + "\n"
+
+
+def _motion_markdown(runs: list[ModelRun]) -> list[str]:
+    """The 'Derived motion' table (``--motion``), or nothing."""
+    rows = [(run.label, summarise_motion(run)) for run in runs]
+    if all(m is None for _, m in rows):
+        return []
+    lines = ["", "## Derived motion (--motion)", "",
+             "Per model over its pairs: pairs with `motion detected`, mean moving fraction, median inlier share of "
+             "the dominant motion, median central time to contact (s), mean time of all derived outputs (ms); "
+             "with ground truth, medians of the errors against the same outputs of the ground-truth flow "
+             "(translation px, rotation deg, central TTC relative, moving-mask IoU).", "",
+             "| model | pairs | detected | moving | inliers | TTC centre (s) | time (ms) | translation | rotation "
+             "| TTC rel. | mask IoU |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for label, m in rows:
+        if m is not None:
+            ms = None if m["seconds_mean"] is None else 1000 * m["seconds_mean"]
+            lines.append(f"| {label} | {m['pairs']} | {m['pairs_detected']} | {_fmt(m['moving_fraction_mean'])} | "
+                         f"{_fmt(m['inlier_share_median'])} | {_fmt(m['ttc_centre_seconds_median'], 2)} | "
+                         f"{_fmt(ms, 1)} | {_fmt(m['translation_err_px_median'])} | "
+                         f"{_fmt(m['rotation_err_deg_median'])} | {_fmt(m['ttc_centre_rel_err_median'])} | "
+                         f"{_fmt(m['mask_iou_median'])} |")
+    return lines
 
 
 def summary_lines(result: EvalResult) -> list[str]:

@@ -161,6 +161,11 @@ class Scene:
             top[layer.covers(p)] = i
         return top, coords
 
+    def layer_map(self, t: int) -> np.ndarray:
+        """Index (H, W) int32 of the layer visible at every pixel of frame t (0: the background): with
+        t = 0 the exact mask of what moves otherwise in the pair 0 -> 1."""
+        return self._visible(t)[0]
+
     def render(self, t: int, x: np.ndarray | None = None) -> np.ndarray:
         """Frame t as float64 RGB (H, W, 3) in [0, 1]: texture grey times layer tint times the gain.
 

@@ -1,0 +1,158 @@
+"""What a robot does with a flow: the derived motion outputs of one frame pair, computed on first use.
+
+The per-frame entry for the node and ``flow_bag eval``::
+
+    analysis = MotionAnalysis.of(out, settings)  # out: the FlowStream's FlowOutput of this pair
+    analysis.dominant        # DominantMotion | None   -> ~/motion/dominant, ~/motion/homography
+    analysis.divergence      # (H, W) float32 1/frame  -> ~/motion/divergence
+    analysis.ttc             # TimeToContact (3x3)     -> ~/motion/ttc
+    analysis.foe             # FocusOfExpansion | None -> ~/motion/foe
+    analysis.moving_mask     # (H, W) uint8 0/255      -> ~/motion/moving_mask
+    detector.update(analysis.moving_fraction)  # bool  -> ~/motion/detected (a MotionDetector per stream)
+
+Each output is computed only when asked for (and then cached), so a node computes what is subscribed;
+the moving mask needs the dominant motion. No rclpy, no rosbags.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..core.errors import ConfigError
+from .expansion import (
+    REGION_GRID,
+    REGION_SAMPLES,
+    FocusOfExpansion,
+    TimeToContact,
+    divergence,
+    focus_of_expansion,
+    region_ttc,
+)
+from .motion import DominantMotion, MaskThreshold, dominant_motion, moving_fraction, moving_mask
+from .robust import SAMPLES, check_flow
+from .stream import FlowOutput
+
+
+@dataclass(frozen=True)
+class MotionSettings:
+    """Settings of the derived outputs: ``samples`` for the dominant motion and the focus of expansion,
+    ``region_samples`` and ``grid`` (rows, cols) for the time to contact, ``mask`` for what counts as
+    moving independently (:class:`~flow_node.pipeline.motion.MaskThreshold`)."""
+
+    samples: int = SAMPLES
+    region_samples: int = REGION_SAMPLES
+    grid: tuple[int, int] = REGION_GRID
+    mask: MaskThreshold = field(default_factory=MaskThreshold)
+
+    def __post_init__(self) -> None:
+        for name in ("samples", "region_samples"):
+            if not 64 <= getattr(self, name) <= 1 << 20:
+                raise ConfigError(f"{name}: must be in [64, {1 << 20}], got {getattr(self, name)}")
+        if len(self.grid) != 2 or not all(1 <= g <= 16 for g in self.grid):
+            raise ConfigError(f"grid: expected (rows, cols) each in [1, 16], got {self.grid}")
+
+
+class MotionAnalysis:
+    """The derived outputs of one flow (H, W, 2) float32 px/frame and its confidence (H, W) in [0, 1].
+
+    ``interval_s`` is the pair's interval in seconds (newer stamp - earlier stamp; None or <= 0: times in
+    seconds are None). Every attribute is computed on first access and cached.
+    """
+
+    def __init__(self, flow: np.ndarray, confidence: np.ndarray, interval_s: float | None = None,
+                 settings: MotionSettings | None = None) -> None:
+        check_flow(flow, confidence)
+        self.flow, self.confidence = flow, confidence
+        self.interval_s = interval_s if interval_s is not None and interval_s > 0.0 else None
+        self.settings = settings if settings is not None else MotionSettings()
+
+    @classmethod
+    def of(cls, out: FlowOutput, settings: MotionSettings | None = None) -> MotionAnalysis:
+        """The analysis of a stream's output: its flow in px/frame (``frame_flow`` when ``flow`` is in
+        px/s), its confidence (computed now if it was not) and its pair's interval."""
+        flow = out.flow if out.frame_flow is None else out.frame_flow
+        return cls(flow, out.confidence(), (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings)
+
+    @cached_property
+    def dominant(self) -> DominantMotion | None:
+        """:func:`~flow_node.pipeline.motion.dominant_motion` (None without confident flow)."""
+        return dominant_motion(self.flow, self.confidence, self.settings.mask, self.settings.samples)
+
+    @cached_property
+    def divergence(self) -> np.ndarray:
+        """:func:`~flow_node.pipeline.expansion.divergence`, (H, W) float32 1/frame."""
+        return divergence(self.flow)
+
+    @cached_property
+    def ttc(self) -> TimeToContact:
+        """:func:`~flow_node.pipeline.expansion.region_ttc` on the settings' grid."""
+        return region_ttc(self.flow, self.confidence, self.interval_s, self.settings.grid,
+                          self.settings.region_samples)
+
+    @cached_property
+    def foe(self) -> FocusOfExpansion | None:
+        """:func:`~flow_node.pipeline.expansion.focus_of_expansion` (None for a pan or no motion)."""
+        return focus_of_expansion(self.flow, self.confidence, self.settings.samples)
+
+    @cached_property
+    def moving_mask(self) -> np.ndarray:
+        """:func:`~flow_node.pipeline.motion.moving_mask` against :attr:`dominant`, (H, W) uint8 0/255."""
+        return moving_mask(self.flow, self.confidence, self.dominant, self.settings.mask)
+
+    @property
+    def moving_fraction(self) -> float:
+        """Share of the image in :attr:`moving_mask`, in [0, 1] (what a MotionDetector is fed)."""
+        return moving_fraction(self.moving_mask)
+
+    def summary(self) -> dict[str, object]:
+        """The scalar outputs as plain JSON-able values (reports): dominant motion, central TTC (frames
+        and s), focus of expansion and moving fraction; None where undefined, inf/NaN as None."""
+        d, c, f = self.dominant, self.ttc.centre, self.foe
+        return {
+            "dominant": None if d is None else {"tx": d.tx, "ty": d.ty, "rotation_deg": d.rotation_deg,
+                                                "scale": d.scale, "inlier_share": d.inlier_share,
+                                                "residual_px": d.residual_px},
+            "ttc_centre_frames": finite_or_none(c.ttc_frames),
+            "ttc_centre_seconds": None if c.ttc_seconds is None else finite_or_none(c.ttc_seconds),
+            "divergence_centre": finite_or_none(c.divergence),
+            "foe": None if f is None else {"x": f.x, "y": f.y, "expanding": f.expanding},
+            "moving_fraction": self.moving_fraction,
+        }
+
+
+# The node's derived topics (relative names: ~/motion/<name>) and their standard message types; the node
+# and ``flow_bag eval --motion`` (flow_node.bag.motion_topics) fill them with the values below.
+MOTION_TOPICS: dict[str, str] = {
+    "motion/dominant": "geometry_msgs/msg/TwistStamped",
+    "motion/homography": "std_msgs/msg/Float64MultiArray",
+    "motion/divergence": "sensor_msgs/msg/Image",
+    "motion/ttc": "std_msgs/msg/Float32MultiArray",
+    "motion/foe": "geometry_msgs/msg/PointStamped",
+    "motion/moving_mask": "sensor_msgs/msg/Image",
+    "motion/detected": "std_msgs/msg/Bool",
+}
+
+
+Vec3 = tuple[float, float, float]
+
+
+def dominant_twist(d: DominantMotion, interval_s: float) -> tuple[Vec3, Vec3]:
+    """``~/motion/dominant`` as a twist of the image content in the camera's optical frame (x right, y down,
+    z forward), per second over the pair's ``interval_s``: linear = (tx, ty px/s, (scale - 1) 1/s: the
+    expansion rate, > 0 approaching), angular = (0, 0, rotation rad/s, positive from +x towards +y)."""
+    return ((d.tx / interval_s, d.ty / interval_s, (d.scale - 1.0) / interval_s),
+            (0.0, 0.0, math.radians(d.rotation_deg) / interval_s))
+
+
+def grid_dims(rows: int, cols: int) -> tuple[tuple[str, int, int], tuple[str, int, int]]:
+    """std_msgs MultiArrayDimension (label, size, stride) of a row-major rows x cols array."""
+    return ("rows", rows, rows * cols), ("cols", cols, cols)
+
+
+def finite_or_none(value: float) -> float | None:
+    """``value`` if finite, else None (JSON has no inf or NaN)."""
+    return value if math.isfinite(value) else None

@@ -1,0 +1,275 @@
+"""Dominant motion and independently moving pixels, from one flow and its confidence. Plain numpy/OpenCV.
+
+Inputs everywhere: ``flow`` (H, W, 2) float32 px/frame, u right, v down, ``I1(x + flow(x)) = I0(x)`` on the
+earlier frame's grid; ``confidence`` (H, W) in [0, 1] of the same pair
+(:func:`flow_node.core.fusion.confidence`; ``FlowOutput.confidence()``).
+
+* :func:`dominant_motion` -- the motion of most of the image (the camera's, over a scene far away or
+  planar): a similarity (translation of the image centre, rotation, scale) and a homography, fitted
+  robustly (:func:`flow_node.pipeline.robust.fit_robust`) on ~4096 samples weighted by the confidence.
+* :func:`moving_mask` -- pixels whose flow deviates from the dominant motion's by more than
+  ``abs_px + rel x |predicted flow|``, confident ones only, cleaned by a morphological opening.
+* :class:`MotionDetector` -- a ``motion detected`` flag with hysteresis over the moving area fraction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..core.errors import ConfigError
+from .robust import (
+    SAMPLES,
+    START_CONFIDENCE,
+    Samples,
+    check_flow,
+    fit_robust,
+    median_slopes,
+    medoid_offset,
+    sample_flow,
+    sample_step,
+)
+
+MASK_ABS_PX = 0.5  # a pixel moves independently when its flow is this far from the dominant motion's ...
+MASK_REL = 0.1  # ... plus this fraction of the dominant motion's own length there
+MASK_MIN_CONFIDENCE = 0.3  # pixels less confident than this are never marked (occlusions, flat areas)
+MASK_OPENING_PX = 2  # radius of the opening's elliptic structuring element (a 5x5 ellipse)
+
+
+@dataclass(frozen=True)
+class MaskThreshold:
+    """When a flow vector deviates from the dominant motion's predicted vector p: by more than
+    ``abs_px + rel x |p|`` px/frame, for pixels with confidence >= ``min_confidence``; the mask is then
+    opened with an ellipse of radius ``opening_px`` (0: no opening)."""
+
+    abs_px: float = MASK_ABS_PX
+    rel: float = MASK_REL
+    min_confidence: float = MASK_MIN_CONFIDENCE
+    opening_px: int = MASK_OPENING_PX
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.abs_px) and self.abs_px > 0.0):
+            raise ConfigError(f"mask abs_px: must be > 0 px, got {self.abs_px}")
+        if not (math.isfinite(self.rel) and self.rel >= 0.0):
+            raise ConfigError(f"mask rel: must be >= 0, got {self.rel}")
+        if not 0.0 <= self.min_confidence <= 1.0:
+            raise ConfigError(f"mask min_confidence: must be in [0, 1], got {self.min_confidence}")
+        if not 0 <= self.opening_px <= 50:
+            raise ConfigError(f"mask opening_px: must be in [0, 50], got {self.opening_px}")
+
+    def deviates(self, du: np.ndarray, dv: np.ndarray, pu: np.ndarray, pv: np.ndarray) -> np.ndarray:
+        """Bool mask (same shape): deviation (du, dv) beyond abs_px + rel x |(pu, pv)| (all px/frame)."""
+        limit = self.abs_px + self.rel * np.sqrt(pu * pu + pv * pv)
+        return du * du + dv * dv > limit * limit
+
+
+@dataclass(frozen=True)
+class DominantMotion:
+    """The dominant motion of one flow (frame t-1 -> t), in pixels of the flow's grid.
+
+    Similarity about the image centre c = ((W - 1) / 2, (H - 1) / 2): a point x of frame t-1 goes to
+    ``c + scale R(rotation) (x - c) + (tx, ty)``; so (tx, ty) px/frame is the image centre's displacement,
+    ``rotation_deg`` deg/frame is positive from +x (right) towards +y (down) -- clockwise on the screen, a
+    positive rotation about the optical +z axis (REP 103 optical frame) -- and ``scale`` per frame is > 1 for
+    an expanding image (approaching), < 1 contracting. ``homography`` (3x3, h33 = 1, row-major tuples) maps
+    frame t-1 pixels to frame t pixels (homogeneous): exact for a camera rotating about its centre or a
+    plane seen from a moving camera. ``inlier_share``: the confidence-weighted share of samples whose flow
+    the homography explains within the mask threshold (:class:`MaskThreshold`); ``residual_px``: the robust
+    scale of the homography's endpoint residual; ``samples``: how many samples had confidence > 0.
+    """
+
+    tx: float
+    ty: float
+    rotation_deg: float
+    scale: float
+    homography: tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
+    inlier_share: float
+    residual_px: float
+    samples: int
+    center: tuple[float, float]
+
+    def predicted_flow(self, shape: tuple[int, int]) -> np.ndarray:
+        """The homography's flow on an (H, W) grid: (H, W, 2) float32 px/frame."""
+        h, w = shape
+        out = np.empty((h, w, 2), np.float32)
+        out[..., 0], out[..., 1] = apply_homography(np.asarray(self.homography, np.float32),
+                                                    np.arange(w, dtype=np.float32)[None, :],
+                                                    np.arange(h, dtype=np.float32)[:, None])
+        return out
+
+    @property
+    def ttc_frames(self) -> float:
+        """Frames to contact of the whole image seen as one approaching plane, 1 / (scale - 1) counted from
+        the newer frame; inf when the image does not expand."""
+        return 1.0 / (self.scale - 1.0) if self.scale > 1.0 + 1e-6 else math.inf
+
+
+def apply_homography(hm: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The flow (u, v) px/frame of homography ``hm`` (3x3 on pixels) at points (x, y) px (any shapes that
+    broadcast; the result takes their dtype)."""
+    den = hm[2, 0] * x + hm[2, 1] * y + hm[2, 2]
+    return (hm[0, 0] * x + hm[0, 1] * y + hm[0, 2]) / den - x, (hm[1, 0] * x + hm[1, 1] * y + hm[1, 2]) / den - y
+
+
+class _Frame:
+    """Samples in coordinates normalised about the image centre: X = (x - cx) / L, with L half the image
+    diagonal, so that the parameters of every model are O(1); residuals and Jacobians stay in px."""
+
+    def __init__(self, s: Samples, shape: tuple[int, int]) -> None:
+        h, w = shape
+        self.cx, self.cy = (w - 1) / 2.0, (h - 1) / 2.0
+        self.half = max(1.0, 0.5 * math.hypot(w - 1, h - 1))
+        self.s = s
+        self.X = (s.x.ravel() - self.cx) / self.half
+        self.Y = (s.y.ravel() - self.cy) / self.half
+        self.tu = s.x.ravel() - self.cx + s.u.ravel()  # where the samples went, px relative to the centre
+        self.tv = s.y.ravel() - self.cy + s.v.ravel()
+        self.flow = np.concatenate([s.u.ravel(), s.v.ravel()])  # px/frame, u-components then v-components
+        self._sim_jac: np.ndarray | None = None
+
+    def similarity(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """p = (tx, ty, a, b) normalised: X' = X + tx + a X - b Y, Y' = Y + ty + b X + a Y (linear)."""
+        if self._sim_jac is None:
+            n = self.X.size
+            jac = np.zeros((4, 2 * n))
+            jac[0, :n] = jac[1, n:] = self.half
+            jac[2, :n], jac[2, n:] = self.X * self.half, self.Y * self.half
+            jac[3, :n], jac[3, n:] = -self.Y * self.half, self.X * self.half
+            self._sim_jac = jac
+        return self._sim_jac, self.flow - p @ self._sim_jac
+
+    def homography(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """h (8,) normalised, h33 = 1: X' = (h0 X + h1 Y + h2) / D, Y' = (h3 X + h4 Y + h5) / D,
+        D = h6 X + h7 Y + 1 (Gauss-Newton: the Jacobian at h)."""
+        X, Y, n = self.X, self.Y, self.X.size
+        inv = self.half / (h[6] * X + h[7] * Y + 1.0)  # px per normalised unit, over D
+        pu = (h[0] * X + h[1] * Y + h[2]) * inv  # px, relative to the centre
+        pv = (h[3] * X + h[4] * Y + h[5]) * inv
+        jac = np.zeros((8, 2 * n))
+        jac[0, :n] = jac[3, n:] = X * inv
+        jac[1, :n] = jac[4, n:] = Y * inv
+        jac[2, :n] = jac[5, n:] = inv
+        gu, gv = pu * inv / self.half, pv * inv / self.half  # d(px)/dD, over -1
+        jac[6, :n], jac[6, n:] = -gu * X, -gv * X
+        jac[7, :n], jac[7, n:] = -gu * Y, -gv * Y
+        return jac, np.concatenate([self.tu - pu, self.tv - pv])
+
+    def similarity_start(self) -> np.ndarray:
+        """A robust start (tx, ty, a, b) for :meth:`similarity`: a and b from the median slopes of the
+        confident samples (du/dx and dv/dy both estimate a, dv/dx and -du/dy both b), the translation the
+        :func:`~flow_node.pipeline.robust.medoid_offset` of what they leave; zeros where nothing is
+        confident enough."""
+        s = self.s
+        keep = s.w >= START_CONFIDENCE
+        dudx, dudy = median_slopes(s.u, s.x, s.y, keep)
+        dvdx, dvdy = median_slopes(s.v, s.x, s.y, keep)
+        a, b = np.nan_to_num([(dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0])
+        X, Y = self.X * self.half, self.Y * self.half
+        rest = np.stack([s.u.ravel() - a * X + b * Y, s.v.ravel() - b * X - a * Y], axis=-1)
+        tx, ty = medoid_offset(rest, keep.ravel())
+        return np.array([tx / self.half, ty / self.half, a, b])
+
+    def to_pixels(self, h: np.ndarray) -> np.ndarray:
+        """The normalised homography h (8,) as a 3x3 on pixels, h33 = 1: T^-1 H T with T: px -> normalised."""
+        hn = np.append(h, 1.0).reshape(3, 3)
+        t = np.array([[1 / self.half, 0.0, -self.cx / self.half], [0.0, 1 / self.half, -self.cy / self.half],
+                      [0.0, 0.0, 1.0]])
+        hp = np.linalg.inv(t) @ hn @ t
+        return hp / hp[2, 2]
+
+
+def dominant_motion(flow: np.ndarray, confidence: np.ndarray, threshold: MaskThreshold | None = None,
+                    samples: int = SAMPLES) -> DominantMotion | None:
+    """The dominant motion of ``flow`` (H, W, 2) px/frame weighted by ``confidence`` (H, W) in [0, 1].
+
+    On a regular grid of ~``samples`` points (so the cost hardly depends on the image size): a similarity
+    from a robust start (median slopes, :meth:`_Frame.similarity_start`) refined by IRLS (one Huber step,
+    then Tukey's biweight; confidence times the robust weight), then from it a homography by Gauss-Newton
+    IRLS (biweight) on the endpoint error in px; where that fails, the similarity stands in for it. The
+    similarity gives tx, ty, rotation and scale; the homography the inlier share (within ``threshold``,
+    default :class:`MaskThreshold`) and what :func:`moving_mask` compares against. None when fewer than 8
+    samples have confidence > 0 or the similarity has no support.
+    """
+    check_flow(flow, confidence)
+    threshold = threshold if threshold is not None else MaskThreshold()
+    s = sample_flow(flow, confidence, sample_step(flow.shape, samples))
+    w = s.w.ravel()
+    support = int(np.count_nonzero(w > 0.0))
+    if support < 8:
+        return None
+    frame = _Frame(s, flow.shape[:2])
+    sim = fit_robust(frame.similarity, frame.similarity_start(), w)
+    if sim is None:
+        return None
+    tx, ty, a, b = sim.params
+    start = np.array([1 + a, -b, tx, b, 1 + a, ty, 0.0, 0.0])
+    hom = fit_robust(frame.homography, start, w, huber_iterations=0)  # the similarity's outliers are far
+    if hom is None or not np.all(np.isfinite(hom.params)):
+        hom = sim  # the similarity stands in (its residual scale with it)
+    hp = frame.to_pixels(hom.params if hom is not sim else start)
+    pu, pv = apply_homography(hp, s.x, s.y)
+    inlier = ~threshold.deviates(s.u - pu, s.v - pv, pu, pv)
+    share = float(np.sum(s.w * inlier) / np.sum(s.w))
+    return DominantMotion(float(tx * frame.half), float(ty * frame.half), math.degrees(math.atan2(b, 1 + a)),
+                          math.hypot(1 + a, b), tuple(tuple(float(v) for v in row) for row in hp), share,
+                          hom.scale, support, (frame.cx, frame.cy))
+
+
+def moving_mask(flow: np.ndarray, confidence: np.ndarray, motion: DominantMotion | None,
+                threshold: MaskThreshold | None = None) -> np.ndarray:
+    """Independently moving pixels: uint8 (H, W), 255 where the flow (H, W, 2) px/frame deviates from
+    ``motion``'s predicted flow by more than ``threshold`` (abs px + rel x predicted length) and the
+    confidence (H, W) is at least ``threshold.min_confidence``, after a morphological opening (removes
+    specks narrower than 2 ``opening_px`` + 1 px); 0 elsewhere. All 0 without a dominant motion."""
+    check_flow(flow, confidence)
+    threshold = threshold if threshold is not None else MaskThreshold()
+    if motion is None:
+        return np.zeros(confidence.shape, np.uint8)
+    pred = motion.predicted_flow(confidence.shape)
+    dev = flow - pred
+    moving = threshold.deviates(dev[..., 0], dev[..., 1], pred[..., 0], pred[..., 1])
+    moving &= confidence >= threshold.min_confidence
+    mask = moving.view(np.uint8) * np.uint8(255)
+    if threshold.opening_px > 0:
+        r = threshold.opening_px
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel)
+    return mask
+
+
+def moving_fraction(mask: np.ndarray) -> float:
+    """The share of nonzero pixels of a mask (H, W), in [0, 1]."""
+    return float(np.count_nonzero(mask)) / max(1, mask.size)
+
+
+class MotionDetector:
+    """A ``motion detected`` flag with hysteresis, for event-driven stacks.
+
+    :meth:`update` takes each frame's moving area fraction (:func:`moving_fraction`, in [0, 1]); the flag
+    turns on after ``on_frames`` consecutive frames at or above ``area_fraction`` and off after
+    ``off_frames`` consecutive frames below it, so one noisy frame neither starts nor ends an event.
+    """
+
+    def __init__(self, area_fraction: float = 0.01, on_frames: int = 3, off_frames: int = 5) -> None:
+        if not 0.0 < area_fraction <= 1.0:
+            raise ConfigError(f"area_fraction: must be in (0, 1], got {area_fraction}")
+        if on_frames < 1 or off_frames < 1:
+            raise ConfigError(f"on_frames and off_frames must be >= 1, got {on_frames}, {off_frames}")
+        self.area_fraction, self.on_frames, self.off_frames = area_fraction, on_frames, off_frames
+        self.detected = False
+        self._run = 0  # consecutive frames disagreeing with the current state
+
+    def update(self, fraction: float) -> bool:
+        """Feed one frame's moving area fraction; returns the flag after it."""
+        above = fraction >= self.area_fraction
+        self._run = self._run + 1 if above != self.detected else 0
+        if self._run >= (self.off_frames if self.detected else self.on_frames):
+            self.detected, self._run = above, 0
+        return self.detected
+
+    def reset(self) -> None:
+        """Off, with no frames counted (e.g. after the stream reset)."""
+        self.detected, self._run = False, 0
