@@ -30,12 +30,13 @@ def random_linearisation(seed: int) -> tuple[np.ndarray, ...]:
     """A frame, a grey-value linearisation (a, c) with an 'outside' corner (a = c = 0) and a flow v0."""
     rng = np.random.default_rng(seed)
     i0 = rng_image(seed)
+    i1 = rng_image(seed + 100)
     a = (0.2 * rng.standard_normal((2, H, W))).astype(np.float32)
     c = (0.1 * rng.standard_normal((H, W))).astype(np.float32)
     a[:, :4, :5] = 0.0
     c[:4, :5] = 0.0
     v0 = rng.standard_normal((2, H, W)).astype(np.float32)
-    return i0, a, c, v0
+    return i0, i1, a, c, v0
 
 
 def test_signature_is_invariant_to_gain_offset_and_smooth_gain_fields() -> None:
@@ -64,9 +65,9 @@ def test_signature_under_a_tone_curve_changes_far_less_than_grey_values() -> Non
 def test_quadratic_form_is_the_sum_of_squared_channel_residuals() -> None:
     """L2: 1/2 v^T T v + g . v + const = 1/2 sum_k (a_k . v + c_k)^2 for any v (checks T and g channel by
     channel against the linearisation written out)."""
-    i0, a, c, v0 = random_linearisation(3)
+    i0, i1, a, c, v0 = random_linearisation(3)
     f0, g0 = level_signature(i0)
-    warped, outside = census.warped_frame(i0, a, c, v0)
+    warped, outside = census.warped_frame(i0, i1, a, c, v0)
     q = quadratic_form(f0, g0, warped, outside, v0, robust=False)
     f1 = signature(warped)
     g1 = census.signature_gradient(f1)
@@ -84,9 +85,9 @@ def test_quadratic_form_is_the_sum_of_squared_channel_residuals() -> None:
 def test_robust_form_majorises_the_l1_term_touching_at_v0() -> None:
     """L1: with the weights 1 / sqrt(rho_k(v0)^2 + delta^2) the form's gradient at v0 is the smoothed L1
     term's gradient sum_k rho_k / sqrt(rho_k^2 + delta^2) a_k (IRLS)."""
-    i0, a, c, v0 = random_linearisation(5)
+    i0, i1, a, c, v0 = random_linearisation(5)
     f0, g0 = level_signature(i0)
-    warped, outside = census.warped_frame(i0, a, c, v0)
+    warped, outside = census.warped_frame(i0, i1, a, c, v0)
     q = quadratic_form(f0, g0, warped, outside, v0, robust=True)
     f1 = signature(warped)
     g1 = census.signature_gradient(f1)
@@ -110,22 +111,22 @@ def test_prox_of_the_quadratic_data_term_is_optimal() -> None:
 
 
 def test_numba_signature_and_form_match_numpy() -> None:
-    i0, a, c, v0 = random_linearisation(7)
+    i0, i1, a, c, v0 = random_linearisation(7)
     f0, g0 = level_signature(i0)
     f0_fast, _ = level_signature_numba(i0, census.CENSUS)
     np.testing.assert_allclose(f0_fast, f0, atol=AGREE)
     for robust in (False, True):
-        ref = census_form(i0, f0, g0, a, c, v0, robust)
-        fast = census_form_numba(i0, f0_fast, None, a, c, v0, robust, census.CENSUS)
+        ref = census_form(i0, i1, f0, g0, a, c, v0, robust)
+        fast = census_form_numba(i0, i1, f0_fast, None, a, c, v0, robust, census.CENSUS)
         assert np.abs(ref).max() > 0.1
         np.testing.assert_allclose(fast, ref, atol=AGREE * max(1.0, float(np.abs(ref).max())))
 
 
 @pytest.mark.parametrize("model", ["l1_tv", "l2_tv", "l1_tv_tv"])
 def test_numba_solver_with_a_quadratic_data_term_matches_numpy(model: str) -> None:
-    i0, a, c, v0 = random_linearisation(8)
+    i0, i1, a, c, v0 = random_linearisation(8)
     f0, g0 = level_signature(i0)
-    q = census_form(i0, f0, g0, a, c, v0, MODEL_SPECS[model].data == "l1")
+    q = census_form(i0, i1, f0, g0, a, c, v0, MODEL_SPECS[model].data == "l1")
     spec = MODEL_SPECS[model]
     params = SolveParams(spec, 0.05, 0.3, "isotropic", 30, 0.0)
     ref, fast = (PDState.zeros(spec, (H, W)) for _ in range(2))

@@ -83,13 +83,16 @@ def signature_gradient(f: np.ndarray) -> np.ndarray:
     return g
 
 
-def warped_frame(i0: np.ndarray, a: np.ndarray, c: np.ndarray, v0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def warped_frame(i0: np.ndarray, i1: np.ndarray, a: np.ndarray, c: np.ndarray, v0: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Frame 1 sampled at x + v0, recovered from the grey-value linearisation (a, c) around v0 (for every
     gradient scheme c = I1(x + v0) - I0 - a . v0), and the mask of pixels whose x + v0 leaves the image
-    (there a = c = 0; W is set to I0). (H, W) float32 and bool."""
+    (there a = c = 0 and no data term). There W is I1 itself: the inside neighbours' signatures then compare
+    values of frame 1 only, which share its tone curve (with I0 there, a tone change between the frames
+    would bias every pixel next to the outside band). (H, W) float32 and bool."""
     outside = (a[0] == 0) & (a[1] == 0) & (c == 0)
     warped = c + a[0] * v0[0] + a[1] * v0[1] + i0
-    return np.where(outside, i0, warped).astype(np.float32), outside
+    return np.where(outside, i1, warped).astype(np.float32), outside
 
 
 def quadratic_form(f0: np.ndarray, g0: np.ndarray, warped: np.ndarray, outside: np.ndarray, v0: np.ndarray,
@@ -122,21 +125,21 @@ def level_signature(i0: np.ndarray, params: CensusParams = CENSUS) -> tuple[np.n
     return f0, signature_gradient(f0)
 
 
-def census_form(i0: np.ndarray, f0: np.ndarray, g0: np.ndarray, a: np.ndarray, c: np.ndarray, v0: np.ndarray,
-                robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
-    """One warp's census data term: the quadratic form (5, H, W) around v0 (2, H, W), from frame 0 (H, W),
-    its :func:`level_signature` and the grey-value linearisation (a, c) around v0 (which carries the warped
-    frame 1, :func:`warped_frame`). ``robust``: the L1 data term (else L2)."""
-    warped, outside = warped_frame(i0, a, c, v0)
+def census_form(i0: np.ndarray, i1: np.ndarray, f0: np.ndarray, g0: np.ndarray, a: np.ndarray, c: np.ndarray,
+                v0: np.ndarray, robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
+    """One warp's census data term: the quadratic form (5, H, W) around v0 (2, H, W), from the level's frames
+    (H, W), frame 0's :func:`level_signature` and the grey-value linearisation (a, c) around v0 (which carries
+    the warped frame 1, :func:`warped_frame`). ``robust``: the L1 data term (else L2)."""
+    warped, outside = warped_frame(i0, i1, a, c, v0)
     return quadratic_form(f0, g0, warped, outside, v0, robust, params)
 
 
-# level_signature(i0, params) -> (f0, g0) and census_form(i0, f0, g0, a, c, v0, robust, params) -> q:
+# level_signature(i0, params) -> (f0, g0) and census_form(i0, i1, f0, g0, a, c, v0, robust, params) -> q:
 # the numpy references above or a backend's kernels (numba_census.py)
 # (the numba kernels take frame 0's gradient inside the form kernel: their level signature's second item is None)
 LevelSignature = Callable[[np.ndarray, CensusParams], tuple[np.ndarray, np.ndarray | None]]
-CensusForm = Callable[[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, np.ndarray, bool,
-                       CensusParams], np.ndarray]
+CensusForm = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, np.ndarray,
+                       bool, CensusParams], np.ndarray]
 
 
 # reliability samples every SAMPLE_SPACING-th pixel of photometric.reliability's grid (~5,000 at any size

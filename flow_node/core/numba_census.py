@@ -63,14 +63,14 @@ def signature_kernel(img, dy, dx, gain, eps, out):  # noqa: ANN001, ANN201
 
 
 @njit(parallel=True, **_JIT)
-def warped_kernel(i0, a, c, v0, warped, keep):  # noqa: ANN001, ANN201
+def warped_kernel(i0, i1, a, c, v0, warped, keep):  # noqa: ANN001, ANN201
     """census.warped_frame into warped (H, W) float32 and keep (H, W) float32 (0 outside, else 1)."""
     h, w = i0.shape
     for i in prange(h):
         for j in range(w):
             out = a[0, i, j] == 0 and a[1, i, j] == 0 and c[i, j] == 0
             keep[i, j] = _F32(0.0) if out else _F32(1.0)
-            warped[i, j] = i0[i, j] if out else c[i, j] + a[0, i, j] * v0[0, i, j] + a[1, i, j] * v0[1, i, j] + i0[i, j]
+            warped[i, j] = i1[i, j] if out else c[i, j] + a[0, i, j] * v0[0, i, j] + a[1, i, j] * v0[1, i, j] + i0[i, j]
 
 
 @njit(**_JIT)
@@ -135,14 +135,14 @@ def level_signature_numba(i0: np.ndarray, params: CensusParams) -> tuple[np.ndar
     return signature_numba(i0, params), None
 
 
-def census_form_numba(i0: np.ndarray, f0: np.ndarray, g0: None, a: np.ndarray, c: np.ndarray,
+def census_form_numba(i0: np.ndarray, i1: np.ndarray, f0: np.ndarray, g0: None, a: np.ndarray, c: np.ndarray,
                       v0: np.ndarray, robust: bool, params: CensusParams) -> np.ndarray:
     """census.census_form with the kernels: the quadratic form (5, H, W) of one warp."""
     h, w = i0.shape
     warped = np.empty((h, w), _F32)
     keep = np.empty((h, w), _F32)
     v0 = np.ascontiguousarray(v0, dtype=_F32)
-    warped_kernel(np.ascontiguousarray(i0, dtype=_F32), a, c, v0, warped, keep)
+    warped_kernel(np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32), a, c, v0, warped, keep)
     f1 = signature_numba(warped, params)
     out = np.empty((5, h, w), _F32)
     form_kernel(f0, f1, keep, v0, robust, _F32(params.delta), out)

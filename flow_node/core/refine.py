@@ -9,6 +9,7 @@ Flow is channel-first (2, h, w) in pixels of its level.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import cv2
@@ -75,33 +76,57 @@ def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
 
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState,
                 bregman_steps: int = 0) -> tuple[int, int]:
-    """As many warps as :func:`level_schedule` gives: linearise around the current flow (the backend's fused warp of
-    frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked), run the backend's solver and
-    median-filter the flow; then ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives on ``level``
-    and is updated in place. The level's warp source and frame 0's gradient are scratch arrays reused from call
-    to call (workspace.py). With the census data term (``cfg.photometric``, :func:`compares_signatures`)
-    each warp's problem is the census quadratic form (census.py) built on the same linearisation: frame 0's
-    signature once per level, the warped frame 1's per warp. Returns (iterations, Bregman iterations)."""
+    """As many warps as :func:`level_schedule` gives: linearise around the current flow, run the backend's solver
+    and median-filter the flow; then ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives
+    on ``level`` and is updated in place. The data term (``cfg.photometric``): grey values (the backend's fused
+    warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked; the level's warp source and
+    frame 0's gradient are scratch arrays reused from call to call, workspace.py) or census signatures
+    (:func:`census_problem`). Returns (iterations, Bregman iterations)."""
     warps, per_warp = level_schedule(cfg, level == finest_level(pyr, cfg))
     params = level_params(cfg, level, per_warp)
-    i0, i1 = pyr.i0[level], pyr.i1[level]
+    linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
+        pyr.i0[level], pyr.i1[level], cfg, backend, params.spec.data == "l1")
+    iterations = 0
+    for _ in range(warps):
+        problem = linearised(state.v)
+        iterations += backend.solve(problem, state, params)
+        if cfg.median_filter:
+            state.v = median_filter(state.v, cfg.median_filter)
+    extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
+    return iterations, extra
+
+
+# a level's linearisation: flow v0 (2, h, w) -> the problem of one warp around it
+Linearisation = Callable[[np.ndarray], Problem]
+
+
+def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
+    """The paper's data term on grey values: per warp rho(v) = a . v + c (operators.linearise, or the backend's
+    fused kernel) around v0."""
     h, w = i0.shape
     src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper,
                        out=scratch("refine.source", (3, h, w)))
     g0 = (image_gradient(i0, cfg.gradient_scheme, out=scratch("refine.grad0", (2, h, w)))
           if cfg.gradient_scheme == "interpolated" else None)
-    census = compares_signatures(cfg.photometric)
-    f0, fg0 = backend.signature(i0, CENSUS) if census else (None, None)
-    robust = params.spec.data == "l1"
-    iterations = 0
-    for _ in range(warps):
-        a, c = backend.linearise(i0, src1, g0, state.v, cfg.gradient_scheme, cfg.warp_kernel, backend.warper)
-        q = backend.census_form(i0, f0, fg0, a, c, state.v, robust, CENSUS) if census else None
-        iterations += backend.solve(Problem(a, c, q=q), state, params)
-        if cfg.median_filter:
-            state.v = median_filter(state.v, cfg.median_filter)
-    extra = bregman(Problem(a, c, q=q), state, params, backend.solve, bregman_steps) if bregman_steps else 0
-    return iterations, extra
+
+    def around(v0: np.ndarray) -> Problem:
+        return Problem(*backend.linearise(i0, src1, g0, v0, cfg.gradient_scheme, cfg.warp_kernel, backend.warper))
+
+    return around
+
+
+def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
+    """The census data term (census.py): frame 0's signature once per level; per warp the grey-value
+    linearisation (which carries frame 1 sampled at x + v0: the backend's fused warp is the cheapest way to
+    that sample), the warped frame's signature and the quadratic form around v0."""
+    grey = grey_problem(i0, i1, cfg, backend, robust)
+    f0, g0 = backend.signature(i0, CENSUS)
+
+    def around(v0: np.ndarray) -> Problem:
+        lin = grey(v0)
+        return Problem(lin.a, lin.c, q=backend.census_form(i0, i1, f0, g0, lin.a, lin.c, v0, robust, CENSUS))
+
+    return around
 
 
 def refine_levels(pyr: Pyramid, cfg: FlowConfig, backend: Backend, state: PDState, first: int, last: int,
