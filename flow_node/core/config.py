@@ -84,7 +84,7 @@ class FlowConfig:
     ``alpha1`` its alpha_1, both absolute.
     """
 
-    photometric: str = _f("census", "what the data term compares: census (each pixel's soft census signature, its "
+    photometric: str = _f("normalise", "what the data term compares: census (each pixel's soft census signature, its "
                           "3x3 differences over their local contrast: invariant to tone curves, gain fields and "
                           "flicker), normalise (grey values on the pair's 2nd-98th percentile range; an exposure "
                           "change is detected and undone), local_contrast, structure_texture (grey values after "
@@ -247,19 +247,16 @@ class FlowConfig:
 
 
 # The calibrated weights of each model: the defaults of alpha/alpha1 when a model is chosen without them.
-# For the census data term (the default, issue 25) with the default pyramid, the best of a small grid on the 8
-# Middlebury pairs (docs/engine.md, "Model-aware weights"): mean AEE l2_l2 0.405, l2_tv 0.353, l1_tv 0.349,
-# l1_tv_l2 0.352, l1_tv_tv 0.369. The grey-value data term's (photometric=normalise; `python -m bench.accuracy
-# --model-search`) were alpha 0.0003 / 0.0002 / 0.03 / 0.03 / 0.02.
+# On normalised pairs (photometric="normalise", the default) with the default pyramid, the best of a grid on the 8
+# Middlebury pairs (`python -m bench.accuracy --model-search`; BENCHMARKS.md, "Model-aware weights"). The census
+# data term wants larger ones, given with it (docs/engine.md, "Model-aware weights").
 MODEL_WEIGHTS: dict[str, dict[str, float]] = {
-    "l2_l2": dict(alpha=0.02, alpha1=0.5),
-    "l2_tv": dict(alpha=0.01, alpha1=0.5),
-    "l1_tv": dict(alpha=0.045, alpha1=0.5),
-    "l1_tv_l2": dict(alpha=0.045, alpha1=0.5),
-    "l1_tv_tv": dict(alpha=0.03, alpha1=0.5),
+    "l2_l2": dict(alpha=0.0003, alpha1=0.5),
+    "l2_tv": dict(alpha=0.0002, alpha1=0.5),
+    "l1_tv": dict(alpha=0.03, alpha1=0.5),
+    "l1_tv_l2": dict(alpha=0.03, alpha1=0.5),
+    "l1_tv_tv": dict(alpha=0.02, alpha1=0.5),
 }
-
-
 def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str, float]:
     """The weights a change implies: when ``changes`` switches the model away from ``current_model`` and does
     not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS); else {}.
@@ -279,7 +276,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # quality: many short warps per level on a fine pyramid (Middlebury <= 0.30); balanced: 2 x 15, alpha
     # 0.035 (ahead of DIS medium on sensor noise); realtime: 4 x 6 on the coarse levels, 2 x 16 at full size
     # (the level that costs); fastest: half size, 4 warps per level, 10 iterations per coarse warp.
-    "quality": dict(model="l1_tv", alpha=0.045, iterations=12, warps=10, levels=15, scale_factor=0.8,
+    "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
