@@ -145,9 +145,10 @@ class FlowEstimator:
         init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
-        flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
-        ensure_finite(flow)
-        unexplained = self._backend.reliability(*normalised, flow)
+        with self._backend.running():
+            flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
+            ensure_finite(flow)
+            unexplained = self._backend.reliability(*normalised, flow)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
 
