@@ -34,7 +34,7 @@ from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import array_to_image_fields, decode
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
 from ..pipeline.units import output_in_units
-from ..process import keep_freed_memory
+from ..process import keep_freed_memory, passive_thread_waits
 from . import camera_info, diagnostics, security, startup
 from .params import ParamSpec, coerce, param_specs, preset_values, settings_from_values
 
@@ -354,6 +354,7 @@ class FlowNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``ros2 run flow_node flow_node`` / ``python -m flow_node.ros.node``."""
     keep_freed_memory()
+    passive_thread_waits()
     startup.use_shipped_dds_profile()  # ros2 run, ros2 launch and python -m get the same delivery
     argv = sys.argv if args is None else args
     log = rclpy.logging.get_logger("flow_node")
