@@ -11,7 +11,7 @@ import numpy as np
 
 from .backends import select_backend
 from .config import FlowConfig
-from .engine import estimate_pair
+from .engine import estimate_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
 from .refine import SolveStats
 
@@ -116,13 +116,16 @@ class FlowEstimator:
         self._config = cfg
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
-        """Run one small solve with the current config so JIT compilation (numba) happens now, not on the
-        first real frame. Returns the seconds it took."""
+        """Run one small solve with the current config, and the fusion stage once (engine.warm_fusion), so
+        that JIT compilation (numba), or reading the compiled kernels from numba's cache in a fresh process,
+        happens now, not on the first real frame. Returns the seconds it took."""
         rng = np.random.default_rng(0)
         f0 = rng.random(shape, dtype=np.float32)
         f1 = np.roll(f0, 1, axis=1)
         start = time.perf_counter()
         self.estimate(f0, f1)
+        with self._backend.running():
+            warm_fusion(self._backend)
         return time.perf_counter() - start
 
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
