@@ -206,7 +206,6 @@ def cold_start(pair: Pair, preset: str) -> dict[str, Any]:
 # ------------------------------------------------------------------------------------------ kernel
 def kernel_vs_floor(shape: tuple[int, int] = (480, 640), iters: int = 50) -> dict[str, Any]:
     """L1-TV iteration time (serial / parallel kernels) vs the memory-traffic floor, same run."""
-    import numba
 
     from flow_node.core import numba_backend as nb
     from flow_node.core.models import MODEL_SPECS
@@ -224,22 +223,21 @@ def kernel_vs_floor(shape: tuple[int, int] = (480, 640), iters: int = 50) -> dic
     out: dict[str, Any] = {"shape": [h, w], "bytes_per_iteration": bytes_per_iter}
     saved = nb.PARALLEL_MIN_PIXELS
     for label, threads, min_px in (("serial", 1, 10**12), ("parallel", 0, 0)):
-        nb.set_threads(threads)
         nb.PARALLEL_MIN_PIXELS = min_px
         st = PDState.zeros(spec, shape)
-        nb.solve_numba(Problem(a, c), st, params)
-        secs = []
-        for _ in range(7):
-            start = time.perf_counter()
+        with nb.thread_count(threads) as used:
             nb.solve_numba(Problem(a, c), st, params)
-            secs.append((time.perf_counter() - start) / iters)
-        bw = _stream_bandwidth(h * w, numba.get_num_threads() if threads == 0 else 1)
+            secs = []
+            for _ in range(7):
+                start = time.perf_counter()
+                nb.solve_numba(Problem(a, c), st, params)
+                secs.append((time.perf_counter() - start) / iters)
+        bw = _stream_bandwidth(h * w, used)
         per_iter = float(np.median(secs))
         floor = bytes_per_iter / bw
-        out[label] = {"ms_per_iteration": per_iter * 1e3, "threads": nb.threads(), "stream_GBps": bw / 1e9,
+        out[label] = {"ms_per_iteration": per_iter * 1e3, "threads": used, "stream_GBps": bw / 1e9,
                       "floor_ms": floor * 1e3, "ratio_to_floor": per_iter / floor}
     nb.PARALLEL_MIN_PIXELS = saved
-    nb.set_threads(0)
     return out
 
 

@@ -41,12 +41,13 @@ def regimes(pairs: int) -> dict[str, list[Any]]:
 
 def measure(name: str, samples: list[Any], rounds: int) -> dict[str, Any]:
     """Median ms per call and mean AEE of every variant on one regime's pairs."""
-    made = build({p: FlowConfig.preset(p) for p in PRESETS}, ("dis_medium",))
+    configs = {f"{p} {n}": FlowConfig.preset(p).replace(threads=n) for p in PRESETS for n in (1, 2)}
+    made = build(configs, ("dis_medium",))
     variants: dict[str, tuple[Any, int, int]] = {"dis_medium": (made["dis_medium"], 0, 0)}
     for preset in PRESETS:
-        variants[f"{preset} 1 thread"] = (made[preset], 1, THRESHOLDS[0])
+        variants[f"{preset} 1 thread"] = (made[f"{preset} 1"], 1, THRESHOLDS[0])
         for thr in THRESHOLDS:
-            variants[f"{preset} 2 threads from {thr // 1000}k px"] = (made[preset], 2, thr)
+            variants[f"{preset} 2 threads from {thr // 1000}k px"] = (made[f"{preset} 2"], 2, thr)
     times: dict[str, list[float]] = {k: [] for k in variants}
     errors: dict[str, list[float]] = {k: [] for k in variants}
     shipped = nb.PARALLEL_MIN_PIXELS
@@ -54,8 +55,7 @@ def measure(name: str, samples: list[Any], rounds: int) -> dict[str, Any]:
         for r in range(rounds):
             for s in samples:
                 for variant, (method, threads, thr) in variants.items():
-                    if threads:
-                        nb.set_threads(threads)
+                    if threads:  # the thread count is the variant's config's
                         nb.PARALLEL_MIN_PIXELS = thr
                     prepared = method.prepare(s)
                     t0 = time.perf_counter()
@@ -67,7 +67,6 @@ def measure(name: str, samples: list[Any], rounds: int) -> dict[str, Any]:
                         errors[variant].append(float(np.mean(np.linalg.norm(flow - s.gt, axis=-1)[known])))
     finally:
         nb.PARALLEL_MIN_PIXELS = shipped
-        nb.set_threads(0)
     dis = float(np.median(times["dis_medium"]))
     return {"regime": name, "pairs": len(samples), "rounds": rounds,
             "variants": {k: {"ms_median": 1e3 * float(np.median(v)), "over_dis_medium": float(np.median(v)) / dis,

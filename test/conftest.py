@@ -3,8 +3,11 @@
 import os
 import random
 
+from flow_node.process import passive_thread_waits
+
 # Set before rclpy is imported anywhere: localhost-only discovery and a per-run domain id, so parallel
 # runs and other ROS processes on the machine never see our topics.
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("ROS_DOMAIN_ID", str(random.SystemRandom().randint(1, 100)))
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+passive_thread_waits()  # idle numba threads sleep, as in the executables: the test process is one

@@ -22,7 +22,7 @@ from flow_node.core.backends import select_backend
 from flow_node.core.config import FlowConfig
 from flow_node.core.fusion import FINAL_MARGIN, fuse, planes
 from flow_node.core.initialise import forward_backward_consistent
-from flow_node.core.numba_fusion import _NONE, consistent_numba, fuse_numba, residual_kernel
+from flow_node.core.numba_fusion import _rows_on, consistent_numba, fuse_numba, residual_kernel
 
 W, H = 200, 160
 
@@ -69,7 +69,8 @@ def test_residual_kernel_samples_bilinearly(rows) -> None:
     flow[0, :, :10] -= np.float32(20.0)
     s0, s1 = planes(i0), planes(i1)
     out = np.empty((H, W, 2), np.float32)
-    residual_kernel(out, s0, s1, flow, _NONE, _NONE, _NONE, _NONE, numba_backend.PARALLEL_MIN_PIXELS == 0)
+    with _rows_on(H, W):
+        residual_kernel(out, s0, s1, flow)
     x = np.arange(W, dtype=np.float32)[None] + flow[0]
     y = np.arange(H, dtype=np.float32)[:, None] + flow[1]
     inside = (x >= 0) & (x <= W - 1) & (y >= 0) & (y <= H - 1)
@@ -130,7 +131,6 @@ def rows(request, monkeypatch: pytest.MonkeyPatch) -> str:
     kernels read, numba_backend.PARALLEL_MIN_PIXELS, patched down to this test's small frames)."""
     if request.param == "parallel":
         monkeypatch.setattr(numba_backend, "PARALLEL_MIN_PIXELS", 0)
-        numba_backend.set_threads(0)
         assert numba_backend.threads() > 1 or numba.config.NUMBA_NUM_THREADS == 1
     return request.param
 

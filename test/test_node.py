@@ -234,18 +234,22 @@ def test_node_process_keeps_freed_memory_instead_of_faulting_in_fresh_pages() ->
 
 
 class _Applied(Exception):
-    """Raised by the stand-in keep_freed_memory: main() got as far as applying it."""
+    """Raised by the stand-in process setting: main() got as far as applying it."""
 
 
+@pytest.mark.parametrize("setting", ["keep_freed_memory", "passive_thread_waits"])
 @pytest.mark.parametrize("module, argv", [
     ("flow_node.ros.node", []),
     ("flow_node.bag.cli", ["synth", "--frames", "2", "unused_bag"]),
     ("flow_node.cli.estimate", ["f0.png", "f1.png", "-o", "unused.flo"]),
 ])
-def test_every_executable_keeps_freed_memory_before_its_work(module: str, argv: list[str], tmp_path: Path,
-                                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    """flow_node, flow_bag and flow_estimate all apply keep_freed_memory in main() (the fault test above shows
-    what it buys: without it every frame's arrays fault in fresh pages), before they touch any input."""
+def test_every_executable_applies_the_process_settings_before_its_work(setting: str, module: str, argv: list[str],
+                                                                       tmp_path: Path,
+                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """flow_node, flow_bag and flow_estimate all apply flow_node/process.py's settings in main(), before they
+    touch any input: keep_freed_memory (the fault test above shows what it buys: without it every frame's
+    arrays fault in fresh pages) and passive_thread_waits (idle numba threads sleep; libgomp reads it when
+    the first parallel kernel runs, so it must come before any flow)."""
     import importlib
 
     mod = importlib.import_module(module)
@@ -253,7 +257,7 @@ def test_every_executable_keeps_freed_memory_before_its_work(module: str, argv: 
     def applied() -> bool:
         raise _Applied
 
-    monkeypatch.setattr(mod, "keep_freed_memory", applied)
+    monkeypatch.setattr(mod, setting, applied)
     monkeypatch.chdir(tmp_path)  # nothing is written if it works; if it does not, the work lands here
     with pytest.raises(_Applied):
         mod.main(argv)

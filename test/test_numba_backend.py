@@ -20,7 +20,7 @@ from synth import constant_flow, interior, pair_from_flow, rotation_flow, textur
 
 from flow_node.core import numba_backend
 from flow_node.core.api import FlowEstimator
-from flow_node.core.backends import select_backend
+from flow_node.core.backends import NUMPY, select_backend
 from flow_node.core.census import census_form, level_signature
 from flow_node.core.config import MODELS, FlowConfig
 from flow_node.core.errors import ConfigError
@@ -198,16 +198,45 @@ def test_fast_presets_agree_with_the_numpy_reference(preset: str) -> None:
     assert aee(interior(fast.flow), interior(gt)) < 0.1  # zero flow: ~1.9
 
 
-def test_threads_cap() -> None:
+def test_each_estimator_runs_its_kernels_on_its_own_threads(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``threads`` belongs to the estimator, not the process: with FlowEstimator(threads=1) made before
+    FlowEstimator(threads=2), each still solves on its own count (the solver kernel sees it as numba's thread
+    count and as its serial / parallel choice), in one thread one after the other and concurrently in two;
+    the caller's numba count is left as it was. (Once a module global that the last estimator set.)"""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one core: numba cannot run two threads")
+    iterate, seen = numba_backend.nk.iterate, []
+
+    def spy(*args: object) -> int:
+        seen.append((threading.current_thread().name, numba.get_num_threads(), args[-1]))
+        return iterate(*args)
+
+    monkeypatch.setattr(numba_backend.nk, "iterate", spy)
+    monkeypatch.setattr(numba_backend, "PARALLEL_MIN_PIXELS", 0)  # this test's small level runs in parallel too
     t = texture(40, 48, seed=1).image
-    est = FlowEstimator(FlowConfig(backend="numba", threads=1, levels=1, warps=1, iterations=5))
-    est.estimate(t, t)
-    assert numba_backend.threads() == 1 and numba.get_num_threads() == 1
-    est.config = est.config.replace(threads=0)
-    est.estimate(t, t)
-    assert numba.get_num_threads() == numba.config.NUMBA_NUM_THREADS
-    assert numba_backend.set_threads(10_000) == numba.config.NUMBA_NUM_THREADS
-    numba_backend.set_threads(0)
+    cfg = FlowConfig(backend="numba", levels=1, warps=1, iterations=5)
+    estimators = {1: FlowEstimator(cfg.replace(threads=1)), 2: FlowEstimator(cfg.replace(threads=2))}
+    before = numba.get_num_threads()
+    for n in (1, 2, 1):
+        seen.clear()
+        estimators[n].estimate(t, t)
+        assert {s[1:] for s in seen} == {(n, n > 1)}
+        assert numba.get_num_threads() == before
+    seen.clear()
+    start = threading.Barrier(2)
+
+    def work(n: int) -> None:
+        start.wait()
+        for _ in range(5):
+            estimators[n].estimate(t, t)
+
+    workers = [threading.Thread(target=work, args=(n,), name=f"threads={n}") for n in (1, 2)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    assert [{s[1] for s in seen if s[0] == w.name} for w in workers] == [{1}, {2}]
+    assert numba_backend.resolve_threads(0) == numba_backend.resolve_threads(10_000) == numba.config.NUMBA_NUM_THREADS
 
 
 class _Records(logging.Handler):
@@ -241,9 +270,9 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
 
 
 NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability, fuse, forward_backward_consistent,
-                level_signature, census_form)
+                level_signature, census_form, 1, NUMPY.on_threads)
 NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, reliability_numba, fuse_numba, consistent_numba,
-                level_signature_numba, census_form_numba)
+                level_signature_numba, census_form_numba, numba.config.NUMBA_NUM_THREADS, numba_backend.thread_count)
 
 
 def test_backend_selection_and_log() -> None:

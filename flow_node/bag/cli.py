@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from ..core.config import MODELS, PRESETS
 from ..core.errors import ConfigError, FlowError
-from ..process import keep_freed_memory
+from ..process import keep_freed_memory, passive_thread_waits
 
 if TYPE_CHECKING:
     from ..core.config import FlowConfig
@@ -192,6 +192,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     args = parser.parse_args(argv)
     keep_freed_memory()  # every command runs frame after frame: reuse the freed per-frame arrays' pages
+    passive_thread_waits()
     try:
         if args.command == "play":  # rclpy logs through fd 2: keep it
             from ..ros.startup import use_shipped_dds_profile

@@ -8,15 +8,17 @@ from __future__ import annotations
 import gc
 from typing import Any
 
-from ..process import keep_freed_memory
+from ..process import keep_freed_memory, passive_thread_waits
 
 
 def dask_setup(worker: Any) -> None:
     """The worker starts: keep freed memory as every flow_node executable does (flow_node/process.py). Dask's
     nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, under which every per-frame array is a fresh
     mmap (bag tasks ran up to 2x slower); the embedded cluster's workers also get it through their environment
-    (batch.WORKER_ENV), a worker of someone else's cluster only through this."""
+    (batch.WORKER_ENV), a worker of someone else's cluster only through this. Idle numba threads sleep
+    (process.passive_thread_waits), as in the executables."""
     keep_freed_memory()
+    passive_thread_waits()
 
 
 def dask_teardown(worker: Any) -> None:

@@ -27,7 +27,7 @@ from ..core.config import MODELS, PRESETS
 from ..core.errors import FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
 from ..pipeline.codec import decode_bytes
-from ..process import keep_freed_memory
+from ..process import keep_freed_memory, passive_thread_waits
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -210,6 +210,7 @@ def silence_opencv_log() -> None:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     keep_freed_memory()
+    passive_thread_waits()
     silence_opencv_log()
     with native_stderr_silenced():
         return _run(args)

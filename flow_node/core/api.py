@@ -12,7 +12,7 @@ import numpy as np
 from .backends import select_backend
 from .census import reliability as census_reliability
 from .config import FlowConfig
-from .engine import estimate_pair
+from .engine import estimate_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
 from .photometric import compares_signatures
 from .refine import SolveStats
@@ -118,13 +118,16 @@ class FlowEstimator:
         self._config = cfg
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
-        """Run one small solve with the current config so JIT compilation (numba) happens now, not on the
-        first real frame. Returns the seconds it took."""
+        """Run one small solve with the current config, and the fusion stage once (engine.warm_fusion), so
+        that JIT compilation (numba), or reading the compiled kernels from numba's cache in a fresh process,
+        happens now, not on the first real frame. Returns the seconds it took."""
         rng = np.random.default_rng(0)
         f0 = rng.random(shape, dtype=np.float32)
         f1 = np.roll(f0, 1, axis=1)
         start = time.perf_counter()
         self.estimate(f0, f1)
+        with self._backend.running():
+            warm_fusion(self._backend)
         return time.perf_counter() - start
 
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
@@ -147,12 +150,13 @@ class FlowEstimator:
         init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
-        flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
-        ensure_finite(flow)
-        if compares_signatures(self._config.photometric):
-            unexplained = census_reliability(*normalised, flow, self._backend.warper.sample)
-        else:
-            unexplained = self._backend.reliability(*normalised, flow)
+        with self._backend.running():
+            flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
+            ensure_finite(flow)
+            if compares_signatures(self._config.photometric):
+                unexplained = census_reliability(*normalised, flow, self._backend.warper.sample)
+            else:
+                unexplained = self._backend.reliability(*normalised, flow)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
 

@@ -4,6 +4,8 @@ numpy reference."""
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import NamedTuple
 
 from .census import CensusForm, LevelSignature, census_form, level_signature
@@ -18,11 +20,18 @@ from .warping import NUMPY_WARPER, Warper
 log = logging.getLogger("flow_node")
 
 
+def _single_threaded(threads: int) -> AbstractContextManager[object]:
+    """The numpy references' :attr:`Backend.on_threads`: nothing to bind (OpenCV keeps its own pool)."""
+    return nullcontext()
+
+
 class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
     reliability figure, the fusion and its forward-backward check, and the census data term's level
     signature and per-warp form (same semantics in every backend; the defaults are the numpy references,
-    the linearisation on ``warper``)."""
+    the linearisation on ``warper``); the threads its kernels run on and the context that binds them
+    (:meth:`running`).
+    """
 
     name: str
     solve: LevelSolver
@@ -33,6 +42,14 @@ class Backend(NamedTuple):
     consistent: Consistent = forward_backward_consistent
     signature: LevelSignature = level_signature
     census_form: CensusForm = census_form
+    threads: int = 1
+    on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
+
+    def running(self) -> AbstractContextManager[object]:
+        """The context each estimate runs in: the backend's kernels on its ``threads``, bound to the calling
+        thread for the block (not a process-wide setting: two estimators with different ``threads`` each run
+        with their own, also in one thread one after the other)."""
+        return self.on_threads(self.threads)
 
 
 NUMPY = Backend("numpy", solve_numpy, NUMPY_WARPER)
@@ -81,9 +98,10 @@ def select_backend(name: str, threads: int = 0) -> Backend:
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
         log.warning("flow_node backend: numpy (numba not importable: %s)", exc)
         return NUMPY
-    used = numba_backend.set_threads(threads)
+    used = numba_backend.resolve_threads(threads)
     log.info("flow_node backend: numba (%d thread%s, kernel cache %s)", used, "" if used == 1 else "s",
              numba_backend.cache_dir())
     return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER, numba_backend.linearise_numba,
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
-                   numba_census.level_signature_numba, numba_census.census_form_numba)
+                   numba_census.level_signature_numba, numba_census.census_form_numba, used,
+                   numba_backend.thread_count)

@@ -106,6 +106,17 @@ def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, on_level: OnLevel,
     return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
 
 
+def warm_fusion(backend: Backend) -> None:
+    """Run the backend's fusion and forward-backward check once on a small synthetic level, so that a
+    warm-up compiles them, or loads them from numba's cache, before the first frame that moves far (a
+    warm-up solve does not reach them: only such pairs are fused). Two candidates leave the 32 x 128 level
+    on opposite sides, so a stripe between them is undecided and every pass of the fusion runs."""
+    i0 = np.random.default_rng(0).random((32, 128), dtype=np.float32)
+    left = np.zeros((2, 32, 128), np.float32)
+    left[0] = -100.0
+    backend.fuse(i0, i0, [left, -left], [None, backend.consistent(-left, left)])
+
+
 def on_grid(flow: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """A candidate's flow (2, h, w) on a level of ``shape``: itself when it already lives there (the
     finest level at full resolution; a resize to the same size would only copy it), else resized."""

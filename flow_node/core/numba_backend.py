@@ -18,6 +18,9 @@ Importing this module raises ImportError when numba is not installed; backends.p
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import cv2
 import numba
 import numpy as np
@@ -33,24 +36,35 @@ _F32 = np.float32
 PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
 # the linearisation costs ~10 primal-dual iterations per pixel in one pass: worth the threads on smaller levels
 LINEARISE_PARALLEL_MIN_PIXELS = 20_000
-_threads = 0  # 0 = all cores; applied on every solve because numba's thread count is per calling thread
 _DUMMY3 = np.zeros((2, 1, 1), _F32)
 _DUMMY4 = np.zeros((2, 2, 1, 1), _F32)
 _DUMMY5 = np.zeros((2, 2, 2, 1, 1), _F32)
 
 
-def set_threads(n: int) -> int:
-    """Cap the threads of the parallel kernels (0 = all cores, values above the core count are clipped).
+def resolve_threads(n: int) -> int:
+    """The thread count a ``threads`` setting means: all cores for 0 (or less), values above the core count
+    clipped to it."""
+    return numba.config.NUMBA_NUM_THREADS if n <= 0 else min(int(n), numba.config.NUMBA_NUM_THREADS)
 
-    Returns the thread count that will be used."""
-    global _threads
-    _threads = 0 if n <= 0 else min(int(n), numba.config.NUMBA_NUM_THREADS)
-    return threads()
+
+@contextmanager
+def thread_count(n: int) -> Iterator[int]:
+    """Run the kernels called in this block on :func:`resolve_threads` (n) threads; yields that count.
+
+    numba's thread count belongs to the calling thread, so this binds it for this block in this thread only
+    (an estimator's solve in another thread keeps its own); the count before is restored on exit."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(resolve_threads(n))
+    try:
+        yield numba.get_num_threads()
+    finally:
+        numba.set_num_threads(before)
 
 
 def threads() -> int:
-    """Threads the kernels will use."""
-    return _threads or numba.config.NUMBA_NUM_THREADS
+    """Threads the parallel kernels run on when called now from this thread (inside an estimator's call:
+    its ``threads`` setting, bound by :func:`thread_count`; elsewhere numba's count for the thread)."""
+    return numba.get_num_threads()
 
 
 def cache_dir() -> str:
@@ -97,7 +111,6 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
-    numba.set_num_threads(threads())
     return int(nk.iterate(
         state.v, state.y,
         state.w if state.w is not None else _DUMMY4,
@@ -115,7 +128,6 @@ def sample_numba(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel:
     src = _f32c(coef)
     flat = src.reshape((-1,) + src.shape[-2:])
     out = np.empty((flat.shape[0],) + map_x.shape, _F32)
-    numba.set_num_threads(threads())
     nw.warp_kernel(flat, _f32c(map_x), _f32c(map_y), KERNEL_CODES[kernel], out,
                    threads() > 1 and map_x.size >= PARALLEL_MIN_PIXELS)
     return out.reshape(coef.shape[:-2] + map_x.shape)
@@ -145,7 +157,6 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
     a = np.empty((2, h, w), _F32)
     c = np.empty((h, w), _F32)
     interpolated = scheme == "interpolated"
-    numba.set_num_threads(threads())
     parallel = threads() > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS
     rows, base = _row_scratch(w)
     nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),

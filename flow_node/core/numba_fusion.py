@@ -16,8 +16,9 @@ numba_backend.PARALLEL_MIN_PIXELS or more.
 
 from __future__ import annotations
 
+from contextlib import AbstractContextManager
+
 import cv2
-import numba
 import numpy as np
 from numba import njit, prange
 
@@ -48,7 +49,7 @@ def _bilinear_taps(x, y, h, w):  # noqa: ANN001, ANN202
 
 
 @njit(**_JIT)
-def _residual_row(out, s0, s1, flow, _e, _f, _g, _h, i):  # noqa: ANN001, ANN202
+def _residual_row(out, s0, s1, flow, i):  # noqa: ANN001, ANN202
     """Row i of fusion.data_cost's two box inputs for the candidate ``flow`` (2, h, w), interleaved:
     out[..., 0] = |I1(x + f) - I0(x)|_1 over the 3 planes of s0, s1 (h, w, 3) where x + f stays inside the
     image, else 0; out[..., 1] = that inside mask (1 / 0). I1 is sampled bilinearly (fusion.warp_residual:
@@ -69,7 +70,6 @@ def _residual_row(out, s0, s1, flow, _e, _f, _g, _h, i):  # noqa: ANN001, ANN202
         else:
             out[i, j, 0] = 0
             out[i, j, 1] = 0
-    return 0
 
 
 @njit(**_JIT)
@@ -108,18 +108,17 @@ def _choose_row(choice, undecided, boxed, ok, checked, options, margin, consiste
 
 
 @njit(**_JIT)
-def _near_row(labels, undecided, near, _d, _e, _f, _g, _h, i):  # noqa: ANN001, ANN202
+def _near_row(labels, undecided, near, i):  # noqa: ANN001, ANN202
     """Row i of the label -> decided pixel table of fusion.fill_undecided (each decided pixel has its own
     label, so rows write disjoint entries)."""
     w = labels.shape[1]
     for j in range(w):
         if not undecided[i, j]:
             near[labels[i, j]] = i * w + j
-    return 0
 
 
 @njit(**_JIT)
-def _fill_row(choice, undecided, labels, near, stack, flat_choice, flat_stack, _h, i):  # noqa: ANN001, ANN202
+def _fill_row(choice, undecided, labels, near, stack, flat_choice, flat_stack, i):  # noqa: ANN001, ANN202
     """Row i of fusion.fill_undecided, in place on ``choice``: an undecided pixel takes the candidate of
     stack (K, 2, h, w) nearest to the flow its nearest decided pixel (flat index ``near[labels]``, read
     through the flat views of choice and stack) chose (decided pixels are only read, undecided ones only
@@ -140,21 +139,19 @@ def _fill_row(choice, undecided, labels, near, stack, flat_choice, flat_stack, _
                 best = d
                 pick = k
         choice[i, j] = pick
-    return 0
 
 
 @njit(**_JIT)
-def _gather_row(choice, stack, out, _d, _e, _f, _g, _h, i):  # noqa: ANN001, ANN202
+def _gather_row(choice, stack, out, i):  # noqa: ANN001, ANN202
     """Row i of the fused flow: out[c, i, j] = stack[choice[i, j], c, i, j]."""
     for j in range(choice.shape[1]):
         k = choice[i, j]
         out[0, i, j] = stack[k, 0, i, j]
         out[1, i, j] = stack[k, 1, i, j]
-    return 0
 
 
 @njit(**_JIT)
-def _consistent_row(out, forward, backward, tolerance, _e, _f, _g, _h, i):  # noqa: ANN001, ANN202
+def _consistent_row(out, forward, backward, tolerance, i):  # noqa: ANN001, ANN202
     """Row i of initialise.forward_backward_consistent: out = inside & |f + b(x + f)|^2 < tol^2, tol =
     tolerance + 5 % of |f| (float32 as the reference), b sampled bilinearly like :func:`_residual_row`."""
     h, w = forward.shape[1], forward.shape[2]
@@ -174,51 +171,68 @@ def _consistent_row(out, forward, backward, tolerance, _e, _f, _g, _h, i):  # no
         e0, e1 = f0 + bu, f1 + bv
         tol = tolerance + five * np.sqrt(f0 * f0 + f1 * f1)
         out[i, j] = e0 * e0 + e1 * e1 < tol * tol
-    return 0
 
 
-def _over_rows(row, name: str):  # noqa: ANN001, ANN202
-    """Compile a driver ``name(a, ..., h, parallel)`` that runs the row kernel ``row(a, ..., h, i)`` over every
-    row i of ``a`` (in parallel when ``parallel``) and returns the rows' returns summed. Every kernel below is
-    one such driver around one row function; the distinct name keeps its on-disk cache entry apart."""
-
-    def driver(a, b, c, d, e, f, g, h, parallel):  # noqa: ANN001, ANN202
-        total = 0
-        if parallel:
-            for i in prange(a.shape[0]):
-                total += row(a, b, c, d, e, f, g, h, i)
-        else:
-            for i in range(a.shape[0]):
-                total += row(a, b, c, d, e, f, g, h, i)
-        return total
-
-    driver.__name__ = driver.__qualname__ = name
-    driver.__doc__ = f":func:`{row.py_func.__name__}` over every row (in parallel when ``parallel``); returns summed."
-    return njit(parallel=True, **_JIT)(driver)
+# The kernels: each runs one row function above over every row, in parallel on the calling thread's numba
+# threads (one thread on small levels: :func:`_rows_on`). Written out one by one, not built by a factory
+# around the row function: numba keys a closure's cache entry by its pickled cell contents, and a pickled
+# dispatcher carries a random per-process id, so such drivers were compiled again in every process.
+@njit(parallel=True, **_JIT)
+def residual_kernel(out, s0, s1, flow):  # noqa: ANN001, ANN201
+    """:func:`_residual_row` over every row of ``out``."""
+    for i in prange(out.shape[0]):
+        _residual_row(out, s0, s1, flow, i)
 
 
-residual_kernel = _over_rows(_residual_row, "residual_kernel")
-choose_kernel = _over_rows(_choose_row, "choose_kernel")
-near_kernel = _over_rows(_near_row, "near_kernel")
-fill_kernel = _over_rows(_fill_row, "fill_kernel")
-gather_kernel = _over_rows(_gather_row, "gather_kernel")
-consistent_kernel = _over_rows(_consistent_row, "consistent_kernel")
+@njit(parallel=True, **_JIT)
+def choose_kernel(choice, undecided, boxed, ok, checked, options, margin, consistent_cost):  # noqa: ANN001, ANN201
+    """:func:`_choose_row` over every row of ``choice``; returns the count of undecided pixels."""
+    lost = 0
+    for i in prange(choice.shape[0]):
+        lost += _choose_row(choice, undecided, boxed, ok, checked, options, margin, consistent_cost, i)
+    return lost
 
 
-_NONE = np.zeros(1, np.uint8)  # filler for a kernel's unused arguments
+@njit(parallel=True, **_JIT)
+def near_kernel(labels, undecided, near):  # noqa: ANN001, ANN201
+    """:func:`_near_row` over every row of ``labels``."""
+    for i in prange(labels.shape[0]):
+        _near_row(labels, undecided, near, i)
 
 
-def _parallel(h: int, w: int) -> bool:
-    numba.set_num_threads(nb.threads())
-    return nb.threads() > 1 and h * w >= nb.PARALLEL_MIN_PIXELS
+@njit(parallel=True, **_JIT)
+def fill_kernel(choice, undecided, labels, near, stack, flat_choice, flat_stack):  # noqa: ANN001, ANN201
+    """:func:`_fill_row` over every row of ``choice``."""
+    for i in prange(choice.shape[0]):
+        _fill_row(choice, undecided, labels, near, stack, flat_choice, flat_stack, i)
+
+
+@njit(parallel=True, **_JIT)
+def gather_kernel(choice, stack, out):  # noqa: ANN001, ANN201
+    """:func:`_gather_row` over every row of ``choice``."""
+    for i in prange(choice.shape[0]):
+        _gather_row(choice, stack, out, i)
+
+
+@njit(parallel=True, **_JIT)
+def consistent_kernel(out, forward, backward, tolerance):  # noqa: ANN001, ANN201
+    """:func:`_consistent_row` over every row of ``out``."""
+    for i in prange(out.shape[0]):
+        _consistent_row(out, forward, backward, tolerance, i)
+
+
+def _rows_on(h: int, w: int) -> AbstractContextManager[int]:
+    """The threads the kernels run an (h, w) level's rows on: the calling thread's numba threads from
+    numba_backend.PARALLEL_MIN_PIXELS pixels, one below (thread start-up dominates on small levels)."""
+    return nb.thread_count(nb.threads() if h * w >= nb.PARALLEL_MIN_PIXELS else 1)
 
 
 def consistent_numba(forward: np.ndarray, backward: np.ndarray) -> np.ndarray:
     """initialise.forward_backward_consistent with the kernel above (same result with OpenCV 5)."""
     forward = np.ascontiguousarray(forward, dtype=_F32)
     out = np.empty(forward.shape[1:], np.bool_)
-    consistent_kernel(out, forward, np.ascontiguousarray(backward, dtype=_F32), _F32(FB_TOLERANCE_PX), _NONE,
-                      _NONE, _NONE, _NONE, _parallel(*forward.shape[1:]))
+    with _rows_on(*out.shape):
+        consistent_kernel(out, forward, np.ascontiguousarray(backward, dtype=_F32), _F32(FB_TOLERANCE_PX))
     return out
 
 
@@ -227,13 +241,18 @@ def fuse_numba(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
                only_consistent: bool = False, propagate: bool = PROPAGATE_INCONSISTENT
                ) -> tuple[np.ndarray, np.ndarray]:
     """fusion.fuse with the kernels above: same arguments, same result (with OpenCV 5)."""
-    s0, s1 = planes(i0), planes(i1)
     stack = np.stack([np.asarray(c, dtype=_F32) for c in candidates])
+    with _rows_on(*stack.shape[2:]):
+        return _fuse(planes(i0), planes(i1), stack, consistent, margin, only_consistent, propagate)
+
+
+def _fuse(s0: np.ndarray, s1: np.ndarray, stack: np.ndarray, consistent: list[np.ndarray | None] | None,
+          margin: float, only_consistent: bool, propagate: bool) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fuse_numba` on the planes s0, s1 (h, w, 3) and the candidates' stack (K, 2, h, w)."""
     k_n, h, w = stack.shape[0], stack.shape[2], stack.shape[3]
-    parallel = _parallel(h, w)
     boxed = np.empty((k_n, h, w, 2), _F32)
     for k in range(k_n):  # the masked residual, then its box means in place (OpenCV's filters allow it)
-        residual_kernel(boxed[k], s0, s1, stack[k], _NONE, _NONE, _NONE, _NONE, parallel)
+        residual_kernel(boxed[k], s0, s1, stack[k])
         cv2.boxFilter(boxed[k], -1, (FUSION_WINDOW, FUSION_WINDOW), dst=boxed[k], borderType=cv2.BORDER_REFLECT)
     checks = list(consistent or []) + [None] * (k_n - len(consistent or []))
     checked = np.array([c is not None for c in checks], np.bool_)
@@ -244,15 +263,13 @@ def fuse_numba(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     choice = np.empty((h, w), np.int64)
     undecided = np.empty((h, w), np.bool_)
     options = np.array([only_consistent, propagate], np.bool_)
-    lost = choose_kernel(choice, undecided, boxed, ok, checked, options, _F32(margin), _F32(CONSISTENT_COST),
-                         parallel)
+    lost = choose_kernel(choice, undecided, boxed, ok, checked, options, _F32(margin), _F32(CONSISTENT_COST))
     if 0 < lost < h * w:
         _, labels = cv2.distanceTransformWithLabels(undecided.view(np.uint8), cv2.DIST_L2, 5,
                                                     labelType=cv2.DIST_LABEL_PIXEL)
         near = np.zeros(int(labels.max()) + 1, np.int64)
-        near_kernel(labels, undecided, near, _NONE, _NONE, _NONE, _NONE, _NONE, parallel)
-        fill_kernel(choice, undecided, labels, near, stack, choice.reshape(-1), stack.reshape(k_n, 2, -1), _NONE,
-                    parallel)
+        near_kernel(labels, undecided, near)
+        fill_kernel(choice, undecided, labels, near, stack, choice.reshape(-1), stack.reshape(k_n, 2, -1))
     fused = np.empty((2, h, w), _F32)
-    gather_kernel(choice, stack, fused, _NONE, _NONE, _NONE, _NONE, _NONE, parallel)
+    gather_kernel(choice, stack, fused)
     return fused, choice

@@ -22,17 +22,10 @@ stride and no branches and vectorises (a helper function returning them, or a cl
 from __future__ import annotations
 
 import math
-import os
 
-# libgomp's default active spin-wait makes every parallel region cost milliseconds when cores are shared
-# (measured: ~8-16 ms per region on a 2-vCPU VM, against ~15 us with passive waiting). It must be set
-# before numba loads its OpenMP threading layer, i.e. before the first parallel kernel runs; a value set
-# by the user wins.
-os.environ.setdefault("OMP_WAIT_POLICY", "passive")
-
-import numba  # noqa: E402
-import numpy as np  # noqa: E402
-from numba import njit, prange  # noqa: E402
+import numba
+import numpy as np
+from numba import njit, prange
 
 REG_CODES = {"l2": 0, "tv": 1, "tv_l2": 2, "tv_tv": 3}  # regulariser -> integer flag of the kernels
 

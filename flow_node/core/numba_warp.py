@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .numba_kernels import _JIT, _ONE  # first: sets OMP_WAIT_POLICY before numba's threading layer loads
+from .numba_kernels import _JIT, _ONE
 
 _HALF = np.float32(0.5)
 

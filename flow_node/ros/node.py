@@ -40,7 +40,7 @@ from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import decode
 from ..pipeline.stream import FlowStream, StreamSettings
 from ..pipeline.units import output_in_units
-from ..process import keep_freed_memory
+from ..process import keep_freed_memory, passive_thread_waits
 from . import camera_info, diagnostics, lifecycle, security, startup
 from .messages import descriptor, executor_advice, publish_outputs, stamp_ns
 from .params import coerce, param_specs, preset_values, settings_from_values
@@ -346,6 +346,7 @@ def main(args: list[str] | None = None) -> int:
     SingleThreadedExecutor until Ctrl-C/SIGTERM or its shutdown transition; exit code 0, or 1 with a one-line
     reason when it cannot start (an unmanaged node whose configure failed: invalid parameters)."""
     keep_freed_memory()
+    passive_thread_waits()
     startup.use_shipped_dds_profile()  # ros2 run, ros2 launch and python -m get the same delivery
     argv = sys.argv if args is None else args
     log = rclpy.logging.get_logger("flow_node")

@@ -1,0 +1,117 @@
+"""Cold start (issue 29): what a fresh process pays for its first flow, per preset, on a large-motion pair
+(initialisation and fusion run) and a small one, against a warm call in one process.
+
+    python -m bench.cold_start                   # -> bench/results/cold_start.json, a table on stdout
+    python -m bench.cold_start --runs 5 --no-new-install
+
+Every process is ``flow_estimate`` itself (``python -m flow_node.cli.estimate ... -v``) on the tree this
+module belongs to, with NUMBA_CACHE_DIR in a temporary folder: ``new install`` is the first call with that
+folder empty (it compiles what the preset's path needs and fills the cache; one empty folder per preset),
+``fresh`` a later process: its wall time, and the engine's time of its one call (the -v line). ``warm`` is
+the engine's time of a later call in one process (median of its 2nd-4th). ``start`` is the wall time of a
+process that imports the CLI and the numba backend and calls one cached kernel (numba's own one-time
+start-up: its typing and target registries, ~0.2 s), and does nothing else. Per row the three are measured
+interleaved, --runs times (medians). The issue's target: fresh wall <= 1.5 x warm + start.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from .common import DEFAULT_DATA, REPO, machine, write_json
+from .suite.data import LARGE_DATA
+
+PRESETS = ("quality", "balanced", "realtime", "fastest")
+PAIRS = {"large": (LARGE_DATA / "kitti2012_000000", "frame0.png", "frame1.png"),
+         "small": (DEFAULT_DATA / "Dimetrodon", "frame10.png", "frame11.png")}
+_WARM = """import sys, time
+from flow_node.cli.estimate import read_frame
+from flow_node.core import FlowConfig, FlowEstimator
+est = FlowEstimator(FlowConfig.preset(sys.argv[3]))
+i0, i1 = read_frame(sys.argv[1]), read_frame(sys.argv[2])
+seconds = [est.estimate_grey(i0, i1).seconds for _ in range(4)]
+print(sorted(seconds[1:])[1])"""
+_START = """import numpy as np
+import flow_node.cli.estimate
+from flow_node.core import numba_backend, numba_fusion
+numba_backend.reliability_numba(np.zeros((4, 4), np.float32), np.zeros((4, 4), np.float32),
+                                np.zeros((4, 4, 2), np.float32))"""
+
+
+def env(cache: Path) -> dict[str, str]:
+    """The children's environment: this tree first on the path, numba's cache in ``cache``."""
+    return {**os.environ, "PYTHONPATH": str(REPO), "NUMBA_CACHE_DIR": str(cache), "OMP_WAIT_POLICY": "passive"}
+
+
+def run(args: list[str], cache: Path) -> tuple[float, str]:
+    """Wall seconds and stdout of one fresh ``python args`` process."""
+    start = time.perf_counter()
+    out = subprocess.run([sys.executable, *args], env=env(cache), capture_output=True, text=True, check=True)
+    return time.perf_counter() - start, out.stdout
+
+
+def estimate(pair: str, preset: str, cache: Path) -> tuple[float, float]:
+    """One fresh ``flow_estimate -v``: wall seconds and the engine's seconds it reports."""
+    folder, f0, f1 = PAIRS[pair]
+    with tempfile.TemporaryDirectory() as out:
+        wall, text = run(["-m", "flow_node.cli.estimate", str(folder / f0), str(folder / f1), "-o",
+                          str(Path(out) / "flow.flo"), "--preset", preset, "-v"], cache)
+    match = re.search(r"time=([0-9.]+)s", text)
+    assert match, text
+    return wall, float(match.group(1))
+
+
+def measure(pair: str, preset: str, cache: Path, runs: int, new_install: bool) -> dict[str, Any]:
+    """One row: new install (own empty cache), fresh processes and warm calls (``cache``, populated)."""
+    row: dict[str, Any] = {"pair": pair, "preset": preset}
+    if new_install:
+        with tempfile.TemporaryDirectory() as empty:
+            row["new_install_wall_s"], row["new_install_call_s"] = estimate(pair, preset, Path(empty))
+    estimate(pair, preset, cache)  # populates the shared cache for this path
+    folder, f0, f1 = PAIRS[pair]
+    fresh, start, warm = [], [], []
+    for _ in range(runs):  # interleaved: a busy moment of a shared machine hits all three alike
+        fresh.append(estimate(pair, preset, cache))
+        start.append(run(["-c", _START], cache)[0])
+        warm.append(float(run(["-c", _WARM, str(folder / f0), str(folder / f1), preset], cache)[1]))
+    row["fresh_wall_s"] = statistics.median(w for w, _ in fresh)
+    row["fresh_call_s"] = statistics.median(c for _, c in fresh)
+    row["start_s"] = statistics.median(start)
+    row["warm_call_s"] = statistics.median(warm)
+    row["target_s"] = 1.5 * row["warm_call_s"] + row["start_s"]
+    row["met"] = row["fresh_wall_s"] <= row["target_s"]
+    return row
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--runs", type=int, default=3, help="fresh processes per row (median)")
+    p.add_argument("--presets", default=",".join(PRESETS))
+    p.add_argument("--no-new-install", action="store_true", help="skip the empty-cache first calls (slow)")
+    p.add_argument("--out", type=Path, default=Path("bench/results/cold_start.json"))
+    args = p.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        rows = [measure(pair, preset, Path(tmp), args.runs, not args.no_new_install)
+                for preset in args.presets.split(",") for pair in PAIRS]
+    write_json(args.out, {"command": "python -m bench.cold_start " + " ".join(sys.argv[1:]), "machine": machine(),
+                          "rows": rows})
+    print("pair   preset    new install  fresh wall  first call  warm call  start  1.5 warm + start")
+    for r in rows:
+        new = f"{r['new_install_wall_s']:9.2f} s" if "new_install_wall_s" in r else "        -  "
+        print(f"{r['pair']:6s} {r['preset']:9s} {new} {r['fresh_wall_s']:9.2f} s {r['fresh_call_s']:9.2f} s "
+              f"{r['warm_call_s']:8.2f} s {r['start_s']:5.2f} s {r['target_s']:6.2f} s",
+              "met" if r["met"] else "missed")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

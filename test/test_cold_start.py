@@ -1,0 +1,111 @@
+"""Cold start (issue 29): a fresh process loads every numba kernel from the on-disk cache instead of compiling
+it again, and importing the engine sets no process-wide state (flow_node/process.py).
+
+The cache test runs the engine in two fresh interpreters with the tests' NUMBA_CACHE_DIR (the environment
+is inherited): the first fills the cache for every path a preset takes on a 40 px pan (initialisation,
+fusion and its forward-backward check, refinement, reliability), the second must then find every kernel it
+uses there -- numba's own per-dispatcher statistics, a miss being a compilation. A kernel built so that
+numba cannot key it stably (a closure over another dispatcher, an uncached ``@njit``, a type that differs
+per process) shows up here as a miss, with its name. FlowEstimator.warmup (the node's start-up) must reach
+the fusion's kernels as well.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import flow_node
+from flow_node.bag import dask_worker
+from flow_node.core import FlowConfig, FlowEstimator, numba_fusion
+
+# One process: every preset on a 240x180 pan moving (40, 12) px -- DIS initialises, the fusion runs on
+# two levels -- then numba's statistics of every flow_node dispatcher alive, as JSON.
+CHILD = """
+import gc, json
+import numpy as np
+from numba.core.dispatcher import Dispatcher
+from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
+from flow_node.core import FlowConfig, FlowEstimator, PRESETS
+
+pan = Layer(Texture.random(np.random.default_rng(4), fmin=1 / 100), AffineMotion((119.5, 89.5), (40.0, 12.0)))
+scene = Scene("pan", (240, 180), (pan,))
+i0, i1 = ((scene.render(t) @ np.array([0.299, 0.587, 0.114])).astype(np.float32) for t in (0, 1))
+inits = [FlowEstimator(FlowConfig.preset(p).replace(backend="numba")).estimate_grey(i0, i1).stats.init
+         for p in PRESETS]
+stats = {}
+for d in gc.get_objects():
+    if isinstance(d, Dispatcher) and d.py_func.__module__.startswith("flow_node"):
+        name = d.py_func.__module__ + "." + d.py_func.__qualname__
+        stats[name] = [sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())]
+print(json.dumps({"inits": inits, "stats": stats}))
+"""
+
+
+def run_child() -> dict[str, Any]:
+    """Run :data:`CHILD` in a fresh interpreter on this checkout's flow_node; its JSON."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(flow_node.__file__).parents[1]),
+                                                        os.environ.get("PYTHONPATH", "")])}
+    out = subprocess.run([sys.executable, "-c", CHILD], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_a_fresh_process_compiles_no_kernel() -> None:
+    run_child()  # fills the cache (compiles on a cold one)
+    second = run_child()
+    assert all(second["inits"]), second["inits"]  # every preset took the initialisation and fusion path
+    used = {name: hm for name, hm in second["stats"].items() if sum(hm)}
+    for kernel in ("iterate", "linearise_kernel", "bspline_columns", "unexplained_kernel", "residual_kernel",
+                   "choose_kernel", "gather_kernel", "consistent_kernel"):
+        assert any(name.endswith("." + kernel) for name in used), (kernel, sorted(used))
+    compiled = {name: misses for name, (_, misses) in used.items() if misses}
+    assert not compiled, f"compiled again in a fresh process (not cached): {compiled}"
+
+
+def test_importing_the_engine_sets_no_process_state() -> None:
+    """Importing the numba kernels leaves OMP_WAIT_POLICY alone: only an executable's main() sets it."""
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    env["PYTHONPATH"] = str(Path(flow_node.__file__).parents[1])
+    code = ("import os; import flow_node.core.numba_backend, flow_node.core.numba_fusion; "
+            "print(os.environ.get('OMP_WAIT_POLICY'))")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "None"
+
+
+def test_the_dask_workers_preload_lets_idle_threads_sleep(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A worker process of a Dask cluster runs no executable's main(): its preload applies the setting
+    (the executables' main() are checked in test_node.py)."""
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    monkeypatch.setattr(dask_worker, "keep_freed_memory", lambda: True)
+    dask_worker.dask_setup(None)
+    assert os.environ["OMP_WAIT_POLICY"] == "passive"
+
+
+def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
+    """FlowEstimator.warmup (the node's start-up, flow_bag eval's first bag) reaches the fusion's kernels
+    too, which its small solve does not: the first frame that moves far then neither compiles them (a new
+    install) nor reads them from the cache."""
+    called: set[str] = set()
+
+    def counting(name: str) -> Callable[..., Any]:
+        kernel = getattr(numba_fusion, name)
+
+        def run(*args: Any) -> Any:
+            called.add(name)
+            return kernel(*args)
+
+        return run
+
+    kernels = ("residual_kernel", "choose_kernel", "near_kernel", "fill_kernel", "gather_kernel", "consistent_kernel")
+    for name in kernels:
+        monkeypatch.setattr(numba_fusion, name, counting(name))
+    FlowEstimator(FlowConfig.preset("fastest").replace(backend="numba")).warmup()
+    assert called == set(kernels)
