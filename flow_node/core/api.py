@@ -82,7 +82,7 @@ class FlowResult:
     ``unexplained``: the fraction of (sampled) pixels whose photometric residual after the solve is large
     (photometric.reliability): ~0.0-0.1 for a flow that matches the frames, near 1 for garbage.
     ``frames``: the normalised pair that figure judges (photometric.stage), which the confidence
-    (fusion.confidence) is computed on when asked for."""
+    (confidence.confidence) is computed on when asked for."""
 
     flow: np.ndarray
     stats: SolveStats

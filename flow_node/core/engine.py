@@ -3,15 +3,16 @@ with the paper's models -> fusion -> output layout (DESIGN.md, "Engine stages").
 
 Each stage is one function with one interface, in the module named for it:
 
-=====================  =========================================================  ==========================
-stage                  interface                                                  module
-=====================  =========================================================  ==========================
-photometric            (i0, i1, mode) -> (solver pair, normalised pair)           ``core/photometric.py``
-initialisation         (i0, i1, cfg, initial, previous) -> [Candidate]            ``core/initialise.py``
-refinement             (pyramid, cfg, backend, state, first, last, stats) -> state ``core/refine.py``
-fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice), a backend field        ``core/fusion.py``
-output layout          (2, h, w) -> (H, W, 2) at the input size                   ``core/layout.py``
-=====================  =========================================================  ==========================
+==============  ===================================================================  =======================
+stage           interface                                                            module
+==============  ===================================================================  =======================
+photometric     (i0, i1, mode) -> (solver pair, normalised pair)                     ``core/photometric.py``
+initialisation  (i0, i1, cfg, initial, previous) -> [Candidate]                      ``core/initialise.py``
+refinement      (pyramid, cfg, backend, state, first, last, stats, finest) -> state  ``core/refine.py``
+fusion          (i0, i1, [flow]) -> (flow, choice), a backend field                  ``core/fusion.py``
+output layout   (2, h, w) -> (H, W, 2) at the input size                             ``core/layout.py``
+(confidence)    (i0, i1, flow) -> (H, W) in [0, 1], on demand                        ``core/confidence.py``
+==============  ===================================================================  =======================
 
 Without a candidate -- or when no computed candidate says the pair moves further than ``cfg.init_min_motion``
 (:func:`~flow_node.core.initialise.beyond_reach`) -- the refinement runs over the whole pyramid from zero

@@ -28,10 +28,10 @@ import cv2
 import numpy as np
 
 from ..core.api import FlowEstimator, to_grey
+from ..core.confidence import confidence
 from ..core.config import FlowConfig
 from ..core.errors import ConfigError
 from ..core.flowio import flow_to_color
-from ..core.fusion import confidence
 from ..core.refine import SolveStats
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
@@ -126,7 +126,7 @@ class FlowOutput:
         return self._summary
 
     def confidence(self) -> np.ndarray:
-        """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.fusion.confidence`:
+        """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`:
         low where the data residual says the flow is wrong or the pixel occluded), cached."""
         if self._confidence is None:
             if self.frames is None:
