@@ -23,8 +23,8 @@ from rosbags.rosbag2 import Reader
 from flow_node.bag import plots
 from flow_node.bag.batch import dask_client, find_bags, output_names
 from flow_node.bag.cli import main as flow_bag
-from flow_node.bag.evaluate import FrameRecord
 from flow_node.bag.report import per_frame_plot
+from flow_node.bag.results import FrameRecord
 from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.errors import ClusterError
 from flow_node.process import keep_freed_environ
