@@ -81,7 +81,7 @@ class Harness:
         self.client = Node("test_client", namespace=ns, context=self.ctx)
         self.pub = self.client.create_publisher(Image, f"{ns}/image", 10)
         self.pub_compressed = self.client.create_publisher(CompressedImage, f"{ns}/image/compressed", 10)
-        self._cond = threading.Condition()
+        self.cond = threading.Condition()
         self.received: dict[str, list[tuple[float, Any]]] = {"flow": [], "magnitude": [], "flow_color": [],
                                                              "diagnostics": []}
         topics = ["flow", "magnitude"] + (["flow_color"] if color else [])
@@ -103,23 +103,23 @@ class Harness:
 
     def _collector(self, topic: str) -> Callable[[Any], None]:
         def cb(msg: Any) -> None:
-            with self._cond:
+            with self.cond:
                 self.received[topic].append((time.monotonic(), msg))
-                self._cond.notify_all()
+                self.cond.notify_all()
         return cb
 
     def _diag_collector(self, msg: DiagnosticArray) -> None:
         for st in msg.status:
             if st.name == f"{self.node.get_name()}: optical flow":
-                with self._cond:
+                with self.cond:
                     self.received["diagnostics"].append((time.monotonic(), st))
 
     def count(self, topic: str) -> int:
-        with self._cond:
+        with self.cond:
             return len(self.received[topic])
 
     def last(self, topic: str) -> Any:
-        with self._cond:
+        with self.cond:
             return self.received[topic][-1][1]
 
     @property

@@ -100,7 +100,7 @@ def chunk_crcs(path: Path) -> list[int]:
     """The uncompressed_crc field of every top-level chunk record."""
     buf = path.read_bytes()
     return [struct.unpack_from("<I", buf, body + 24)[0]
-            for op, body, _ in mcapfile._records(buf, len(mcapfile.MAGIC), len(buf)) if op == mcapfile.CHUNK]
+            for op, body, _ in mcapfile.records(buf, len(mcapfile.MAGIC), len(buf)) if op == mcapfile.CHUNK]
 
 
 def test_written_bags_carry_crcs_and_flipped_bytes_are_errors(tmp_path, capfd) -> None:

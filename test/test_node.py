@@ -192,7 +192,7 @@ def test_compressed_input() -> None:
         flow = image_to_array(h.send_pair(*msgs))
         assert aee(flow, GT) < AEE_BOUND
         assert h.node._sub.topic_name == "/t_compressed/image/compressed"
-        assert h.node._stats._last is not None and h.node._stats._last._color is None  # nobody subscribed
+        assert h.node._stats._last is not None and not h.node._stats._last.color_computed  # nobody subscribed
     finally:
         h.close()
 

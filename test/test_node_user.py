@@ -75,7 +75,7 @@ def test_default_is_the_node_preset_that_keeps_up() -> None:
 
 
 def statuses(h: Harness) -> list[DiagnosticStatus]:
-    with h._cond:
+    with h.cond:
         return [st for _, st in h.received["diagnostics"]]
 
 
