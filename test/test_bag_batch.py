@@ -266,6 +266,7 @@ def test_single_bag_plot_tolerates_missing_values(tmp_path):
     assert heights[0] == 2 * heights[1] > 0  # AEE panel above the time panel only where there is ground truth
 
 
+@pytest.mark.ros  # imports the node (rclpy), in a subprocess
 def test_single_bag_eval_and_the_node_do_not_import_dask(bags, tmp_path):
     """dask/distributed load only when a batch runs (they cost ~1 s of imports)."""
     code = ("import sys; import flow_node.ros.node; from flow_node.bag.cli import main; "

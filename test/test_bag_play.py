@@ -22,6 +22,8 @@ from sensor_msgs.msg import CompressedImage, Image
 from flow_node.bag.play import PlayOptions, parse_remap, play
 from flow_node.core.errors import ConfigError
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 BAGS = Path(__file__).resolve().parent.parent / "bags"
 TS = get_typestore(Stores.ROS2_JAZZY)
 

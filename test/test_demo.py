@@ -7,7 +7,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from flow_node.demo import DemoOptions, run_demo
+
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -101,6 +101,7 @@ def test_opencv_decoder_errors_are_rejections() -> None:
             decode(compressed(data, 1))
 
 
+@pytest.mark.ros
 def test_node_rejects_garbage_frames_and_never_publishes_them() -> None:
     """Over real DDS: 1e30 floats, a NaN frame and a PNG claiming 100000x100000 are rejected (diagnostics
     WARN, engine errors 0), nothing is published for them, and good frames still give flow."""

@@ -27,6 +27,8 @@ from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import array_to_image_fields, image_to_array
 from flow_node.ros import messages
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 AEE_BOUND = 0.25  # px; the same pair through the pipeline directly gives 0.06
 
 

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from ros_helpers import I0, I1, Harness, image, mono8, wait_for
 from sensor_msgs.msg import Image
 
 from flow_node.pipeline.codec import image_to_array
+
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
 
 
 def test_confidence_is_published_only_while_subscribed() -> None:

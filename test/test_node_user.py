@@ -29,6 +29,8 @@ from flow_node.ros.camera_info import scaled_camera_info
 from flow_node.ros.node import FlowNode
 from flow_node.ros.params import NODE_PRESET
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
