@@ -1,5 +1,5 @@
 """The engine's stages, composed: photometric preprocessing -> initialisation -> coarse-to-fine refinement
-with the paper's models -> fusion -> output layout (DESIGN.md, "Engine stages").
+with the paper's models -> fusion -> output layout (docs/design.md, "Engine stages").
 
 Each stage is one function with one interface, in the module named for it:
 
