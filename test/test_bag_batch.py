@@ -221,6 +221,7 @@ def _stop(procs: list[subprocess.Popen]) -> None:
             p.wait(timeout=5)
 
 
+@pytest.mark.slow  # a Dask scheduler and worker in their own processes
 def test_batch_on_a_separate_dask_scheduler_and_worker(bags, tmp_path):
     """`dask scheduler` and `dask worker` (distributed's CLIs) on 127.0.0.1, ephemeral port; --scheduler."""
     good = tmp_path / "good"

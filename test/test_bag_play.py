@@ -71,6 +71,7 @@ class Listener:
         self.thread.join(timeout=5)
 
 
+@pytest.mark.slow  # plays the bag in real time
 def test_cli_play_publishes_recorded_bytes_with_recorded_timing():
     """10 fps bag at --rate 2: 50 ms apart; headers and data identical to the recording; remapped topic."""
     listener = Listener("/play_test/image", Image)

@@ -11,7 +11,7 @@ import pytest
 
 from flow_node.demo import DemoOptions, run_demo
 
-pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+pytestmark = [pytest.mark.ros, pytest.mark.slow]  # rclpy over DDS, node processes; seconds each
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -181,6 +181,7 @@ def test_recorder_without_metadata_and_a_bare_mcap_path(tmp_path, capfd) -> None
     assert "scanning its MCAP found no message" in eval_fails(capfd, bag, tmp_path / "o")
 
 
+@pytest.mark.ros  # flow_bag play publishes over DDS
 def test_play_publishes_what_a_crashed_recording_holds(tmp_path, capfd) -> None:
     bag = shutil.copytree(BAGS / "objects", tmp_path / "crashed")
     store = bag / "objects.mcap"
