@@ -45,9 +45,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from flow_node.bag.batch import WORKER_ENV, BagJob, dask_client, evaluate_bag, find_bags, make_jobs
+from flow_node.bag.batch import WORKER_ENV, dask_client, evaluate_bag, find_bags, make_jobs
 from flow_node.bag.batch_report import write_batch_report
-from flow_node.bag.evaluate import EvalOptions
+from flow_node.bag.results import BagJob, EvalOptions
 from flow_node.bag.scenes import SCENES
 from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.config import FlowConfig

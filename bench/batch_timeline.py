@@ -50,7 +50,7 @@ def one_run(layout: str, bags: str, out: str) -> dict[str, Any]:
         marks.append((label, time.time() - T0))
 
     from flow_node.bag.batch import WORKER_ENV, find_bags, local_cluster, make_jobs
-    from flow_node.bag.evaluate import EvalOptions
+    from flow_node.bag.results import EvalOptions
     from flow_node.core.config import FlowConfig
 
     mark("import flow_node.bag.batch")

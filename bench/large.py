@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 
 from flow_node.core.api import FlowEstimator, to_grey
+from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
 from flow_node.core.flowio import read_flo, read_image
-from flow_node.core.fusion import confidence
 from flow_node.core.metrics import aee, confidence_auc
 
 from .common import REPO, Pair, load_middlebury, machine, to_u8, write_json

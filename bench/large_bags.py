@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from flow_node.bag.evaluate import EvalOptions, evaluate
+from flow_node.bag.evaluate import evaluate
+from flow_node.bag.results import EvalOptions
 from flow_node.bag.synth import SynthSpec, render_frames, write_synth_bag
 from flow_node.core.api import to_grey
 from flow_node.core.config import FlowConfig

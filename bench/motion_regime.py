@@ -30,8 +30,8 @@ import numpy as np
 from flow_node.bag.motion_scenes import TTC_FRAMES, MotionTruth, motion_scene
 from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator
+from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
-from flow_node.core.fusion import confidence
 from flow_node.pipeline.derived import MotionAnalysis
 
 from .common import REPO, machine, write_json

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from flow_node.core.api import FlowEstimator
+from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
-from flow_node.core.fusion import confidence
 
 from .common import REPO, machine, write_json
 from .suite import run_suite

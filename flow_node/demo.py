@@ -183,8 +183,9 @@ def run_demo(opts: DemoOptions) -> DemoResult:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    from .bag.evaluate import EvalOptions, evaluate
+    from .bag.evaluate import evaluate
     from .bag.play import PlayOptions, play
+    from .bag.results import EvalOptions
 
     topic, times, gts = load_bag(opts.bag)
     offline = evaluate(opts.bag, None, [opts.config()], EvalOptions(png_frames="all", progress=False))

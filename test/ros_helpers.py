@@ -6,30 +6,27 @@ discovery range are isolated by conftest.py), and outputs are collected by real 
 
 from __future__ import annotations
 
-import array
 import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 import rclpy
 import small_frames
 from diagnostic_msgs.msg import DiagnosticArray
+from frame_messages import FRAME_ID, GT, I0, I1, H, W, image, mono8, set_stamp
 from rclpy.context import Context
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CompressedImage, Image
-from synth import constant_flow, pair_from_flow, texture
 
-from flow_node.pipeline.codec import array_to_image_fields
 from flow_node.ros.node import FlowNode
 
-FRAME_ID = "cam_test"
-H, W = 60, 80
-GT = constant_flow(H, W, 1.5, -0.75)
-I0, I1 = pair_from_flow(texture(H, W, seed=3), GT)
+# the test pair and the message builders live in frame_messages.py (no rclpy); re-exported for the DDS tests
+__all__ = ["FAST", "FRAME_ID", "GT", "H", "I0", "I1", "W", "Harness", "call", "image", "mono8", "set_stamp",
+           "wait_for"]
+
 FAST = small_frames.PARAMS  # fast and deterministic on these 80x60 frames
 
 
@@ -50,24 +47,6 @@ def call(cli: Any, request: Any, timeout: float = 10.0) -> Any:
     return wait_for(lambda: future.done() and future.result(), timeout, f"service {cli.srv_name}")
 
 
-def image(arr: np.ndarray, encoding: str, stamp_ns: int, frame_id: str = FRAME_ID) -> Image:
-    """An rclpy Image of ``arr`` (already in the encoding's layout)."""
-    f = array_to_image_fields(arr, encoding)
-    msg = Image(height=f["height"], width=f["width"], encoding=encoding, is_bigendian=0, step=f["step"])
-    msg.data = array.array("B", f["data"].tobytes())
-    set_stamp(msg, stamp_ns, frame_id)
-    return msg
-
-
-def set_stamp(msg: Image | CompressedImage, stamp_ns: int, frame_id: str = FRAME_ID) -> None:
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-    msg.header.frame_id = frame_id
-
-
-def mono8(img: np.ndarray) -> np.ndarray:
-    return (np.clip(img, 0, 1) * 255).round().astype(np.uint8)
-
-
 class Harness:
     """FlowNode ``name`` in namespace ``ns`` with parameter overrides, plus publisher and collectors."""
 
@@ -81,7 +60,7 @@ class Harness:
         self.client = Node("test_client", namespace=ns, context=self.ctx)
         self.pub = self.client.create_publisher(Image, f"{ns}/image", 10)
         self.pub_compressed = self.client.create_publisher(CompressedImage, f"{ns}/image/compressed", 10)
-        self._cond = threading.Condition()
+        self.cond = threading.Condition()
         self.received: dict[str, list[tuple[float, Any]]] = {"flow": [], "magnitude": [], "flow_color": [],
                                                              "diagnostics": []}
         topics = ["flow", "magnitude"] + (["flow_color"] if color else [])
@@ -103,23 +82,23 @@ class Harness:
 
     def _collector(self, topic: str) -> Callable[[Any], None]:
         def cb(msg: Any) -> None:
-            with self._cond:
+            with self.cond:
                 self.received[topic].append((time.monotonic(), msg))
-                self._cond.notify_all()
+                self.cond.notify_all()
         return cb
 
     def _diag_collector(self, msg: DiagnosticArray) -> None:
         for st in msg.status:
             if st.name == f"{self.node.get_name()}: optical flow":
-                with self._cond:
+                with self.cond:
                     self.received["diagnostics"].append((time.monotonic(), st))
 
     def count(self, topic: str) -> int:
-        with self._cond:
+        with self.cond:
             return len(self.received[topic])
 
     def last(self, topic: str) -> Any:
-        with self._cond:
+        with self.cond:
             return self.received[topic][-1][1]
 
     @property

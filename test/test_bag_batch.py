@@ -23,8 +23,8 @@ from rosbags.rosbag2 import Reader
 from flow_node.bag import plots
 from flow_node.bag.batch import dask_client, find_bags, output_names
 from flow_node.bag.cli import main as flow_bag
-from flow_node.bag.evaluate import FrameRecord
 from flow_node.bag.report import per_frame_plot
+from flow_node.bag.results import FrameRecord
 from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.errors import ClusterError
 from flow_node.process import keep_freed_environ
@@ -221,6 +221,7 @@ def _stop(procs: list[subprocess.Popen]) -> None:
             p.wait(timeout=5)
 
 
+@pytest.mark.slow  # a Dask scheduler and worker in their own processes
 def test_batch_on_a_separate_dask_scheduler_and_worker(bags, tmp_path):
     """`dask scheduler` and `dask worker` (distributed's CLIs) on 127.0.0.1, ephemeral port; --scheduler."""
     good = tmp_path / "good"
@@ -266,6 +267,7 @@ def test_single_bag_plot_tolerates_missing_values(tmp_path):
     assert heights[0] == 2 * heights[1] > 0  # AEE panel above the time panel only where there is ground truth
 
 
+@pytest.mark.ros  # imports the node (rclpy), in a subprocess
 def test_single_bag_eval_and_the_node_do_not_import_dask(bags, tmp_path):
     """dask/distributed load only when a batch runs (they cost ~1 s of imports)."""
     code = ("import sys; import flow_node.ros.node; from flow_node.bag.cli import main; "

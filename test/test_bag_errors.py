@@ -12,7 +12,8 @@ import small_frames
 
 from flow_node.bag.bagio import IMAGE, BagError, BagWriter, header, image_message
 from flow_node.bag.cli import main as flow_bag
-from flow_node.bag.evaluate import EvalOptions, run_eval
+from flow_node.bag.evaluate import run_eval
+from flow_node.bag.results import EvalOptions
 from flow_node.bag.synth import SynthSpec, render_frames
 from flow_node.core import FlowConfig
 from flow_node.pipeline.codec import array_to_image_fields

@@ -22,6 +22,8 @@ from sensor_msgs.msg import CompressedImage, Image
 from flow_node.bag.play import PlayOptions, parse_remap, play
 from flow_node.core.errors import ConfigError
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 BAGS = Path(__file__).resolve().parent.parent / "bags"
 TS = get_typestore(Stores.ROS2_JAZZY)
 
@@ -69,6 +71,7 @@ class Listener:
         self.thread.join(timeout=5)
 
 
+@pytest.mark.slow  # plays the bag in real time
 def test_cli_play_publishes_recorded_bytes_with_recorded_timing():
     """10 fps bag at --rate 2: 50 ms apart; headers and data identical to the recording; remapped topic."""
     listener = Listener("/play_test/image", Image)

@@ -40,6 +40,20 @@ def test_presets_exist_and_are_valid() -> None:
         FlowConfig.preset("fast-ish")
 
 
+def test_choices_come_from_the_modules_that_implement_them() -> None:
+    """One table each: the models are MODEL_SPECS' (and each has calibrated weights), the initialisations
+    the stage's own sources; every preset sets its initialisation itself (one literal, no later patching)."""
+    from flow_node.core.config import INITIALISATIONS, MODEL_WEIGHTS, MODELS
+    from flow_node.core.initialise import DIS_PRESETS, MATCHERS, SOURCES
+    from flow_node.core.models import MODEL_SPECS
+
+    assert MODELS == tuple(MODEL_SPECS) and set(MODEL_WEIGHTS) == set(MODELS)
+    assert INITIALISATIONS == SOURCES == ("none", *DIS_PRESETS, *MATCHERS)
+    for name, values in PRESETS.items():
+        assert values["initialisation"] in INITIALISATIONS and "init_finest_level" in values
+        assert FlowConfig.preset(name).initialisation == values["initialisation"]
+
+
 @pytest.mark.parametrize(
     ("changes", "message"),
     [

@@ -18,10 +18,11 @@ import small_frames
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowEstimator
 from flow_node.core.backends import NUMPY
+from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
 from flow_node.core.densify import densify, forward_propagate, push_pull
 from flow_node.core.engine import estimate_pair, start_level
-from flow_node.core.fusion import confidence, data_cost, fuse
+from flow_node.core.fusion import data_cost, fuse
 from flow_node.core.initialise import Candidate, forward_backward_consistent, in_background, initialise
 from flow_node.core.metrics import confidence_auc
 from flow_node.core.pyramid import make_pyramid

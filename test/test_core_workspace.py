@@ -33,7 +33,7 @@ def test_threads_get_their_own_arrays() -> None:
 def test_the_pool_is_bounded() -> None:
     for k in range(3 * workspace.MAX_ENTRIES):
         scratch("test.many", (k + 1,))
-    assert len(workspace._local.pool) <= workspace.MAX_ENTRIES
+    assert len(workspace.pooled()) <= workspace.MAX_ENTRIES
 
 
 def test_arrays_in_use_stay_while_other_sizes_come_and_go() -> None:
@@ -53,7 +53,7 @@ def test_a_frame_of_a_15_level_preset_fits_in_the_pool() -> None:
     est = FlowEstimator(FlowConfig.preset("balanced").replace(backend="numba", iterations=1, warps=1))
     res = est.estimate(i0, i1)
     assert len(res.stats.iterations) == 15
-    before = dict(workspace._local.pool)
+    before = workspace.pooled()
     est.estimate(i1, i0)
-    after = workspace._local.pool
+    after = workspace.pooled()
     assert after.keys() == before.keys() and all(after[k] is before[k] for k in before)

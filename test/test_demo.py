@@ -7,7 +7,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from flow_node.demo import DemoOptions, run_demo
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]  # rclpy over DDS, node processes; seconds each
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -24,6 +24,8 @@ from rclpy.context import Context
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import Image
 
+pytestmark = [pytest.mark.ros, pytest.mark.slow]  # rclpy over DDS, node processes; seconds each
+
 PROFILE = Path(__file__).resolve().parents[1] / "config" / "fastdds_localhost.xml"
 NS, NODE = "/t_delivery", "delivery_node"
 

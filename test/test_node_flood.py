@@ -18,6 +18,8 @@ from flow_node.core.config import PRESETS
 from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import image_to_array
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 H, W = 240, 320
 GT = constant_flow(H, W, 1.0, 0.5)
 F0, F1 = pair_from_flow(texture(H, W, seed=5), GT)

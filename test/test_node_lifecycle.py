@@ -33,6 +33,8 @@ from flow_node.pipeline.codec import image_to_array
 from flow_node.ros import lifecycle
 from flow_node.ros.node import FlowNode
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 NS, NAME = "/t_life", "flow_life"
 FULL = f"{NS}/{NAME}"
 

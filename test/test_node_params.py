@@ -31,6 +31,8 @@ from flow_node.pipeline.codec import image_to_array
 from flow_node.ros import startup
 from flow_node.ros.params import NODE_PRESET, param_specs, render_yaml, settings_from_values
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

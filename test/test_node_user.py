@@ -29,6 +29,8 @@ from flow_node.ros.camera_info import scaled_camera_info
 from flow_node.ros.node import FlowNode
 from flow_node.ros.params import NODE_PRESET
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -75,7 +77,7 @@ def test_default_is_the_node_preset_that_keeps_up() -> None:
 
 
 def statuses(h: Harness) -> list[DiagnosticStatus]:
-    with h._cond:
+    with h.cond:
         return [st for _, st in h.received["diagnostics"]]
 
 

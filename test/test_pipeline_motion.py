@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from flow_node.core import FlowConfig, FlowEstimator
+from flow_node.core.confidence import confidence as flow_confidence
 from flow_node.core.errors import ConfigError, InputError
-from flow_node.core.fusion import confidence as flow_confidence
 from flow_node.pipeline.derived import MotionAnalysis, MotionSettings
 from flow_node.pipeline.expansion import divergence, focus_of_expansion, region_ttc
 from flow_node.pipeline.motion import MaskThreshold, MotionDetector, dominant_motion, moving_fraction, moving_mask

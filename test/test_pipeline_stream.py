@@ -119,9 +119,9 @@ def test_colour_is_lazy_cached_and_bgr() -> None:
     s = stream()
     s.process(I0, 1)
     out = s.process(I1, 2)
-    assert out._color is None
+    assert not out.color_computed and not out.confidence_computed
     col = out.color()
-    assert col.shape == (H, W, 3) and col.dtype == np.uint8 and out.color() is col
+    assert col.shape == (H, W, 3) and col.dtype == np.uint8 and out.color() is col and out.color_computed
     # flow (1.5, -0.75) at a 10 px scale is pale; the wheel puts rightward motion in the red-ish half:
     # in BGR order the last channel (red) must dominate the first (blue)
     centre = col[20:40, 20:60].reshape(-1, 3).astype(int).mean(axis=0)
@@ -146,13 +146,30 @@ def test_scaled_shape() -> None:
 def test_confidence_is_judged_on_px_per_frame_whatever_the_units() -> None:
     """flow_units px/s scales the flow by 1 / interval; the confidence (a data residual at x + flow) must
     still be computed on the displacement over the pair, so it is the same in both units."""
-    from flow_node.pipeline.units import output_in_units
-
     s = stream()
     s.process(I0, 0)
     out = s.process(I1, 50_000_000)  # 20 Hz: px/s is 20x px/frame
-    fast = output_in_units(out, "px/s")
-    assert np.allclose(fast.flow, 20.0 * out.flow)
+    fast = out.in_units("px/s")
+    assert np.allclose(fast.flow, 20.0 * out.flow) and out.in_units("px/frame") is out
     conf = out.confidence()
     assert conf.mean() > 0.5  # the right flow is mostly trusted
     np.testing.assert_allclose(fast.confidence(), conf, atol=1e-6)
+
+
+def test_flow_units_are_a_stream_setting_validated_once() -> None:
+    """StreamSettings.flow_units: checked on construction and on update (ConfigError, nothing scheduled);
+    the stream divides by each pair's own interval and rejects a pair without one."""
+    with pytest.raises(ConfigError, match="flow_units: 'm/s' is not one of px/frame, px/s"):
+        StreamSettings(flow_units="m/s")
+    s = stream(flow_units="px/s")
+    s.process(I0, 0)
+    out = s.process(I1, 250_000_000)  # 4 Hz
+    assert out is not None and np.allclose(out.flow, 4.0 * out.frame_flow)
+    assert np.allclose(out.magnitude, magnitude(4.0 * out.frame_flow))
+    with pytest.raises(InputError, match="0 ns apart"):
+        s.process(I0, 250_000_000)
+    with pytest.raises(ConfigError, match="flow_units"):
+        s.update(flow_units="m/s")
+    assert s.update(flow_units="px/frame").flow_units == "px/frame"
+    out = s.process(I1, 300_000_000)
+    assert out is not None and out.frame_flow is None and aee(out.flow, GT) < 0.15

@@ -14,6 +14,8 @@ from ros_helpers import Harness, wait_for
 
 from flow_node.ros import security as sec
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 FILES = ["identity_ca.cert.pem", "cert.pem", "key.pem", "permissions_ca.cert.pem", "governance.p7s",
          "permissions.p7s"]
 

@@ -19,6 +19,8 @@ from flow_node.ros import security_policy as sp
 from flow_node.ros.names import camera_info_topic
 from flow_node.ros.node import FlowNode
 
+pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
+
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "config" / "flow_node.policy.xml"
 

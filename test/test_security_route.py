@@ -27,10 +27,10 @@ from small_frames import PARAMS
 from flow_node.ros import security_policy as sp
 
 ROUTE = os.environ.get("FLOW_NODE_SECURITY_ROUTE", "")
-pytestmark = pytest.mark.skipif(
+pytestmark = [pytest.mark.ros, pytest.mark.skipif(
     not ROUTE,
     reason="no SROS2 route: the venv's Fast DDS has no DDS-Security; set FLOW_NODE_SECURITY_ROUTE to a folder "
-           "built by ros2-toolchain + ros2-security (.ci/security does) to run these")
+           "built by ros2-toolchain + ros2-security (.ci/security does) to run these")]
 ROOT = Path(__file__).resolve().parents[1]
 CLIENT = str(ROOT / "test" / "security_client.py")
 GT = (1.5, -0.75)  # ros_helpers.GT, the pair the client sends

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from flow_node.bag.evaluate import NODE_NAMESPACE
+from flow_node.bag.results import NODE_NAMESPACE
 from flow_node.bag.synth import FRAME_ID, IMAGE_TOPIC
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -19,7 +19,7 @@ groups by):
 - ``low_light``: frame 2 darkened (gain 0.6, 0.4) with Gaussian noise of sigma 2, 4 grey levels of 255,
   re-quantised to 8 bit (as the camera's ADC would).
 
-**Split.** Whole families are left out of tuning (DESIGN.md, "Judging a change"): ``--split tune`` applies
+**Split.** Whole families are left out of tuning (docs/design.md, "Judging a change"): ``--split tune`` applies
 TUNE_FAMILIES = gamma, vignetting, clipping; ``report`` applies REPORT_FAMILIES = s_curve, log_knee,
 illumination, flicker, white_balance, low_light; ``all`` both. The synthetic seeds follow the split as in
 :mod:`.synthetic`; the Middlebury images are the same in every split.

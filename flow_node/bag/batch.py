@@ -27,7 +27,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
@@ -35,10 +35,10 @@ from ..core.config import FlowConfig
 from ..core.errors import ClusterError, FlowError, one_line
 from ..process import keep_freed_environ
 from .bagio import BagError
-from .evaluate import EvalOptions, run_eval
+from .evaluate import run_eval
 from .progress import BatchProgress
+from .results import BATCH_FORMAT, BagJob, BagOutcome, EvalOptions
 
-BATCH_FORMAT = 1  # part of every cache key: bump when the per-bag output changes meaning
 KEY_FILE = "batch_key.json"  # written into a bag's output folder once it is complete
 PROGRESS_TOPIC = "flow_bag-progress"  # Dask event topic of the per-frame progress
 BAG_SUFFIXES = (".mcap", ".db3")
@@ -58,36 +58,6 @@ WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THRE
 QUIET_CLUSTER = {"distributed.worker.profile.enabled": False, "distributed.worker.memory.monitor-interval": "1s",
                  "distributed.admin.tick.interval": "1s", "distributed.admin.system-monitor.interval": "2s",
                  "distributed.scheduler.work-stealing": False}
-
-
-@dataclass(frozen=True)
-class BagJob:
-    """One bag to evaluate: its path, its output folder, the configs and options, and the digest of
-    everything but the bag that the cache key covers."""
-
-    bag: str
-    name: str
-    output: str
-    configs: tuple[FlowConfig, ...]
-    opts: EvalOptions
-    config_digest: str
-
-
-@dataclass
-class BagOutcome:
-    """What became of one bag: ``status`` is 'done', 'skipped' (cached) or 'failed' (with ``reason``);
-    ``report`` is the bag's report.json as data (None when failed); ``seconds`` the task's wall time;
-    ``host`` and ``pid`` the machine and process that ran it."""
-
-    bag: str
-    name: str
-    status: str
-    reason: str | None = None
-    key: str | None = None
-    seconds: float = 0.0
-    host: str = ""
-    pid: int = 0
-    report: dict[str, Any] | None = field(default=None, repr=False)
 
 
 # ------------------------------------------------------------------------------------------------ inputs

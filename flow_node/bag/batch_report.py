@@ -20,8 +20,8 @@ import numpy as np
 
 from ..core.config import FlowConfig
 from . import plots
-from .batch import BATCH_FORMAT, BagOutcome
-from .report import _fmt, ratio_ranking
+from .report import fmt, ratio_ranking
+from .results import BATCH_FORMAT, BagOutcome
 
 PNGS = ("aee_per_bag.png", "time_per_frame.png")
 
@@ -104,7 +104,7 @@ def to_markdown(data: dict[str, Any]) -> str:
     c = data["counts"]
     lines = ["# flow_bag eval: batch", "",
              f"{c['bags']} bags on {data['scheduler']}: {c['done']} evaluated, {c['skipped']} skipped (cached), "
-             f"{c['failed']} failed; {data['wall_seconds']:.1f} s wall, {_fmt(data['bags_per_minute'], 1)} bags "
+             f"{c['failed']} failed; {data['wall_seconds']:.1f} s wall, {fmt(data['bags_per_minute'], 1)} bags "
              "evaluated per minute. AEE in px, AE in degrees (Middlebury), |flow| in px, times in ms per frame "
              "pair. Each bag's own report is `bags/<bag>/report.md`.", "", "## Bags", "",
              "| bag | status | model | frames | pairs | with GT | AEE | AE | mean \\|flow\\| | max \\|flow\\| "
@@ -115,16 +115,16 @@ def to_markdown(data: dict[str, Any]) -> str:
             continue
         ms = None if r["seconds_mean"] is None else 1000 * r["seconds_mean"]
         lines.append(f"| {r['bag']} | {r['status']} | {r['model']} | {r['frames']} | {r['pairs']} | "
-                     f"{r['pairs_with_gt']} | {_fmt(r['aee_mean'])} | {_fmt(r['ae_mean'], 2)} | "
-                     f"{_fmt(r['magnitude_mean'])} | {_fmt(r['magnitude_max'])} | {_fmt(ms, 1)} | |")
+                     f"{r['pairs_with_gt']} | {fmt(r['aee_mean'])} | {fmt(r['ae_mean'], 2)} | "
+                     f"{fmt(r['magnitude_mean'])} | {fmt(r['magnitude_max'])} | {fmt(ms, 1)} | |")
     lines += ["", "## Per model", "", "| model | bags | with GT | pairs | AEE mean | AEE median | AE mean "
               "| mean \\|flow\\| | time median | time p95 |", "|---|---|---|---|---|---|---|---|---|---|"]
     for a in data["aggregates"]:
         t = {k: None if a[k] is None else 1000 * a[k] for k in ("seconds_per_frame_median", "seconds_per_frame_p95")}
         lines.append(f"| {a['model']} | {a['bags']} | {a['bags_with_gt']} | {a['pairs']} | "
-                     f"{_fmt(a['aee_mean_over_bags'])} | {_fmt(a['aee_median_over_bags'])} | "
-                     f"{_fmt(a['ae_mean_over_bags'], 2)} | {_fmt(a['magnitude_mean_over_bags'])} | "
-                     f"{_fmt(t['seconds_per_frame_median'], 1)} | {_fmt(t['seconds_per_frame_p95'], 1)} |")
+                     f"{fmt(a['aee_mean_over_bags'])} | {fmt(a['aee_median_over_bags'])} | "
+                     f"{fmt(a['ae_mean_over_bags'], 2)} | {fmt(a['magnitude_mean_over_bags'])} | "
+                     f"{fmt(t['seconds_per_frame_median'], 1)} | {fmt(t['seconds_per_frame_p95'], 1)} |")
     if data["ranking"]:
         lines += ["", "## Ranking across bags (as the paper's Table 1)", "",
                   f"Mean over the {data['ranking'][0]['bags']} bags with ground truth of the bag's AEE / the best "

@@ -13,13 +13,21 @@ import sys
 import threading
 from typing import TYPE_CHECKING
 
-from ..core.config import MODELS, PRESETS
-from ..core.errors import ConfigError, FlowError
+from ..cli.common import (
+    OneLineParser,
+    add_config_options,
+    config_from_args,
+    finite_scale,
+    native_stderr_silenced,
+    silence_opencv_log,
+)
+from ..core.config import MODELS
+from ..core.errors import ConfigError, FlowError, one_line
 from ..process import keep_freed_memory, passive_thread_waits
 
 if TYPE_CHECKING:
     from ..core.config import FlowConfig
-    from .evaluate import EvalOptions
+    from .results import EvalOptions
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -31,7 +39,6 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from ..cli.estimate import OneLineParser, finite_scale
     from .bagio import STORAGES  # imports rosbags: here, so that main() can say it is missing
     from .scenes import SCENES
     from .synth import ENCODINGS, SynthSpec
@@ -63,10 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--image-topic", help="image topic (default: the bag's only Image/CompressedImage topic)")
     e.add_argument("--gt-topic", help="ground-truth flow topic, 32FC2 (default: /camera/flow_gt if present)")
     e.add_argument("--model", help=f"model, or several separated by commas: {', '.join(MODELS)}")
-    e.add_argument("--preset", choices=tuple(PRESETS), help="named parameter set to start from")
-    e.add_argument("--params", metavar="FILE.yaml", help="YAML parameters (plain or ROS params file)")
-    e.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override one parameter; repeatable")
+    add_config_options(e)
     e.add_argument("--max-flow", type=finite_scale, default=None,
                    help="colour scale in px for flow_color and PNGs (0 = each frame's maximum; "
                    "default: the node's color_max_flow default)")
@@ -139,9 +143,9 @@ def _run(args: argparse.Namespace) -> int:
             return 0
         print(f"flow_bag play: published {count} messages")
         return 0
-    from ..cli.estimate import config_from_args, one_line
     from .batch import is_single_bag
-    from .evaluate import EvalOptions, run_eval
+    from .evaluate import run_eval
+    from .results import EvalOptions
 
     models = _models(args.model)
     args.model = None
@@ -181,8 +185,6 @@ MISSING_ROSBAGS = ("flow_bag: the rosbags package is not installed (the bag tool
 
 
 def main(argv: list[str] | None = None) -> int:
-    from ..cli.estimate import native_stderr_silenced, silence_opencv_log
-
     try:
         parser = build_parser()
     except ModuleNotFoundError as exc:
@@ -203,8 +205,6 @@ def main(argv: list[str] | None = None) -> int:
         with native_stderr_silenced():  # libpng warnings while decoding compressed frames
             return _run(args)
     except FlowError as exc:
-        from ..cli.estimate import one_line
-
         print(f"flow_bag {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -3,7 +3,8 @@
 Every image goes through :mod:`flow_node.pipeline` exactly as the node does it (codec decode, then
 ``FlowStream.process``), once per model, so the flows written here are what the node would have published.
 Ground truth (32FC2, flow from the previous frame, stamped like the newer frame) is matched by header stamp.
-Output is written to a hidden sibling folder and renamed to ``DIR`` only when everything succeeded.
+Output is written to a hidden sibling folder and renamed to ``DIR`` only when everything succeeded. The
+result types (options, records, runs) are :mod:`flow_node.bag.results`'s, which the report reads too.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ import shutil
 import time
 from collections.abc import Sequence
 from contextlib import nullcontext
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,6 @@ from ..core.errors import InputError
 from ..core.metrics import aee, angular_error, confidence_auc, valid_mask
 from ..pipeline.codec import array_to_image_fields, decode, image_to_array
 from ..pipeline.derived import MOTION_TOPICS, MotionAnalysis
-from ..pipeline.motion import MotionDetector
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
 from .bagio import (
     IMAGE,
@@ -41,90 +40,11 @@ from .bagio import (
 )
 from .motion_topics import motion_messages, motion_record, truth_errors
 from .progress import FrameCallback, FrameProgress
+from .results import Drawn, EvalOptions, EvalResult, FrameRecord, ModelRun
 
-NODE_NAMESPACE = "/flow_node"  # the node's default name: its ~/flow is /flow_node/flow
 OUTPUT_TOPICS = ("flow", "magnitude", "flow_color", "confidence")
 DEFAULT_GT_TOPIC = "/camera/flow_gt"
 UNUSABLE = "image unusable: "  # FrameRecord.skipped prefix of an image that could not be used
-
-
-@dataclass(frozen=True)
-class EvalOptions:
-    """Topics (None: detect), colour scale in px (None: the node's default), PNG frame choice ('auto',
-    'all', 'none' or comma-separated frame indices), whether to show a progress bar, and whether to write
-    the derived motion outputs (``--motion``: flow_node.pipeline.derived) too."""
-
-    image_topic: str | None = None
-    gt_topic: str | None = None
-    max_flow: float | None = None
-    png_frames: str = "auto"
-    progress: bool = True
-    motion: bool = False
-
-
-@dataclass
-class FrameRecord:
-    """One processed image: its bag index and stamps; for a pair, time, iterations, magnitude statistics
-    and (with ground truth) AEE px, AE degrees and the confidence's ROC AUC against the real error (None
-    when every pixel is right or every one wrong). ``skipped`` holds the reason an image was unusable.
-    ``motion`` (``--motion``): flow_node.bag.motion_topics.motion_record, with ground truth plus
-    ``vs_ground_truth`` (motion_topics.truth_errors)."""
-
-    index: int
-    stamp_ns: int
-    previous_stamp_ns: int | None = None
-    seconds: float | None = None
-    iterations: int | None = None
-    magnitude: dict[str, float] | None = None
-    aee: float | None = None
-    ae: float | None = None
-    confidence_auc: float | None = None
-    skipped: str | None = None
-    note: str | None = None
-    motion: dict[str, Any] | None = None
-
-
-@dataclass
-class ModelRun:
-    """The records of one configuration over the whole bag (and its ``motion detected`` flag's state)."""
-
-    label: str
-    config: FlowConfig
-    stream: FlowStream
-    records: list[FrameRecord] = field(default_factory=list)
-    detector: MotionDetector = field(default_factory=MotionDetector)
-
-    def topic(self, name: str, primary: bool) -> str:
-        """Output topic: the node's names for the first model, ``/flow_node/<model>/...`` for the others."""
-        return f"{NODE_NAMESPACE}/{name}" if primary else f"{NODE_NAMESPACE}/{self.label}/{name}"
-
-
-@dataclass
-class Drawn:
-    """What the PNGs of one chosen frame need: the frame, the flows per model and the ground truth."""
-
-    index: int
-    stamp_ns: int
-    frame: np.ndarray
-    flows: dict[str, np.ndarray] = field(default_factory=dict)
-    gt: np.ndarray | None = None
-
-
-@dataclass
-class EvalResult:
-    """Everything the report is made of."""
-
-    bag: str
-    image_topic: str
-    gt_topic: str | None
-    images: int
-    runs: list[ModelRun]
-    drawn: list[Drawn]
-    color_max_flow: float
-    wall_seconds: float = 0.0
-    warnings: list[str] = field(default_factory=list)  # one line each, for stderr
-    recovered: dict[str, Any] | None = None  # what a bag without its MCAP summary still gave (bagio)
-    motion: bool = False  # the derived motion outputs are written and reported (--motion)
 
 
 def read_ground_truth(msg: Any, shape: tuple[int, int], stamp: int) -> np.ndarray:

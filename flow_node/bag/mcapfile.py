@@ -31,7 +31,7 @@ class McapDamage(FileFormatError):
     """An MCAP file whose bytes do not match its CRCs, or whose records cannot be parsed."""
 
 
-def _records(buf: bytes | mmap.mmap, start: int, end: int) -> Iterator[tuple[int, int, int]]:
+def records(buf: bytes | mmap.mmap, start: int, end: int) -> Iterator[tuple[int, int, int]]:
     """(opcode, body start, body end) of the complete records in ``buf[start:end]``; stops at the first
     record that does not fit (a truncated file)."""
     pos = start
@@ -80,7 +80,7 @@ def unfinished(path: str | Path) -> bool:
 
 def _data_end(buf: bytes | mmap.mmap, end: int) -> int | None:
     """Offset of the DataEnd record (the data section ends there), walking the top-level records."""
-    for op, body, _ in _records(buf, len(MAGIC), end):
+    for op, body, _ in records(buf, len(MAGIC), end):
         if op == DATA_END:
             return body - 9
     return None
@@ -94,7 +94,7 @@ def add_crcs(path: str | Path) -> None:
             raise McapDamage(f"{path}: not a complete MCAP file (no footer)")
         at, summary_start, _ = foot
         data_end = None
-        for op, body, _ in _records(buf, len(MAGIC), at):
+        for op, body, _ in records(buf, len(MAGIC), at):
             if op == CHUNK:
                 size, _, compression, start, length = _chunk_fields(buf, body)
                 raw = decompress(bytes(buf[start:start + length]), compression, size, 0)
@@ -148,7 +148,7 @@ class Scan:
 def _inner(scan: Scan, buf: bytes, start: int, end: int) -> int:
     """Parse the records inside a chunk (or the data section); returns where the last complete one ended."""
     pos = start
-    for op, body, stop in _records(buf, start, end):
+    for op, body, stop in records(buf, start, end):
         if op == SCHEMA:
             sid = struct.unpack_from("<H", buf, body)[0]
             name, p = _string(buf, body + 2)
@@ -177,7 +177,7 @@ def scan(path: str | Path) -> Scan:
         raise McapDamage(f"{Path(path).name}: not an MCAP file (bad magic)")
     pos = len(MAGIC)
     try:
-        for op, body, stop in _records(buf, pos, len(buf)):
+        for op, body, stop in records(buf, pos, len(buf)):
             if op == CHUNK:
                 size, crc, compression, start, length = _chunk_fields(buf, body)
                 try:

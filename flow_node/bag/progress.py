@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 from tqdm import tqdm
 
 if TYPE_CHECKING:
-    from .batch import BagOutcome
+    from .results import BagOutcome
 
 FrameCallback = Callable[[int, int], None]  # (frames done, frames in the bag)
 

@@ -21,7 +21,7 @@ from ..core.errors import FileFormatError
 from ..core.flowio import flow_to_color
 from ..core.metrics import endpoint_error_map
 from . import plots
-from .evaluate import Drawn, EvalResult, ModelRun
+from .results import Drawn, EvalResult, ModelRun
 
 
 def _stat(values: list[float], fn: Any) -> float | None:
@@ -118,7 +118,8 @@ def to_json(result: EvalResult) -> dict[str, Any]:
     }
 
 
-def _fmt(x: float | None, digits: int = 3) -> str:
+def fmt(x: float | None, digits: int = 3) -> str:
+    """A number as the reports' tables show it: ``digits`` decimals, a dash for None or NaN."""
     return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{digits}f}"
 
 
@@ -137,10 +138,10 @@ def to_markdown(result: EvalResult, pngs: list[str]) -> str:
         s = summarise_run(run)
         ms = {k: None if s[k] is None else 1000 * s[k] for k in ("seconds_mean", "seconds_median")}
         lines.append(f"| {s['model']} | {s['backend']} | {s['pairs']} | {s['pairs_with_gt']} | "
-                     f"{_fmt(s['aee_mean'])} | {_fmt(s['aee_median'])} | {_fmt(s['ae_mean'], 2)} | "
-                     f"{_fmt(s['confidence_auc_mean'])} | {_fmt(ms['seconds_mean'], 1)} | "
-                     f"{_fmt(ms['seconds_median'], 1)} | "
-                     f"{_fmt(s['magnitude_mean'])} |")
+                     f"{fmt(s['aee_mean'])} | {fmt(s['aee_median'])} | {fmt(s['ae_mean'], 2)} | "
+                     f"{fmt(s['confidence_auc_mean'])} | {fmt(ms['seconds_mean'], 1)} | "
+                     f"{fmt(ms['seconds_median'], 1)} | "
+                     f"{fmt(s['magnitude_mean'])} |")
     lines += _motion_markdown(result.runs)
     rank = ranking(result.runs)
     if rank:
@@ -164,11 +165,11 @@ def to_markdown(result: EvalResult, pngs: list[str]) -> str:
             it = "–" if r.iterations is None else str(r.iterations)
             head = f"| {r.index} | {r.stamp_ns / 1e9:.3f} |"
             if has_gt:
-                lines.append(f"{head} {_fmt(r.aee)} | {_fmt(r.ae, 2)} | {_fmt(ms, 1)} | {it} | "
-                             f"{_fmt(mag.get('mean'))} | {note} |")
+                lines.append(f"{head} {fmt(r.aee)} | {fmt(r.ae, 2)} | {fmt(ms, 1)} | {it} | "
+                             f"{fmt(mag.get('mean'))} | {note} |")
             else:
-                lines.append(f"{head} {_fmt(ms, 1)} | {it} | {_fmt(mag.get('mean'))} | {_fmt(mag.get('p95'))} | "
-                             f"{_fmt(mag.get('max'))} | {note} |")
+                lines.append(f"{head} {fmt(ms, 1)} | {it} | {fmt(mag.get('mean'))} | {fmt(mag.get('p95'))} | "
+                             f"{fmt(mag.get('max'))} | {note} |")
     if pngs:
         lines += ["", "## Pictures", ""] + [f"![{p}]({p})" for p in pngs]
     return "\n".join(lines) + "\n"
@@ -189,11 +190,11 @@ def _motion_markdown(runs: list[ModelRun]) -> list[str]:
     for label, m in rows:
         if m is not None:
             ms = None if m["seconds_mean"] is None else 1000 * m["seconds_mean"]
-            lines.append(f"| {label} | {m['pairs']} | {m['pairs_detected']} | {_fmt(m['moving_fraction_mean'])} | "
-                         f"{_fmt(m['inlier_share_median'])} | {_fmt(m['ttc_centre_seconds_median'], 2)} | "
-                         f"{_fmt(ms, 1)} | {_fmt(m['translation_err_px_median'])} | "
-                         f"{_fmt(m['rotation_err_deg_median'])} | {_fmt(m['ttc_centre_rel_err_median'])} | "
-                         f"{_fmt(m['mask_iou_median'])} |")
+            lines.append(f"| {label} | {m['pairs']} | {m['pairs_detected']} | {fmt(m['moving_fraction_mean'])} | "
+                         f"{fmt(m['inlier_share_median'])} | {fmt(m['ttc_centre_seconds_median'], 2)} | "
+                         f"{fmt(ms, 1)} | {fmt(m['translation_err_px_median'])} | "
+                         f"{fmt(m['rotation_err_deg_median'])} | {fmt(m['ttc_centre_rel_err_median'])} | "
+                         f"{fmt(m['mask_iou_median'])} |")
     return lines
 
 
@@ -203,8 +204,8 @@ def summary_lines(result: EvalResult) -> list[str]:
     for run in result.runs:
         s = summarise_run(run)
         ms = "–" if s["seconds_mean"] is None else f"{1000 * s['seconds_mean']:.1f} ms"
-        err = f"AEE {_fmt(s['aee_mean'])} px, AE {_fmt(s['ae_mean'], 2)} deg, " if s["pairs_with_gt"] else ""
-        out.append(f"{run.label}: {s['pairs']} pairs, {err}mean |flow| {_fmt(s['magnitude_mean'])} px, "
+        err = f"AEE {fmt(s['aee_mean'])} px, AE {fmt(s['ae_mean'], 2)} deg, " if s["pairs_with_gt"] else ""
+        out.append(f"{run.label}: {s['pairs']} pairs, {err}mean |flow| {fmt(s['magnitude_mean'])} px, "
                    f"{ms} per pair ({s['backend']})")
     return out
 

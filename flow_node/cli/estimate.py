@@ -9,43 +9,30 @@ from __future__ import annotations
 
 import argparse
 import errno
-import math
 import os
 import stat
 import sys
-from collections.abc import Iterator
-from contextlib import contextmanager, suppress
+from contextlib import suppress
 from pathlib import Path
-from typing import NoReturn
 
 import cv2
 import numpy as np
 
-from ..core import FlowConfig, FlowError, FlowEstimator, flow_to_color
+from ..core import FlowError, FlowEstimator, flow_to_color
 from ..core.api import to_grey
-from ..core.config import MODELS, PRESETS
+from ..core.config import MODELS
 from ..core.errors import FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
 from ..pipeline.codec import decode_bytes
 from ..process import keep_freed_memory, passive_thread_waits
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse with usage errors on a single line (``prog: error: ... (see --help)``), exit 2."""
-
-    def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: error: {one_line(message)} (see --help)\n")
-
-
-def finite_scale(text: str) -> float:
-    """argparse type: a finite number >= 0 (a colour scale in px; 0 = the frame's own maximum)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
-    return value
+from .common import (
+    OneLineParser,
+    add_config_options,
+    config_from_args,
+    finite_scale,
+    native_stderr_silenced,
+    silence_opencv_log,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -54,25 +41,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("frame1", help="second frame, same size")
     p.add_argument("--output", "-o", required=True, help="output .flo file (Middlebury format)")
     p.add_argument("--model", choices=MODELS, help="variational model (overrides preset/params)")
-    p.add_argument("--preset", choices=tuple(PRESETS), help="named parameter set to start from")
-    p.add_argument("--params", metavar="FILE.yaml", help="YAML parameters (plain or ROS params file)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override one parameter; repeatable")
+    add_config_options(p)
     p.add_argument("--color", metavar="OUT.png", help="also write the Middlebury colour coding")
     p.add_argument("--max-flow", type=finite_scale, default=0.0,
                    help="colour scale in px (0 = the frame's maximum)")
     p.add_argument("--verbose", "-v", action="store_true", help="print backend, time and iterations")
     return p
-
-
-def config_from_args(args: argparse.Namespace) -> FlowConfig:
-    """preset, then --params file, then --model, then --set overrides (later wins)."""
-    cfg = FlowConfig.preset(args.preset) if args.preset else FlowConfig()
-    if args.params:
-        cfg = FlowConfig.from_yaml(args.params, base=cfg)
-    if args.model:
-        cfg = cfg.replace(model=args.model)
-    return cfg.with_overrides(args.overrides)
 
 
 def os_reason(exc: OSError) -> str:
@@ -91,38 +65,6 @@ def _not_regular(mode: int) -> str | None:
         return None
     kind = next((why for test, why in _KINDS if test(mode)), "is not a regular file")
     return f"{kind}, not an image file"
-
-
-@contextmanager
-def native_stderr_silenced() -> Iterator[None]:
-    """For an executable's main(): file descriptor 2 goes to /dev/null for the duration, while Python's own
-    ``sys.stderr`` keeps writing where it did (if it is fd 2 itself, it is moved to a duplicate of it). So
-    what native libraries print straight to fd 2 -- libpng's "libpng warning: iCCP: ...", past OpenCV's
-    logging -- never lands between our one-line messages. Nothing changes when the process has no fd 2."""
-    if sys.stderr is None:  # started without fd 2 (2>&-): fd 2 may be any file opened since; leave it be
-        yield
-        return
-    sys.stderr.flush()
-    try:
-        python_on_fd2 = sys.stderr.fileno() == 2
-    except (AttributeError, OSError, ValueError):  # a captured stream (tests): not on fd 2
-        python_on_fd2 = False
-    saved, previous = os.dup(2), sys.stderr
-    if python_on_fd2:
-        sys.stderr = open(os.dup(saved), "w", buffering=1, encoding=previous.encoding,  # noqa: SIM115
-                          errors=previous.errors)
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.close(devnull)
-        if python_on_fd2:
-            sys.stderr.close()
-            sys.stderr = previous
-        previous.flush()
-        os.dup2(saved, 2)
-        os.close(saved)
 
 
 def read_frame(path: str) -> np.ndarray:
@@ -195,16 +137,6 @@ def write_outputs(flow: np.ndarray, output: str, color: str | None, max_flow: fl
         for tmp, _, _ in staged:
             with suppress(OSError):
                 tmp.unlink()
-
-
-def silence_opencv_log() -> None:
-    """Turn OpenCV's own log off (our errors say it in one line): ``cv2.utils.logging`` in OpenCV 5,
-    ``cv2.setLogLevel`` in 4.x (Ubuntu 24.04's 4.6 has no ``cv2.utils.logging``); level 0 is silent in both."""
-    log = getattr(cv2.utils, "logging", None)
-    if log is not None:
-        log.setLogLevel(log.LOG_LEVEL_SILENT)
-    elif hasattr(cv2, "setLogLevel"):
-        cv2.setLogLevel(0)
 
 
 def main(argv: list[str] | None = None) -> int:

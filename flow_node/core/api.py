@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .backends import select_backend
+from .backends import Backend, select_backend
 from .census import reliability as census_reliability
 from .config import FlowConfig
 from .engine import estimate_pair, warm_fusion
@@ -82,7 +82,7 @@ class FlowResult:
     ``unexplained``: the fraction of (sampled) pixels whose photometric residual after the solve is large
     (photometric.reliability): ~0.0-0.1 for a flow that matches the frames, near 1 for garbage.
     ``frames``: the normalised pair that figure judges (photometric.stage), which the confidence
-    (fusion.confidence) is computed on when asked for."""
+    (confidence.confidence) is computed on when asked for."""
 
     flow: np.ndarray
     stats: SolveStats
@@ -95,12 +95,16 @@ class FlowResult:
 class FlowEstimator:
     """A configured engine: resolves the backend once, then estimates flow for pairs of frames.
 
-    The node and the bag tools keep one of these; ``config`` may be swapped between calls.
+    The node and the bag tools keep one of these; ``config`` may be swapped between calls. ``backend``: a
+    :class:`~flow_node.core.backends.Backend` to run instead of the one ``config.backend`` selects (a study
+    or test combining one backend's kernels with another's); a later change of ``config.backend`` or
+    ``config.threads`` selects again.
     """
 
-    def __init__(self, config: FlowConfig | None = None) -> None:
+    def __init__(self, config: FlowConfig | None = None, backend: Backend | None = None) -> None:
         self._config = config if config is not None else FlowConfig()
-        self._backend = select_backend(self._config.backend, self._config.threads)
+        self._backend = backend if backend is not None else select_backend(self._config.backend,
+                                                                            self._config.threads)
 
     @property
     def backend(self) -> str:

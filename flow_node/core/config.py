@@ -15,14 +15,18 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError, FileFormatError, short_path
+from .initialise import SOURCES as INITIALISATIONS
+from .models import MODEL_SPECS
 from .photometric import PHOTOMETRIC
 from .warping import KERNELS as WARP_KERNELS
 
-MODELS = ("l2_l2", "l2_tv", "l1_tv", "l1_tv_l2", "l1_tv_tv")
+# The choices of the fields below come from the modules that implement them (one table each): the models'
+# names from MODEL_SPECS, the initialisations from initialise.py, the photometric modes and warp kernels from
+# theirs.
+MODELS: tuple[str, ...] = tuple(MODEL_SPECS)
 TV_NORMS = ("isotropic", "anisotropic")
 GRADIENT_SCHEMES = ("forward", "central", "interpolated")
 BACKENDS = ("auto", "numpy", "numba")
-INITIALISATIONS = ("none", "dis_ultrafast", "dis_fast", "dis_medium", "dis_fine", "orb", "sift")
 
 
 class _Calibrated(float):
@@ -269,41 +273,37 @@ def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str,
     return {k: v for k, v in MODEL_WEIGHTS[model].items() if k not in changes}
 
 
+# The named presets, each complete in one place. Re-tuned on the suite as a whole (issue 11: bench.suite tune
+# split plus the 8 Middlebury pairs), after the exact warp and the photometric stage. Why each value:
+# docs/engine.md, "Presets"; the measurements behind them: BENCHMARKS.md (issue 11 sections) and
+# bench/results/tune/.
+# - quality: many short warps per level on a fine pyramid (Middlebury <= 0.30); balanced: 2 x 15, alpha 0.035
+#   (ahead of DIS medium on sensor noise); realtime: 4 x 6 on the coarse levels, 2 x 16 at full size (the
+#   level that costs); fastest: half size, 4 warps per level, 10 iterations per coarse warp.
+# - initialisation (issue 12, BENCHMARKS.md "Large displacements"): every preset starts from OpenCV DIS where a
+#   pair moves more than init_min_motion; the DIS preset is the one of similar cost, quality's is DIS medium
+#   down to full resolution (dis_fine: ~3x DIS medium's time, on ../shared/data/large 60.7 summed AEE over
+#   the 7 pairs against 61.7 with dis_medium, both with the occlusion-aware fusion; on the large-motion bags
+#   the two are level, 23.02 vs 22.97 on merged main, at ~1.4x the time). Middlebury and the suite's
+#   small-motion regimes (under 24 px) are unchanged by construction.
+# - init_finest_level: the speed presets refine a pair the initialisation is fused on down to quarter size only
+#   (the level it enters at): on the large set and the large-motion bags the finer levels changed the AEE by
+#   < 2 % and cost ~3/4 of realtime's time (docs/engine.md, "Presets"; BENCHMARKS.md, "Large motions at a
+#   bounded cost").
 PRESETS: dict[str, dict[str, Any]] = {
-    # Re-tuned on the suite as a whole (issue 11: bench.suite tune split plus the 8 Middlebury pairs), after the
-    # exact warp and the photometric stage. Why each value: docs/engine.md, "Presets"; the measurements behind
-    # them: BENCHMARKS.md (issue 11 sections) and bench/results/tune/.
-    # quality: many short warps per level on a fine pyramid (Middlebury <= 0.30); balanced: 2 x 15, alpha
-    # 0.035 (ahead of DIS medium on sensor noise); realtime: 4 x 6 on the coarse levels, 2 x 16 at full size
-    # (the level that costs); fastest: half size, 4 warps per level, 10 iterations per coarse warp.
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                    finest_level=0),
+                    finest_level=0, initialisation="dis_fine", init_finest_level=0),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
-                     finest_level=0),
+                     finest_level=0, initialisation="dis_fast", init_finest_level=0),
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
-                     levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
+                     levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                     initialisation="dis_ultrafast", init_finest_level=2),
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
-                    finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0),
+                    finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                    initialisation="dis_ultrafast", init_finest_level=2),
 }
-
-
-# Large displacements (issue 12, BENCHMARKS.md "Large displacements"): every preset starts from OpenCV DIS
-# where a pair moves more than init_min_motion; the DIS preset is the one of similar cost, quality's is DIS
-# medium down to full resolution (dis_fine: ~3x DIS medium's time, on ../shared/data/large 60.7 summed
-# AEE over the 7 pairs against 61.7 with dis_medium, both with the occlusion-aware fusion; on the
-# large-motion bags the two are level, 23.02 vs 22.97 on merged main, at ~1.4x the time). Middlebury and the
-# suite's small-motion regimes (under 24 px) are unchanged by construction.
-PRESET_INITIALISATION = {"quality": "dis_fine", "balanced": "dis_fast", "realtime": "dis_ultrafast",
-                         "fastest": "dis_ultrafast"}
-# The speed presets refine a pair the initialisation is fused on down to quarter size only (the level it
-# enters at): on the large set and the large-motion bags the finer levels changed the AEE by < 2 % and cost
-# ~3/4 of realtime's time (docs/engine.md, "Presets"; BENCHMARKS.md, "Large motions at a bounded cost").
-PRESET_INIT_FINEST_LEVEL = {"realtime": 2, "fastest": 2}
-for _name, _init in PRESET_INITIALISATION.items():
-    PRESETS[_name]["initialisation"] = _init
-    PRESETS[_name]["init_finest_level"] = PRESET_INIT_FINEST_LEVEL.get(_name, 0)
 
 
 @dataclass(frozen=True)

@@ -1,17 +1,18 @@
 """The engine's stages, composed: photometric preprocessing -> initialisation -> coarse-to-fine refinement
-with the paper's models -> fusion -> output layout (DESIGN.md, "Engine stages").
+with the paper's models -> fusion -> output layout (docs/design.md, "Engine stages").
 
 Each stage is one function with one interface, in the module named for it:
 
-=====================  =========================================================  ==========================
-stage                  interface                                                  module
-=====================  =========================================================  ==========================
-photometric            (i0, i1, mode) -> (solver pair, normalised pair)           ``core/photometric.py``
-initialisation         (i0, i1, cfg, initial, previous) -> [Candidate]            ``core/initialise.py``
-refinement             (pyramid, cfg, backend, state, first, last, stats) -> state ``core/refine.py``
-fusion (+ confidence)  (i0, i1, [flow]) -> (flow, choice), a backend field        ``core/fusion.py``
-output layout          (2, h, w) -> (H, W, 2) at the input size                   ``core/layout.py``
-=====================  =========================================================  ==========================
+==============  ===================================================================  =======================
+stage           interface                                                            module
+==============  ===================================================================  =======================
+photometric     (i0, i1, mode) -> (solver pair, normalised pair)                     ``core/photometric.py``
+initialisation  (i0, i1, cfg, initial, previous) -> [Candidate]                      ``core/initialise.py``
+refinement      (pyramid, cfg, backend, state, first, last, stats, finest) -> state  ``core/refine.py``
+fusion          (i0, i1, [flow]) -> (flow, choice), a backend field                  ``core/fusion.py``
+output layout   (2, h, w) -> (H, W, 2) at the input size                             ``core/layout.py``
+(confidence)    (i0, i1, flow) -> (H, W) in [0, 1], on demand                        ``core/confidence.py``
+==============  ===================================================================  =======================
 
 Without a candidate -- or when no computed candidate says the pair moves further than ``cfg.init_min_motion``
 (:func:`~flow_node.core.initialise.beyond_reach`) -- the refinement runs over the whole pyramid from zero
@@ -40,35 +41,36 @@ from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
 
 
-def start_level(pyr: Pyramid, cfg: FlowConfig) -> int:
+def start_level(pyr: Pyramid, cfg: FlowConfig, finest: int | None = None) -> int:
     """The level the refinement restarts from with an initialisation: the coarsest one with at least
-    ``cfg.init_scale`` of the input resolution, never finer than the finest solved level."""
-    return max(pyr.level_at_scale(cfg.init_scale), finest_level(pyr, cfg))
+    ``cfg.init_scale`` of the input resolution, never finer than the finest solved level (``finest``;
+    default: :func:`~flow_node.core.refine.finest_level` of ``cfg``)."""
+    return max(pyr.level_at_scale(cfg.init_scale), finest_level(pyr, cfg) if finest is None else finest)
 
 
 def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: list[Candidate],
                 stats: SolveStats) -> PDState:
     """Refinement and fusion: the whole pyramid from zero flow, or (with candidates) down to the start
-    level, fusion there, then on to the finest solved level. Returns the state on the finest solved level."""
-    finest = finest_level(pyr, cfg)
+    level, fusion there, then on to the finest solved level (``cfg.init_finest_level`` when a candidate the
+    engine computed is fused: :func:`~flow_node.core.refine.finest_level`). Returns the state on the finest
+    solved level."""
     state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[-1])
     stats.init_offered = "+".join(c.name for c in candidates)
     candidates = beyond_reach(candidates, cfg.init_min_motion)
     if not candidates:
-        return refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest, stats)
-    if cfg.init_finest_level > cfg.finest_level and any(c.name != INITIAL_FLOW for c in candidates):
-        cfg = cfg.replace(finest_level=min(cfg.init_finest_level, cfg.levels - 1))
         finest = finest_level(pyr, cfg)
-    start = start_level(pyr, cfg)
+        return refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest, stats, finest)
+    finest = finest_level(pyr, cfg, initialised=any(c.name != INITIAL_FLOW for c in candidates))
+    start = start_level(pyr, cfg, finest)
     if start < pyr.coarsest:
-        state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, start + 1, stats)
+        state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, start + 1, stats, finest)
         state = resize_state(state, pyr.shapes[start])
     on_start = candidates_on_level(pyr, start, candidates, backend)
     state.v, choice = fuse_on_level(pyr, start, state.v, on_start, backend)
     stats.init = "+".join(c.name for c in candidates)
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
-    state = refine_levels(pyr, cfg, backend, state, start, finest, stats)
+    state = refine_levels(pyr, cfg, backend, state, start, finest, stats, finest)
     on_finest = on_start if finest == start else candidates_on_level(pyr, finest, candidates, backend)
     state.v, choice = fuse_on_level(pyr, finest, state.v, on_finest, backend, final=True)
     stats.final_init_share = float(np.mean(choice > 0))

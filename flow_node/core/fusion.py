@@ -1,5 +1,5 @@
-"""The fusion and confidence stage: per-pixel choice between flow candidates by their data cost, and a
-per-pixel confidence of a flow in [0, 1].
+"""The fusion stage: per-pixel choice between flow candidates by their data cost (the per-pixel confidence of a
+flow, judged on the same residual, is :mod:`flow_node.core.confidence`).
 
 Images are float32 (h, w) grey; flows are channel-first (2, h, w) in pixels of that grid. The data cost of
 a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the brightness and gradient
@@ -29,11 +29,10 @@ FINAL_MARGIN = 1.3  # after the refinement: a candidate is taken where it costs 
 FINAL_ONLY_CONSISTENT = False  # True: ... and only where forward-backward consistent
 CONSISTENT_COST = 0.5  # cost factor of a forward-backward consistent candidate pixel
 PROPAGATE_INCONSISTENT = True  # a pixel won by a candidate failing its check is undecided (fill_undecided)
-CONFIDENCE_WINDOW = 5
-CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
 
 
-def _box(img: np.ndarray, window: int) -> np.ndarray:
+def box_mean(img: np.ndarray, window: int) -> np.ndarray:
+    """Mean of ``img`` (h, w) over ``window`` x ``window`` boxes, borders reflected."""
     return cv2.boxFilter(img, -1, (window, window), borderType=cv2.BORDER_REFLECT)
 
 
@@ -70,8 +69,8 @@ def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | No
     window = FUSION_WINDOW if window is None else window
     r, inside = warp_residual(i0, i1, flow, stacks)
     m = inside.astype(np.float32)
-    support = _box(m, window)
-    cost = _box(r * m, window) / np.maximum(support, 1e-6)
+    support = box_mean(m, window)
+    cost = box_mean(r * m, window) / np.maximum(support, 1e-6)
     cost[support < 0.05] = np.inf
     return cost
 
@@ -135,23 +134,3 @@ def fill_undecided(choice: np.ndarray, undecided: np.ndarray, stack: np.ndarray)
     out = choice.copy()
     out[undecided] = np.argmin(dist, axis=0)
     return out
-
-
-def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
-    """Confidence of ``flow`` (H, W, 2) between frames i0, i1 (H, W): float32 (H, W) in [0, 1].
-
-    The local data residual (:func:`warp_residual`, a CONFIDENCE_WINDOW box) divided by the local image
-    gradient magnitude is an endpoint-error estimate e in px (a residual of r where the image changes by g
-    per px is about r / g px of misalignment); confidence = 1 / (1 + (e / CONFIDENCE_SCALE_PX)^2), and 0
-    where x + f leaves the image. Occluded pixels (their content is not in frame 1) and wrong flow have a
-    large residual, hence low confidence; flat regions, where no flow is observable, have little gradient,
-    hence low confidence too.
-    """
-    f = np.moveaxis(flow, -1, 0)
-    s0 = planes(i0)  # I0 and its gradient: the residual's and the normalisation's
-    r, inside = warp_residual(i0, i1, f, (s0, planes(i1)))
-    g = _box(np.abs(s0[..., 1]) + np.abs(s0[..., 2]), CONFIDENCE_WINDOW)
-    err = _box(r, CONFIDENCE_WINDOW) / (g + 1e-3)
-    conf = 1.0 / (1.0 + (err / CONFIDENCE_SCALE_PX) ** 2)
-    conf[~inside] = 0.0
-    return conf.astype(np.float32, copy=False)

@@ -26,11 +26,11 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
+from typing import Protocol
 
 import cv2
 import numpy as np
 
-from .config import FlowConfig
 from .densify import densify, forward_propagate, splat_points
 
 # source -> (OpenCV DIS preset, finest scale or None for the preset's own)
@@ -39,6 +39,7 @@ DIS_PRESETS = {"dis_ultrafast": (cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, None),
                "dis_medium": (cv2.DISOPTICAL_FLOW_PRESET_MEDIUM, None),
                "dis_fine": (cv2.DISOPTICAL_FLOW_PRESET_MEDIUM, 0)}
 MATCHERS = ("orb", "sift")  # AKAZE is not in OpenCV 5's main modules (opencv-python-headless)
+SOURCES = ("none", *DIS_PRESETS, *MATCHERS)  # the choices of FlowConfig.initialisation
 RATIO = 0.8  # Lowe's ratio test
 MAX_FEATURES = 3000
 CONSISTENCY_NEIGHBOURS = 8
@@ -242,7 +243,21 @@ def propagated_flow(i0: np.ndarray, previous: np.ndarray) -> np.ndarray:
     return densify(i0, values, weight)
 
 
-def initialise(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, initial_flow: np.ndarray | None = None,
+class InitSettings(Protocol):
+    """The settings the stage reads (a :class:`~flow_node.core.config.FlowConfig`; config.py imports this
+    module for SOURCES, so the stage names what it needs instead of importing the config)."""
+
+    @property
+    def initialisation(self) -> str: ...
+
+    @property
+    def init_min_motion(self) -> float: ...
+
+    @property
+    def temporal_init(self) -> int: ...
+
+
+def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: np.ndarray | None = None,
                previous_flow: np.ndarray | None = None) -> list[Candidate]:
     """Every candidate for this pair: the caller's ``initial_flow`` (2, H, W), the carried-forward
     ``previous_flow`` (2, H, W, on the previous pair's first frame; used only with ``cfg.temporal_init``)

@@ -1,7 +1,7 @@
 """The photometric stage of the engine: what the solver sees of a pair's intensities, and how well the
 result explains them.
 
-:func:`stage` runs once per pair, before the pyramid (DESIGN.md, "Engine stages"). Its modes
+:func:`stage` runs once per pair, before the pyramid (docs/design.md, "Engine stages"). Its modes
 (``PHOTOMETRIC``, the FlowConfig field ``photometric``):
 
 * ``none``: the grey images as they come ([0, 1] by the encoding's maximum).

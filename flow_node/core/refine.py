@@ -74,15 +74,16 @@ def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
                        cfg.tv_norm, iterations, cfg.tolerance)
 
 
-def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState,
+def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState, on_finest: bool,
                 bregman_steps: int = 0) -> tuple[int, int]:
-    """As many warps as :func:`level_schedule` gives: linearise around the current flow, run the backend's solver
-    and median-filter the flow; then ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives
-    on ``level`` and is updated in place. The data term (``cfg.photometric``): grey values (the backend's fused
+    """As many warps as :func:`level_schedule` gives (``on_finest``: ``level`` is the finest solved one):
+    linearise around the current flow, run the backend's solver and median-filter the flow; then
+    ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives on ``level`` and is updated in
+    place. The data term (``cfg.photometric``): grey values (the backend's fused
     warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked; the level's warp source and
     frame 0's gradient are scratch arrays reused from call to call, workspace.py) or census signatures
     (:func:`census_problem`). Returns (iterations, Bregman iterations)."""
-    warps, per_warp = level_schedule(cfg, level == finest_level(pyr, cfg))
+    warps, per_warp = level_schedule(cfg, on_finest)
     params = level_params(cfg, level, per_warp)
     linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
         pyr.i0[level], pyr.i1[level], cfg, backend, params.spec.data == "l1")
@@ -130,25 +131,28 @@ def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Bac
 
 
 def refine_levels(pyr: Pyramid, cfg: FlowConfig, backend: Backend, state: PDState, first: int, last: int,
-                  stats: SolveStats) -> PDState:
+                  stats: SolveStats, finest: int) -> PDState:
     """Solve levels ``first`` down to ``last`` (first >= last), carrying primal and dual variables to each
     finer level (flow vectors rescaled). ``state`` may live on any level; it is resampled to ``first``.
-    Bregman steps (``cfg.bregman_iterations``) run on ``last`` when it is the finest solved level
-    (:func:`finest_level`). Iterations are added to ``stats``; returns the state on ``last``."""
-    finest = finest_level(pyr, cfg)
+    ``finest`` is the finest level the solve goes down to (:func:`finest_level`): that level gets the
+    ``cfg.finest_warps`` / ``cfg.finest_iterations`` schedule and, when ``last`` reaches it, the Bregman steps
+    (``cfg.bregman_iterations``). Iterations are added to ``stats``; returns the state on ``last``."""
     for lvl in range(first, last - 1, -1):
         if state.v.shape[1:] != pyr.shapes[lvl]:
             state = resize_state(state, pyr.shapes[lvl])
         steps = cfg.bregman_iterations if lvl == finest else 0
-        its, extra = solve_level(pyr, lvl, cfg, backend, state, steps)
+        its, extra = solve_level(pyr, lvl, cfg, backend, state, lvl == finest, steps)
         stats.iterations[lvl] += its
         stats.bregman_iterations += extra
     return state
 
 
-def finest_level(pyr: Pyramid, cfg: FlowConfig) -> int:
-    """The finest level solved: ``cfg.finest_level`` clamped to the coarsest level the pyramid has."""
-    return min(cfg.finest_level, pyr.coarsest)
+def finest_level(pyr: Pyramid, cfg: FlowConfig, initialised: bool = False) -> int:
+    """The finest level solved, clamped to the coarsest level the pyramid has: ``cfg.finest_level``; for a
+    pair an initialisation the engine computed is fused on (``initialised``), the coarser of that and
+    ``cfg.init_finest_level``."""
+    level = max(cfg.finest_level, cfg.init_finest_level) if initialised else cfg.finest_level
+    return min(level, pyr.coarsest)
 
 
 def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend) -> tuple[np.ndarray, SolveStats]:
@@ -157,5 +161,6 @@ def coarse_to_fine(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Bac
     pyr = make_pyramid(i0, i1, cfg)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[-1])
-    state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest_level(pyr, cfg), stats)
+    finest = finest_level(pyr, cfg)
+    state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, finest, stats, finest)
     return interleaved_flow(state.v, pyr.shapes[0]), stats

@@ -42,3 +42,12 @@ def scratch(name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.n
         buf = np.empty(key[1], key[2])
     pool[key] = buf
     return buf
+
+
+PoolKey = tuple[str, tuple[int, ...], np.dtype]
+
+
+def pooled() -> dict[PoolKey, np.ndarray]:
+    """A snapshot of the calling thread's pool: (name, shape, dtype) -> its array, least recently requested
+    first (a new dict; the arrays are the pool's own)."""
+    return dict(getattr(_local, "pool", {}))

@@ -2,7 +2,7 @@
 
 Inputs everywhere: ``flow`` (H, W, 2) float32 px/frame, u right, v down, ``I1(x + flow(x)) = I0(x)`` on the
 earlier frame's grid; ``confidence`` (H, W) in [0, 1] of the same pair
-(:func:`flow_node.core.fusion.confidence`; ``FlowOutput.confidence()``).
+(:func:`flow_node.core.confidence.confidence`; ``FlowOutput.confidence()``).
 
 * :func:`dominant_motion` -- the motion of most of the image (the camera's, over a scene far away or
   planar): a similarity (translation of the image centre, rotation, scale) and a homography, fitted

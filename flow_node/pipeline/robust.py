@@ -3,7 +3,7 @@ motion outputs (:mod:`flow_node.pipeline.motion`, :mod:`flow_node.pipeline.expan
 
 A fit sees a flow only at the points of a regular grid (:func:`sample_flow`), so its cost depends on the
 number of samples (~1024 by default), not on the image size. Each sample carries the flow's confidence
-(:func:`flow_node.core.fusion.confidence`, (H, W) in [0, 1]) as its weight; robust weights (Huber, then
+(:func:`flow_node.core.confidence.confidence`, (H, W) in [0, 1]) as its weight; robust weights (Huber, then
 Tukey's biweight) on the endpoint residual in px take out what the model does not explain (moving objects,
 occlusions, wrong flow).
 """

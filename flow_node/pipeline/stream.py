@@ -5,12 +5,15 @@ A :class:`FlowStream` keeps the previous frame (grey float32 at processing resol
 and its stamp and returns None (first frame, or a reset) or a :class:`FlowOutput` with the flow from the
 previous to this frame. Rules, in order:
 
-* settings changed with :meth:`FlowStream.update` (config, input scale, colour scale) take effect at the start
-  of the next ``process`` call; a change of ``input_scale`` resets (the stored frame has the old size);
+* settings changed with :meth:`FlowStream.update` (config, input scale, colour scale, flow units) take effect at
+  the start of the next ``process`` call; a change of ``input_scale`` resets (the stored frame has the old size);
 * the stream resets (drops the previous frame, returns None) when the frame size or the encoding label
   changes, or when the stamp goes backwards (a looping bag); :meth:`FlowStream.reset` does it by hand;
 * ``input_scale`` < 1 shrinks both frames (area interpolation) before solving, and the flow is returned AT
   THAT RESOLUTION in pixels of the shrunk image; multiply by ``1 / input_scale`` for full-resolution pixels.
+* ``flow_units`` px/s divides the flow by the pair's own interval (newer stamp - earlier stamp): with
+  latest-wins dropping a pair can span several camera frames, so px/frame alone gives no velocity. A pair
+  whose stamps are equal has no velocity: InputError (the frame still becomes the previous one).
 * with ``config.temporal_init`` = 1 the previous pair's flow, carried forward to the new pair's first frame,
   initialises the next solve (fused per pixel with the pyramid's estimate, so a scene cut costs nothing but
   time); a reset or a change of the config forgets it.
@@ -28,26 +31,44 @@ import cv2
 import numpy as np
 
 from ..core.api import FlowEstimator, to_grey
+from ..core.confidence import confidence
 from ..core.config import FlowConfig
-from ..core.errors import ConfigError
+from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
-from ..core.fusion import confidence
 from ..core.refine import SolveStats
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
 COLOR_MAX_FLOW_RANGE = (0.0, 10000.0)
+FLOW_UNITS = ("px/frame", "px/s")  # of ~/flow and ~/magnitude: the engine's displacement, or a velocity
+
+
+def units_factor(units: str, interval_ns: int) -> float:
+    """What px/frame flow is multiplied by to be in ``units`` (one of FLOW_UNITS, validated by
+    :class:`StreamSettings`), for a pair ``interval_ns`` apart: 1 for px/frame; 1 / interval in seconds for
+    px/s, where an interval <= 0 (equal stamps) raises InputError: no velocity can be given for it."""
+    if units == FLOW_UNITS[0]:
+        return 1.0
+    if units != FLOW_UNITS[1]:
+        raise ValueError(f"unknown flow units {units!r}")  # StreamSettings rejects them: a caller's bug
+    if interval_ns <= 0:
+        raise InputError(f"flow_units px/s: the pair's stamps are {interval_ns} ns apart, no velocity")
+    return 1e9 / interval_ns
 
 
 @dataclass(frozen=True)
 class StreamSettings:
-    """Everything a stream needs besides the frames. ``color_max_flow``: flow (px) at full colour
-    saturation in the colour image; 0 scales each frame by its own maximum."""
+    """Everything a stream needs besides the frames, validated here (ConfigError). ``color_max_flow``: flow
+    (px) at full colour saturation in the colour image; 0 scales each frame by its own maximum.
+    ``flow_units``: of the output's flow and magnitude (FLOW_UNITS)."""
 
     config: FlowConfig = field(default_factory=FlowConfig)
     input_scale: float = 1.0
     color_max_flow: float = 10.0
+    flow_units: str = FLOW_UNITS[0]
 
     def __post_init__(self) -> None:
+        if self.flow_units not in FLOW_UNITS:
+            raise ConfigError(f"flow_units: {self.flow_units!r} is not one of {', '.join(FLOW_UNITS)}")
         for name, (lo, hi) in (("input_scale", INPUT_SCALE_RANGE), ("color_max_flow", COLOR_MAX_FLOW_RANGE)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
@@ -88,8 +109,9 @@ def scaled_shape(shape: tuple[int, int], scale: float) -> tuple[int, int]:
 class FlowOutput:
     """One result: flow from the previous frame to the frame stamped ``stamp_ns``.
 
-    ``flow`` (H, W, 2) float32 and ``magnitude`` (H, W) float32 are in px/frame at the processing
-    resolution (``scale`` times the input size). Magnitude, colour image, confidence and summary are computed
+    ``flow`` (H, W, 2) float32 and ``magnitude`` (H, W) float32 are at the processing resolution (``scale``
+    times the input size), in px/frame or, after :meth:`in_units`, in its units (``frame_flow`` then keeps
+    the px/frame flow). Magnitude, colour image, confidence and summary are computed
     on first use only (the node publishes magnitude, colour and confidence only when subscribed, summarises
     only for diagnostics). ``frames`` holds the two grey frames the flow was solved on (for the confidence).
     """
@@ -126,7 +148,7 @@ class FlowOutput:
         return self._summary
 
     def confidence(self) -> np.ndarray:
-        """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.fusion.confidence`:
+        """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`:
         low where the data residual says the flow is wrong or the pixel occluded), cached."""
         if self._confidence is None:
             if self.frames is None:
@@ -140,6 +162,27 @@ class FlowOutput:
         if self._color is None:
             self._color = flow_to_color(self.flow, self.color_max_flow, bgr=True)
         return self._color
+
+    @property
+    def color_computed(self) -> bool:
+        """Whether :meth:`color` has been computed (it is only on demand: nobody subscribed, never)."""
+        return self._color is not None
+
+    @property
+    def confidence_computed(self) -> bool:
+        """Whether :meth:`confidence` has been computed (on demand only, like the colour)."""
+        return self._confidence is not None
+
+    def in_units(self, units: str) -> FlowOutput:
+        """This output with its flow in ``units`` (FLOW_UNITS) over its own pair's interval (magnitude and
+        colour follow, computed on first use; the confidence stays judged on px/frame); itself for px/frame.
+        InputError as :func:`units_factor`."""
+        factor = units_factor(units, self.stamp_ns - self.previous_stamp_ns)
+        if factor == 1.0:
+            return self
+        return replace(self, flow=(self.flow * np.float32(factor)).astype(np.float32, copy=False),
+                       frame_flow=self.flow if self.frame_flow is None else self.frame_flow, _magnitude=None,
+                       _color=None, _summary=None)
 
 
 class FlowStream:
@@ -169,12 +212,13 @@ class FlowStream:
         return self._estimator.backend
 
     def update(self, config: FlowConfig | None = None, input_scale: float | None = None,
-               color_max_flow: float | None = None) -> StreamSettings:
+               color_max_flow: float | None = None, flow_units: str | None = None) -> StreamSettings:
         """Schedule new settings for the next frame; validates now (raises ConfigError) and returns them."""
         with self._lock:
             base = self._pending if self._pending is not None else self._settings
             changes = {k: v for k, v in (("config", config), ("input_scale", input_scale),
-                                         ("color_max_flow", color_max_flow)) if v is not None}
+                                         ("color_max_flow", color_max_flow), ("flow_units", flow_units))
+                       if v is not None}
             self._pending = replace(base, **changes)
             return self._pending
 
@@ -242,6 +286,7 @@ class FlowStream:
         result = self._estimator.estimate_grey(prev, grey, previous_flow=previous)  # both from _prepare
         self._prev, self._prev_stamp = grey, stamp_ns
         self._prev_flow = result.flow if s.config.temporal_init else None
-        return FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
-                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
-                          result.frames)
+        out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
+                         result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
+                         result.frames)
+        return out.in_units(s.flow_units)

@@ -1,0 +1,115 @@
+"""The project's own import graph, read from the source: no cycle anywhere, and the layers point one way.
+
+Every import of a ``flow_node`` module counts, wherever it stands: at the top, inside a function (a "lazy"
+import only hides a cycle until that function runs) or under ``if TYPE_CHECKING`` (a type dependency is a
+dependency). ``from . import x`` and ``from .pkg import name`` resolve to the submodule when ``x`` / ``name``
+is one, else to the package. Importing ``a.b.c`` also runs ``a/__init__.py`` and ``a/b/__init__.py``; those
+implicit edges are Python's, not the code's, and are left out (docs/design.md, "Layers").
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = "flow_node"
+Graph = dict[str, set[str]]
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imported(node: ast.Import | ast.ImportFrom, module: str, is_package: bool, known: set[str]) -> set[str]:
+    """The project modules one import statement of ``module`` names."""
+    if isinstance(node, ast.Import):
+        return {a.name for a in node.names if a.name.split(".")[0] == PACKAGE}
+    if node.level:
+        base = module.split(".") if is_package else module.split(".")[:-1]
+        base = base[:len(base) - node.level + 1]
+        target = ".".join(base + ([node.module] if node.module else []))
+    else:
+        target = node.module or ""
+    if target.split(".")[0] != PACKAGE:
+        return set()
+    return {f"{target}.{a.name}" if f"{target}.{a.name}" in known else target for a in node.names}
+
+
+def import_graph() -> Graph:
+    """module -> the project modules it imports (itself excluded)."""
+    files = {module_name(p): p for p in sorted((ROOT / PACKAGE).rglob("*.py"))}
+    known = set(files)
+    graph: Graph = {}
+    for module, path in files.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        deps: set[str] = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import | ast.ImportFrom):
+                deps |= imported(node, module, path.name == "__init__.py", known)
+        unknown = deps - known
+        assert not unknown, f"{module} imports {sorted(unknown)}, which are not modules of the project"
+        graph[module] = deps - {module}
+    return graph
+
+
+def find_cycle(graph: Graph) -> list[str] | None:
+    """One cycle as [a, b, ..., a], or None: iterative depth-first search (white/grey/black)."""
+    state: dict[str, int] = {}  # 1 on the current path, 2 done
+    for root in sorted(graph):
+        if state.get(root):
+            continue
+        path, todo = [root], [iter(sorted(graph[root]))]
+        state[root] = 1
+        while todo:
+            nxt = next(todo[-1], None)
+            if nxt is None:
+                state[path.pop()] = 2
+                todo.pop()
+            elif state.get(nxt) == 1:
+                return path[path.index(nxt):] + [nxt]
+            elif not state.get(nxt):
+                state[nxt] = 1
+                path.append(nxt)
+                todo.append(iter(sorted(graph[nxt])))
+    return None
+
+
+def layer(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+@pytest.fixture(scope="module")
+def graph() -> Graph:
+    return import_graph()
+
+
+def test_the_graph_is_read_from_the_source(graph: Graph) -> None:
+    """The reader finds what is there: top-level, relative, lazy (in a function) and package imports."""
+    assert "flow_node.core.config" in graph["flow_node.core.api"]  # from .config import ...
+    assert "flow_node.core.fusion" in graph["flow_node.core.confidence"]
+    assert "flow_node.bag.batch_report" in graph["flow_node.bag.batch"]  # imported inside run_batch
+    assert "flow_node.core" in graph["flow_node"]  # from .core import ...
+    assert "flow_node.cli.common" in graph["flow_node.bag.cli"]  # from ..cli.common import ...
+
+
+def test_there_is_no_import_cycle(graph: Graph) -> None:
+    cycle = find_cycle(graph)
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+def test_a_cycle_is_found_and_shown() -> None:
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b", "c"}, "b": {"c"}, "c": set()}) is None
+
+
+def test_the_engine_and_the_pipeline_import_nothing_above_them(graph: Graph) -> None:
+    """core/ imports only core/; pipeline/ only core/ and pipeline/ (docs/design.md, "Layers")."""
+    allowed = {"core": {"core"}, "pipeline": {"core", "pipeline"}}
+    wrong = [(m, d) for m, deps in graph.items() if layer(m) in allowed
+             for d in deps if layer(d) not in allowed[layer(m)]]
+    assert not wrong, f"imports against the layers: {wrong}"
