@@ -15,6 +15,8 @@ import rclpy
 import small_frames
 from diagnostic_msgs.msg import DiagnosticArray
 from frame_messages import FRAME_ID, GT, I0, I1, H, W, image, mono8, set_stamp
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
 from rclpy.context import Context
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
@@ -75,6 +77,9 @@ class Harness:
         self.executor.add_node(self.client)
         self._spin = threading.Thread(target=self.executor.spin, daemon=True)
         self._spin.start()
+        if self.node.managed:  # brought to active by this test, as a lifecycle manager does
+            for transition in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+                assert self.change_state(transition), f"lifecycle transition {transition} failed"
         wait_for(lambda: self.node.ready, 30.0, "engine warm-up")
         wait_for(lambda: self.pub.get_subscription_count() > 0 or self.pub_compressed.get_subscription_count() > 0,
                  10.0, "node subscription matched")
@@ -133,6 +138,15 @@ class Harness:
         self.send_frame(f1)
         wait_for(lambda: self.count("flow") > n, 10.0, "flow output")
         return self.last("flow")
+
+    def change_state(self, transition: int) -> bool:
+        """A lifecycle transition (lifecycle_msgs/Transition id) through the node's ~/change_state service."""
+        cli = self.client.create_client(ChangeState, f"{self.full_name}/change_state")
+        try:
+            assert cli.wait_for_service(timeout_sec=5.0)
+            return bool(call(cli, ChangeState.Request(transition=Transition(id=transition)), 60.0).success)
+        finally:
+            self.client.destroy_client(cli)
 
     def set_params(self, **values: Any) -> list[Any]:
         """Set parameters through the node's SetParameters service (one request, per-parameter results)."""

@@ -93,6 +93,8 @@ def test_status_values_and_window_reset() -> None:
     for k in range(4):
         s.received(False)
         s.solved(0.010 * (k + 1), 0.001 * (k + 1), 0.0005 * (k + 1), output(0.6))
+    s.analysed(0.002)  # the derived outputs of two of them (~/motion/* subscribed)
+    s.analysed(0.004)
     time.sleep(0.2)  # 4 frames in > 0.2 s: every 50+ ms, slower than the 25 ms mean solve (else "too slow")
     w = s.window()
     st = status(w, name="cam_flow: optical flow", hardware_id="cam", ready=True, backend="numpy", model="l2_tv",
@@ -102,6 +104,7 @@ def test_status_values_and_window_reset() -> None:
     assert values["solve time mean (ms)"] == "25.00" and values["solve time max (ms)"] == "40.00"
     assert values["node overhead mean (ms)"] == "2.50" and values["publish time mean (ms)"] == "1.25"
     assert values["frames published"] == "4" and values["model"] == "l2_tv" and values["input scale"] == "0.5"
+    assert values["frames analysed (motion)"] == "2" and values["derived outputs mean (ms)"] == "3.00"
     expected = np.hypot(0.6, 0.6)
     assert abs(float(values["flow magnitude max (px)"]) - expected) < 1e-3
     assert abs(float(values["flow magnitude p95 (px)"]) - expected) < 1e-3
@@ -111,7 +114,8 @@ def test_status_values_and_window_reset() -> None:
                                                 backend="numpy", model="l1_tv", input_scale=1.0,
                                                 resolution="5x4").values}
     assert values["solve time mean (ms)"] == "n/a" and values["publish time mean (ms)"] == "n/a"
-    assert values["frames published"] == "4"
+    assert values["frames published"] == "4" and values["frames analysed (motion)"] == "2"
+    assert values["derived outputs mean (ms)"] == "n/a"
 
 
 def test_an_unreliable_flow_warns_and_is_counted() -> None:

@@ -30,6 +30,7 @@ from sensor_msgs.msg import Image
 
 from flow_node.core.metrics import aee
 from flow_node.pipeline.codec import image_to_array
+from flow_node.pipeline.derived import MOTION_TOPICS
 from flow_node.ros import lifecycle
 from flow_node.ros.node import FlowNode
 
@@ -229,6 +230,6 @@ def test_unmanaged_node_is_active_once_constructed(context: Context) -> None:
         # configured again: the publishers' QoS override parameters exist already and are reused
         assert node.trigger_configure() == lifecycle.SUCCESS and node.trigger_activate() == lifecycle.SUCCESS
         assert node._sub is not None and set(node._pubs) == {"flow", "magnitude", "flow_color", "confidence",
-                                                              "flow_pair", "camera_info"}
+                                                              "flow_pair", "camera_info", *MOTION_TOPICS}
     finally:
         node.destroy_node()

@@ -27,9 +27,18 @@ from sensor_msgs.msg import Image
 from flow_node.core.config import MODEL_WEIGHTS, PRESETS, FlowConfig, fields_info
 from flow_node.core.errors import ConfigError
 from flow_node.core.metrics import aee
+from flow_node.core.settings import fields_info as settings_fields_info
 from flow_node.pipeline.codec import image_to_array
+from flow_node.pipeline.derived import MotionSettings
 from flow_node.ros import startup
-from flow_node.ros.params import NODE_PRESET, param_specs, render_yaml, settings_from_values
+from flow_node.ros.params import (
+    MOTION_PREFIX,
+    NODE_PRESET,
+    motion_from_values,
+    param_specs,
+    render_yaml,
+    settings_from_values,
+)
 
 pytestmark = pytest.mark.ros  # rclpy over DDS: a node or a publisher in this process, or a node process
 
@@ -122,7 +131,7 @@ def test_descriptors_come_from_the_config_table(harness: Harness) -> None:
     cli = harness.client.create_client(DescribeParameters, f"{harness.full_name}/describe_parameters")
     assert cli.wait_for_service(timeout_sec=5.0)
     desc = {d.name: d for d in call(cli, DescribeParameters.Request(names=names)).descriptors}
-    for f in fields_info():
+    for f in [*fields_info(), *settings_fields_info(MotionSettings, MOTION_PREFIX)]:  # engine, derived outputs
         d = desc[f.name]
         assert d.description == f.help
         if f.type is float and f.lo is not None:
@@ -131,6 +140,8 @@ def test_descriptors_come_from_the_config_table(harness: Harness) -> None:
             assert (d.integer_range[0].from_value, d.integer_range[0].to_value) == (f.lo, f.hi)
     assert desc["backend"].read_only and desc["use_compressed"].read_only and not desc["alpha"].read_only
     assert "interpolated" in desc["gradient_scheme"].additional_constraints
+    assert desc["motion.mask.abs_px"].floating_point_range[0].to_value == 100.0
+    assert desc["motion.detector.on_frames"].integer_range[0].from_value == 1
 
 
 def test_yaml_files_are_in_sync_and_load_as_configs() -> None:
@@ -153,6 +164,13 @@ def test_settings_from_values_rejects_bad_combinations() -> None:
         settings_from_values({"input_scale": 0.0})
     s = settings_from_values({"iterations": 7, "input_scale": 0.25, "use_sim_time": True})
     assert (s.config.iterations, s.input_scale) == (7, 0.25)
+    m = motion_from_values({"motion.mask.rel": 0.2, "motion.grid_rows": 2, "motion.detector.off_frames": 9,
+                            "iterations": 7})
+    assert (m.mask.rel, m.mask.abs_px, m.grid, m.detector.off_frames) == (0.2, 0.5, (2, 3), 9)
+    with pytest.raises(ConfigError, match=r"^motion\.detector\.area_fraction: must be > 0\.0"):
+        motion_from_values({"motion.detector.area_fraction": 0.0})
+    with pytest.raises(ConfigError, match=r"^motion\.grid_cols: must be <= 16"):
+        motion_from_values({"motion.grid_cols": 17})
 
 
 def test_launch_file_is_valid_python_with_the_documented_arguments() -> None:

@@ -196,7 +196,7 @@ def test_motion_analysis_bundle() -> None:
     assert MotionAnalysis(flow, ONES, interval_s=0.0).ttc.centre.ttc_seconds is None
     assert a.divergence is a.divergence  # cached
     with pytest.raises(ConfigError):
-        MotionSettings(grid=(0, 3))
+        MotionSettings(grid_rows=0)
 
 
 # ------------------------------------------------------------------------- a rendered pair through the engine

@@ -15,6 +15,7 @@ from rclpy.context import Context
 from rclpy.parameter import Parameter
 from ros_helpers import FAST
 
+from flow_node.pipeline.derived import MOTION_TOPICS
 from flow_node.ros import security_policy as sp
 from flow_node.ros.names import camera_info_topic
 from flow_node.ros.node import FlowNode
@@ -52,7 +53,8 @@ def test_default_policy_lists_the_node_interfaces() -> None:
     got = rules(SHIPPED.read_text())
     assert got["subscribe"] == {"image", "camera_info"}
     assert got["publish"] == {"~/flow", "~/magnitude", "~/flow_color", "~/confidence", "~/flow_pair",
-                              "~/camera_info", "/diagnostics", "/rosout", "/parameter_events", "~/transition_event"}
+                              "~/camera_info", "/diagnostics", "/rosout", "/parameter_events", "~/transition_event"} | {
+        f"~/{name}" for name in MOTION_TOPICS}  # the derived outputs ~/motion/*
     assert got["reply"] == {"~/reset", "~/get_type_description"} | {
         f"~/{s}" for s in ("describe_parameters", "get_parameter_types", "get_parameters", "list_parameters",
                            "set_parameters", "set_parameters_atomically")} | {  # the lifecycle services
@@ -94,7 +96,8 @@ def test_client_policy_mirrors_the_node() -> None:
     assert {"/cam/image", "/cam/camera_info"} <= got["publish"] and {"/rosout", "/parameter_events"} <= got["publish"]
     assert got["subscribe"] == {"/robot/flow_node/flow", "/robot/flow_node/magnitude", "/robot/flow_node/flow_color",
                                 "/robot/flow_node/confidence", "/robot/flow_node/flow_pair",
-                                "/robot/flow_node/camera_info", "/diagnostics", "/robot/flow_node/transition_event"}
+                                "/robot/flow_node/camera_info", "/diagnostics", "/robot/flow_node/transition_event"} | {
+        f"/robot/flow_node/{name}" for name in MOTION_TOPICS}
     assert "/robot/flow_node/reset" in got["request"] and "/robot/flow_node/set_parameters" in got["request"]
     assert "/robot/flow_node/change_state" in got["request"]  # a client may manage the node
     assert got["reply"] == {n for n in sp.NODE_BASICS if n.startswith("~")}  # the client node's own services

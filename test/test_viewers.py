@@ -1,5 +1,6 @@
 """The viewer configurations shipped in share/flow_node/config: installed by setup.py, parse, and show the
-input image, ~/flow_color, ~/magnitude (and, in Foxglove, /diagnostics) under the node's real names."""
+input image, ~/flow_color, ~/magnitude, ~/motion/moving_mask and ~/motion/divergence (and, in Foxglove,
+/diagnostics, the dominant motion and motion detected) under the node's real names."""
 
 from __future__ import annotations
 
@@ -15,7 +16,8 @@ from flow_node.bag.results import NODE_NAMESPACE
 from flow_node.bag.synth import FRAME_ID, IMAGE_TOPIC
 
 ROOT = Path(__file__).resolve().parent.parent
-IMAGES = {"input": IMAGE_TOPIC, "color": f"{NODE_NAMESPACE}/flow_color", "magnitude": f"{NODE_NAMESPACE}/magnitude"}
+IMAGES = {"input": IMAGE_TOPIC, "color": f"{NODE_NAMESPACE}/flow_color", "magnitude": f"{NODE_NAMESPACE}/magnitude",
+          "mask": f"{NODE_NAMESPACE}/motion/moving_mask", "divergence": f"{NODE_NAMESPACE}/motion/divergence"}
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +48,14 @@ def test_foxglove_layout(share):
     (status,) = by_type["DiagnosticStatusPanel"]
     assert status["topicToRender"] == "/diagnostics"
     assert (status["selectedName"], status["selectedHardwareId"]) == ("flow_node: optical flow", FRAME_ID)
+    (divergence,) = [c["imageMode"] for c in by_type["Image"] if c["imageMode"]["imageTopic"] == IMAGES["divergence"]]
+    assert divergence["minValue"] == -divergence["maxValue"] < 0  # 1/frame, 0 in the middle of the colour map
+    (plot,) = by_type["Plot"]  # the dominant motion's image translation, px/s, on the frames' stamps
+    assert [p["value"] for p in plot["paths"]] == [f"{NODE_NAMESPACE}/motion/dominant.twist.linear.{a}" for a in "xy"]
+    assert all(p["timestampMethod"] == "headerStamp" for p in plot["paths"])
+    (indicator,) = by_type["Indicator"]
+    assert indicator["path"] == f"{NODE_NAMESPACE}/motion/detected.data"
+    assert [(r["operator"], r["rawValue"]) for r in indicator["rules"]] == [("=", "true")]
 
 
 def test_rviz_config(share):
@@ -60,5 +70,7 @@ def test_rviz_config(share):
     assert topics[IMAGES["input"]]["Topic"]["Reliability Policy"] == "Best Effort"
     magnitude = topics[IMAGES["magnitude"]]
     assert not magnitude["Normalize Range"] and magnitude["Max Value"] > magnitude["Min Value"] == 0
+    divergence = topics[IMAGES["divergence"]]  # 1/frame, fixed and symmetric: mid-grey is no expansion
+    assert not divergence["Normalize Range"] and divergence["Min Value"] == -divergence["Max Value"] < 0
     assert rviz["Visualization Manager"]["Global Options"]["Fixed Frame"] == FRAME_ID
     assert "share/flow_node/config/flow_node.rviz" in text  # the usage line names the installed path

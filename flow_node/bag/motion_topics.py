@@ -14,48 +14,34 @@ from typing import Any
 import numpy as np
 
 from ..core.metrics import valid_mask
-from ..pipeline.codec import array_to_image_fields
-from ..pipeline.derived import MOTION_TOPICS, MotionAnalysis, dominant_twist, finite_or_none, grid_dims
+from ..pipeline.derived import MotionAnalysis, finite_or_none
 from ..pipeline.motion import MotionDetector
+from ..pipeline.motion_msgs import motion_messages as pipeline_motion_messages
 from .bagio import image_message, typestore
 
 
-def _multiarray(kind: str, dims: tuple[tuple[str, int, int], ...], data: np.ndarray) -> Any:
-    ts = typestore().types
-    layout = ts["std_msgs/msg/MultiArrayLayout"](
-        dim=[ts["std_msgs/msg/MultiArrayDimension"](label=label, size=size, stride=stride)
-             for label, size, stride in dims], data_offset=0)
-    return ts[kind](layout=layout, data=data)
+class _RosbagsKit:
+    """rosbags' side of :class:`~flow_node.pipeline.motion_msgs.MessageKit`: its typestore's classes, its
+    Image, numpy arrays as sequences."""
 
+    @staticmethod
+    def make(type_name: str, **fields: Any) -> Any:
+        return typestore().types[type_name](**fields)
 
-def _vector(x: float, y: float, z: float) -> Any:
-    return typestore().types["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=float(z))
+    @staticmethod
+    def image(header: Any, fields: dict[str, Any]) -> Any:
+        return image_message(header, fields)
+
+    @staticmethod
+    def sequence(data: np.ndarray) -> Any:
+        return data
 
 
 def motion_messages(hdr: Any, a: MotionAnalysis, detected: bool) -> Iterator[tuple[str, Any]]:
-    """(topic name relative to the node, message) of every derived output there is for this pair: the
-    dominant twist and the TTC grid need the pair's interval, the homography a dominant motion, the focus
-    of expansion a finite focus; the others are always there. Messages with a header get ``hdr``."""
-    ts = typestore().types
-    d = a.dominant
-    if d is not None and a.interval_s is not None:
-        linear, angular = dominant_twist(d, a.interval_s)
-        twist = ts["geometry_msgs/msg/Twist"](linear=_vector(*linear), angular=_vector(*angular))
-        yield "motion/dominant", ts[MOTION_TOPICS["motion/dominant"]](header=hdr, twist=twist)
-    if d is not None:
-        yield "motion/homography", _multiarray(MOTION_TOPICS["motion/homography"], grid_dims(3, 3),
-                                               np.asarray(d.homography, np.float64).ravel())
-    yield "motion/divergence", image_message(hdr, array_to_image_fields(a.divergence, "32FC1"))
-    if a.interval_s is not None:
-        t = a.ttc
-        yield "motion/ttc", _multiarray(MOTION_TOPICS["motion/ttc"], grid_dims(t.rows, t.cols),
-                                        t.grid("ttc_seconds").ravel().astype(np.float32))
-    f = a.foe
-    if f is not None:
-        point = ts["geometry_msgs/msg/Point"](x=f.x, y=f.y, z=1.0 if f.expanding else -1.0)
-        yield "motion/foe", ts[MOTION_TOPICS["motion/foe"]](header=hdr, point=point)
-    yield "motion/moving_mask", image_message(hdr, array_to_image_fields(a.moving_mask, "mono8"))
-    yield "motion/detected", ts[MOTION_TOPICS["motion/detected"]](data=bool(detected))
+    """(topic name relative to the node, message) of every derived output there is for this pair
+    (:func:`flow_node.pipeline.motion_msgs.motion_messages`, what the node publishes), as rosbags messages
+    with the header ``hdr``."""
+    return pipeline_motion_messages(_RosbagsKit(), hdr, a, detected)
 
 
 def motion_record(a: MotionAnalysis, detector: MotionDetector) -> dict[str, Any]:

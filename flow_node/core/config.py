@@ -8,9 +8,8 @@ builds its parameter descriptors and the CLI its help from the same table.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +17,10 @@ from .errors import ConfigError, FileFormatError, short_path
 from .initialise import SOURCES as INITIALISATIONS
 from .models import MODEL_SPECS
 from .photometric import PHOTOMETRIC
+from .settings import FieldInfo
+from .settings import check_field as _check_field
+from .settings import fields_info as settings_fields_info
+from .settings import setting as _f
 from .warping import KERNELS as WARP_KERNELS
 
 # The choices of the fields below come from the modules that implement them (one table each): the models'
@@ -35,13 +38,6 @@ class _Calibrated(float):
 
 
 CALIBRATED = _Calibrated("nan")
-
-
-def _f(default: Any, help: str, *, lo: float | None = None, hi: float | None = None,
-       choices: tuple[Any, ...] | None = None, lo_open: bool = False) -> Any:
-    """A dataclass field carrying its description and its valid range or choices."""
-    meta = {"help": help, "lo": lo, "hi": hi, "choices": choices, "lo_open": lo_open}
-    return field(default=default, metadata=meta)
 
 
 MAX_YAML_DEPTH = 16  # nesting levels a parameter file may have (a ROS params file needs 3)
@@ -306,33 +302,14 @@ PRESETS: dict[str, dict[str, Any]] = {
 }
 
 
-@dataclass(frozen=True)
-class FieldInfo:
-    """What an entry point needs to expose a config field (ROS descriptor, CLI help)."""
-
-    name: str
-    type: type
-    default: Any
-    help: str
-    lo: float | None
-    hi: float | None
-    choices: tuple[Any, ...] | None
-
-
 def field_names() -> tuple[str, ...]:
     return tuple(f.name for f in dataclasses.fields(FlowConfig))
 
 
 def fields_info() -> list[FieldInfo]:
-    """Name, type, default, description and range of every field."""
-    types = {"int": int, "float": float, "str": str}
-    defaults = FlowConfig()  # resolved defaults (alpha/alpha1: the default model's calibrated weights)
-    out = []
-    for f in dataclasses.fields(FlowConfig):
-        m = f.metadata
-        out.append(FieldInfo(f.name, types[str(f.type)], getattr(defaults, f.name), m["help"], m["lo"], m["hi"],
-                             m["choices"]))
-    return out
+    """Name, type, default, description and range of every field (alpha/alpha1: the default model's
+    calibrated weights)."""
+    return settings_fields_info(FlowConfig)
 
 
 def ros_parameters(data: Mapping[str, Any]) -> dict[str, Any] | None:
@@ -354,33 +331,3 @@ def parse_value(key: str, text: str) -> Any:
     except ValueError:
         raise ConfigError(f"{key}: expected {info.type.__name__}, got {text!r}") from None
     return text
-
-
-def _check_field(f: dataclasses.Field, value: Any) -> Any:
-    """Type-check, coerce (int -> float) and range-check one field value; returns the value to store."""
-    name, m = f.name, f.metadata
-    kind = str(f.type)
-    if kind == "str":
-        if not isinstance(value, str):
-            raise ConfigError(f"{name}: expected a string, got {type(value).__name__} {value!r}")
-    elif kind == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            if isinstance(value, float) and value.is_integer():
-                value = int(value)
-            else:
-                raise ConfigError(f"{name}: expected an integer, got {type(value).__name__} {value!r}")
-    elif kind == "float":
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{name}: expected a number, got {type(value).__name__} {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise ConfigError(f"{name}: must be finite, got {value}")
-    if m["choices"] is not None and value not in m["choices"]:
-        raise ConfigError(f"{name}: {value!r} is not one of {', '.join(map(str, m['choices']))}")
-    lo, hi = m["lo"], m["hi"]
-    if lo is not None and (value < lo or (m["lo_open"] and value == lo)):
-        op = ">" if m["lo_open"] else ">="
-        raise ConfigError(f"{name}: must be {op} {lo}, got {value}")
-    if hi is not None and value > hi:
-        raise ConfigError(f"{name}: must be <= {hi}, got {value}")
-    return value

@@ -12,11 +12,19 @@ from .codec import (
 )
 from .derived import MOTION_TOPICS, MotionAnalysis, MotionSettings
 from .expansion import FocusOfExpansion, RegionTTC, TimeToContact, divergence, focus_of_expansion, region_ttc
-from .motion import DominantMotion, MaskThreshold, MotionDetector, dominant_motion, moving_fraction, moving_mask
+from .motion import (
+    DominantMotion,
+    Hysteresis,
+    MaskThreshold,
+    MotionDetector,
+    dominant_motion,
+    moving_fraction,
+    moving_mask,
+)
 from .stream import FlowOutput, FlowStream, FlowSummary, StreamSettings, magnitude, summarise
 
 __all__ = ["MalformedImage", "UnsupportedEncoding", "array_to_image_fields", "compressed_to_array", "decode",
            "image_to_array", "FlowOutput", "FlowStream", "FlowSummary", "StreamSettings", "magnitude",
            "summarise", "MOTION_TOPICS", "MotionAnalysis", "MotionSettings", "FocusOfExpansion", "RegionTTC",
-           "TimeToContact", "divergence", "focus_of_expansion", "region_ttc", "DominantMotion", "MaskThreshold",
-           "MotionDetector", "dominant_motion", "moving_fraction", "moving_mask"]
+           "TimeToContact", "divergence", "focus_of_expansion", "region_ttc", "DominantMotion", "Hysteresis",
+           "MaskThreshold", "MotionDetector", "dominant_motion", "moving_fraction", "moving_mask"]

@@ -17,12 +17,13 @@ the moving mask needs the dominant motion. No rclpy, no rosbags.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
-from ..core.errors import ConfigError
+from ..core.settings import check_fields, setting
 from .expansion import (
     REGION_GRID,
     REGION_SAMPLES,
@@ -32,50 +33,67 @@ from .expansion import (
     focus_of_expansion,
     region_ttc,
 )
-from .motion import DominantMotion, MaskThreshold, dominant_motion, moving_fraction, moving_mask
-from .robust import SAMPLES, check_flow
+from .motion import DominantMotion, Hysteresis, MaskThreshold, dominant_motion, moving_fraction, moving_mask
+from .robust import SAMPLES, check_flow, check_flow_shape
 from .stream import FlowOutput
 
 
 @dataclass(frozen=True)
 class MotionSettings:
     """Settings of the derived outputs: ``samples`` for the dominant motion and the focus of expansion,
-    ``region_samples`` and ``grid`` (rows, cols) for the time to contact, ``mask`` for what counts as
-    moving independently (:class:`~flow_node.pipeline.motion.MaskThreshold`)."""
+    ``region_samples`` and the ``grid_rows`` x ``grid_cols`` grid for the time to contact, ``mask`` for what
+    counts as moving independently (:class:`~flow_node.pipeline.motion.MaskThreshold`), ``detector`` for
+    the ``motion detected`` flag (:class:`~flow_node.pipeline.motion.Hysteresis`). Each field describes
+    itself (flow_node.core.settings): the node's ``motion.*`` parameters are these fields."""
 
-    samples: int = SAMPLES
-    region_samples: int = REGION_SAMPLES
-    grid: tuple[int, int] = REGION_GRID
+    samples: int = setting(SAMPLES, "dominant motion and focus of expansion: flow samples on a regular grid over "
+                           "the image (the cost hardly depends on the image size)", lo=64, hi=1 << 20)
+    region_samples: int = setting(REGION_SAMPLES, "time to contact: flow samples over the whole image, shared "
+                                  "by the grid's cells", lo=64, hi=1 << 20)
+    grid_rows: int = setting(REGION_GRID[0], "time to contact: rows of the grid of regions", lo=1, hi=16)
+    grid_cols: int = setting(REGION_GRID[1], "time to contact: columns of the grid of regions", lo=1, hi=16)
     mask: MaskThreshold = field(default_factory=MaskThreshold)
+    detector: Hysteresis = field(default_factory=Hysteresis)
 
     def __post_init__(self) -> None:
-        for name in ("samples", "region_samples"):
-            if not 64 <= getattr(self, name) <= 1 << 20:
-                raise ConfigError(f"{name}: must be in [64, {1 << 20}], got {getattr(self, name)}")
-        if len(self.grid) != 2 or not all(1 <= g <= 16 for g in self.grid):
-            raise ConfigError(f"grid: expected (rows, cols) each in [1, 16], got {self.grid}")
+        check_fields(self)
+
+    @property
+    def grid(self) -> tuple[int, int]:
+        """(rows, cols) of the time-to-contact regions."""
+        return self.grid_rows, self.grid_cols
 
 
 class MotionAnalysis:
     """The derived outputs of one flow (H, W, 2) float32 px/frame and its confidence (H, W) in [0, 1].
 
     ``interval_s`` is the pair's interval in seconds (newer stamp - earlier stamp; None or <= 0: times in
-    seconds are None). Every attribute is computed on first access and cached.
+    seconds are None). Every attribute is computed on first access and cached; ``confidence`` may be given
+    as a function that computes it, called on first use (the divergence alone does not need it).
     """
 
-    def __init__(self, flow: np.ndarray, confidence: np.ndarray, interval_s: float | None = None,
-                 settings: MotionSettings | None = None) -> None:
-        check_flow(flow, confidence)
-        self.flow, self.confidence = flow, confidence
+    def __init__(self, flow: np.ndarray, confidence: np.ndarray | Callable[[], np.ndarray],
+                 interval_s: float | None = None, settings: MotionSettings | None = None) -> None:
+        check_flow_shape(flow)
+        if not callable(confidence):
+            check_flow(flow, confidence)
+        self.flow, self._confidence = flow, confidence
         self.interval_s = interval_s if interval_s is not None and interval_s > 0.0 else None
         self.settings = settings if settings is not None else MotionSettings()
+
+    @cached_property
+    def confidence(self) -> np.ndarray:
+        """The confidence (H, W) in [0, 1] (computed now if it was given as a function)."""
+        conf = self._confidence() if callable(self._confidence) else self._confidence
+        check_flow(self.flow, conf)
+        return conf
 
     @classmethod
     def of(cls, out: FlowOutput, settings: MotionSettings | None = None) -> MotionAnalysis:
         """The analysis of a stream's output: its flow in px/frame (``frame_flow`` when ``flow`` is in
-        px/s), its confidence (computed now if it was not) and its pair's interval."""
+        px/s), its confidence (computed on first use, if it was not already) and its pair's interval."""
         flow = out.flow if out.frame_flow is None else out.frame_flow
-        return cls(flow, out.confidence(), (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings)
+        return cls(flow, out.confidence, (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings)
 
     @cached_property
     def dominant(self) -> DominantMotion | None:
@@ -84,7 +102,7 @@ class MotionAnalysis:
 
     @cached_property
     def divergence(self) -> np.ndarray:
-        """:func:`~flow_node.pipeline.expansion.divergence`, (H, W) float32 1/frame."""
+        """:func:`~flow_node.pipeline.expansion.divergence`, (H, W) float32 1/frame (no confidence needed)."""
         return divergence(self.flow)
 
     @cached_property

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..core.errors import ConfigError
+from ..core.settings import check_fields, setting
 from .robust import (
     SAMPLES,
     START_CONFIDENCE,
@@ -37,6 +37,9 @@ MASK_ABS_PX = 0.5  # a pixel moves independently when its flow is this far from 
 MASK_REL = 0.1  # ... plus this fraction of the dominant motion's own length there
 MASK_MIN_CONFIDENCE = 0.3  # pixels less confident than this are never marked (occlusions, flat areas)
 MASK_OPENING_PX = 2  # radius of the opening's elliptic structuring element (a 5x5 ellipse)
+DETECT_AREA_FRACTION = 0.01  # motion detected: a frame counts as moving with this share of the image marked ...
+DETECT_ON_FRAMES = 3  # ... on after this many such frames in a row ...
+DETECT_OFF_FRAMES = 5  # ... off after this many frames in a row without
 
 
 @dataclass(frozen=True)
@@ -45,20 +48,18 @@ class MaskThreshold:
     ``abs_px + rel x |p|`` px/frame, for pixels with confidence >= ``min_confidence``; the mask is then
     opened with an ellipse of radius ``opening_px`` (0: no opening)."""
 
-    abs_px: float = MASK_ABS_PX
-    rel: float = MASK_REL
-    min_confidence: float = MASK_MIN_CONFIDENCE
-    opening_px: int = MASK_OPENING_PX
+    abs_px: float = setting(MASK_ABS_PX, "moving mask: a pixel moves independently when its flow deviates from "
+                            "the dominant motion's by more than this (px/frame) plus rel times the dominant "
+                            "motion's length there", lo=0.0, hi=100.0, lo_open=True)
+    rel: float = setting(MASK_REL, "moving mask: the part of the threshold proportional to the dominant motion's "
+                         "own flow length (0.1 = 10 %)", lo=0.0, hi=10.0)
+    min_confidence: float = setting(MASK_MIN_CONFIDENCE, "moving mask: pixels whose flow confidence is below this "
+                                    "are never marked (occlusions, flat areas)", lo=0.0, hi=1.0)
+    opening_px: int = setting(MASK_OPENING_PX, "moving mask: radius (px) of the morphological opening that removes "
+                              "specks narrower than 2 r + 1 px (0 = none)", lo=0, hi=50)
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.abs_px) and self.abs_px > 0.0):
-            raise ConfigError(f"mask abs_px: must be > 0 px, got {self.abs_px}")
-        if not (math.isfinite(self.rel) and self.rel >= 0.0):
-            raise ConfigError(f"mask rel: must be >= 0, got {self.rel}")
-        if not 0.0 <= self.min_confidence <= 1.0:
-            raise ConfigError(f"mask min_confidence: must be in [0, 1], got {self.min_confidence}")
-        if not 0 <= self.opening_px <= 50:
-            raise ConfigError(f"mask opening_px: must be in [0, 50], got {self.opening_px}")
+        check_fields(self)
 
     def deviates(self, du: np.ndarray, dv: np.ndarray, pu: np.ndarray, pv: np.ndarray) -> np.ndarray:
         """Bool mask (same shape): deviation (du, dv) beyond abs_px + rel x |(pu, pv)| (all px/frame)."""
@@ -245,28 +246,47 @@ def moving_fraction(mask: np.ndarray) -> float:
     return float(np.count_nonzero(mask)) / max(1, mask.size)
 
 
+@dataclass(frozen=True)
+class Hysteresis:
+    """When ``motion detected`` switches (:class:`MotionDetector`): on after ``on_frames`` consecutive frames
+    with at least ``area_fraction`` of the image moving independently, off after ``off_frames`` below."""
+
+    area_fraction: float = setting(DETECT_AREA_FRACTION, "motion detected: the share of the image (0-1) in the "
+                                   "moving mask from which a frame counts as moving", lo=0.0, hi=1.0, lo_open=True)
+    on_frames: int = setting(DETECT_ON_FRAMES, "motion detected: turns on after this many consecutive moving "
+                             "frames", lo=1, hi=1000)
+    off_frames: int = setting(DETECT_OFF_FRAMES, "motion detected: turns off after this many consecutive frames "
+                              "that are not moving", lo=1, hi=1000)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+
 class MotionDetector:
     """A ``motion detected`` flag with hysteresis, for event-driven stacks.
 
     :meth:`update` takes each frame's moving area fraction (:func:`moving_fraction`, in [0, 1]); the flag
     turns on after ``on_frames`` consecutive frames at or above ``area_fraction`` and off after
     ``off_frames`` consecutive frames below it, so one noisy frame neither starts nor ends an event.
+    :attr:`hysteresis` may be replaced between frames (the count so far is kept).
     """
 
-    def __init__(self, area_fraction: float = 0.01, on_frames: int = 3, off_frames: int = 5) -> None:
-        if not 0.0 < area_fraction <= 1.0:
-            raise ConfigError(f"area_fraction: must be in (0, 1], got {area_fraction}")
-        if on_frames < 1 or off_frames < 1:
-            raise ConfigError(f"on_frames and off_frames must be >= 1, got {on_frames}, {off_frames}")
-        self.area_fraction, self.on_frames, self.off_frames = area_fraction, on_frames, off_frames
+    def __init__(self, area_fraction: float = DETECT_AREA_FRACTION, on_frames: int = DETECT_ON_FRAMES,
+                 off_frames: int = DETECT_OFF_FRAMES) -> None:
+        self.hysteresis = Hysteresis(area_fraction, on_frames, off_frames)
         self.detected = False
         self._run = 0  # consecutive frames disagreeing with the current state
 
+    @classmethod
+    def of(cls, hysteresis: Hysteresis) -> MotionDetector:
+        return cls(hysteresis.area_fraction, hysteresis.on_frames, hysteresis.off_frames)
+
     def update(self, fraction: float) -> bool:
         """Feed one frame's moving area fraction; returns the flag after it."""
-        above = fraction >= self.area_fraction
+        h = self.hysteresis
+        above = fraction >= h.area_fraction
         self._run = self._run + 1 if above != self.detected else 0
-        if self._run >= (self.off_frames if self.detected else self.on_frames):
+        if self._run >= (h.off_frames if self.detected else h.on_frames):
             self.detected, self._run = above, 0
         return self.detected
 

@@ -33,10 +33,15 @@ START_CONFIDENCE = 0.5  # samples at least this confident make the robust start 
 CONVERGED_PX = 1e-3  # a step that moves no sample by more than this ends a stage
 
 
-def check_flow(flow: np.ndarray, confidence: np.ndarray) -> None:
-    """InputError unless ``flow`` is (H, W, 2) and ``confidence`` (H, W) of the same size."""
+def check_flow_shape(flow: np.ndarray) -> None:
+    """InputError unless ``flow`` is (H, W, 2)."""
     if flow.ndim != 3 or flow.shape[2] != 2:
         raise InputError(f"flow: expected shape (H, W, 2), got {flow.shape}")
+
+
+def check_flow(flow: np.ndarray, confidence: np.ndarray) -> None:
+    """InputError unless ``flow`` is (H, W, 2) and ``confidence`` (H, W) of the same size."""
+    check_flow_shape(flow)
     if confidence.shape != flow.shape[:2]:
         raise InputError(f"confidence: expected shape {flow.shape[:2]}, got {confidence.shape}")
 

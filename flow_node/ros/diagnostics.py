@@ -30,6 +30,7 @@ class Totals:
     rejected: int = 0
     resets: int = 0
     errors: int = 0
+    analysed: int = 0  # pairs whose derived motion outputs were computed (some ~/motion/* subscribed)
 
 
 @dataclass
@@ -53,6 +54,7 @@ class Window:
     since_input: float | None
     unreliable: int = 0  # outputs of the period whose unexplained fraction exceeds UNRELIABLE
     unexplained: float | None = None  # of the last output
+    motion_times: list[float] = field(default_factory=list)  # seconds of the derived outputs, per analysed pair
 
 
 @dataclass
@@ -66,6 +68,7 @@ class NodeStats:
     _solve: list[float] = field(default_factory=list)
     _overhead: list[float] = field(default_factory=list)
     _publish: list[float] = field(default_factory=list)
+    _motion: list[float] = field(default_factory=list)
     _unreliable: int = 0
     _last: FlowOutput | None = None
     _last_input: float | None = None
@@ -117,6 +120,12 @@ class NodeStats:
             self._unreliable += int(output.unexplained > UNRELIABLE)
             self._last = output
 
+    def analysed(self, seconds: float) -> None:
+        """The derived motion outputs of a pair were computed (and published) in ``seconds``."""
+        with self._lock:
+            self.totals.analysed += 1
+            self._motion.append(seconds)
+
     def window(self) -> Window:
         """Snapshot of the period since the last call; starts the next period. The flow summary of the last
         output is computed here, outside the lock, so the worker never waits for it."""
@@ -127,9 +136,9 @@ class NodeStats:
                        t.dropped - m.dropped, t.rejected - m.rejected, t.errors - m.errors, self._solve,
                        self._overhead, self._publish, None, self.last_reset, self.last_rejection, self.last_error,
                        None if self._last_input is None else now - self._last_input, self._unreliable,
-                       None if last is None else last.unexplained)
+                       None if last is None else last.unexplained, self._motion)
             self._start, self._mark = now, Totals(**vars(t))
-            self._solve, self._overhead, self._publish, self._unreliable = [], [], [], 0
+            self._solve, self._overhead, self._publish, self._motion, self._unreliable = [], [], [], [], 0
         w.summary = None if last is None else last.summary
         return w
 
@@ -222,6 +231,7 @@ def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str,
         ("solve time max (ms)", _ms(w.solve_times, "max")),
         ("node overhead mean (ms)", _ms(w.overheads, "mean")),
         ("publish time mean (ms)", _ms(w.publish_times, "mean")),
+        ("derived outputs mean (ms)", _ms(w.motion_times, "mean")),
         ("solver busy (%)", f"{100.0 * sum(w.solve_times) / period:.1f}"),
         ("flow magnitude mean (px)", "n/a" if s is None else f"{s.mean:.3f}"),
         ("flow magnitude p95 (px)", "n/a" if s is None else f"{s.p95:.3f}"),
@@ -233,6 +243,7 @@ def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str,
         ("frames dropped", str(w.totals.dropped)),
         ("frames rejected", str(w.totals.rejected)),
         ("engine errors", str(w.totals.errors)),
+        ("frames analysed (motion)", str(w.totals.analysed)),
         ("resets", str(w.totals.resets)),
         ("last reset", w.last_reset or "none"),
         ("last rejection", w.last_rejection or "none"),

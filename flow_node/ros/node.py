@@ -9,8 +9,9 @@ Parameters, ``~/reset``, the lifecycle services and ``/diagnostics`` live in eve
 
 Threading (flow_node/ros/worker.py): the subscription callback (executor) only drops the message into a one-slot
 mailbox (latest wins; a replaced message is counted as dropped) and returns. The worker thread takes the newest
-message, decodes it, runs :class:`~flow_node.pipeline.stream.FlowStream` and publishes. The executor thus never
-runs a solve, so parameter services, ``~/reset`` and diagnostics answer while a frame is being solved.
+message, decodes it, runs :class:`~flow_node.pipeline.stream.FlowStream` and publishes, the derived ``~/motion/*``
+outputs through flow_node/ros/motion_outputs.py (only those subscribed). The executor thus never runs a solve,
+so parameter services, ``~/reset`` and diagnostics answer while a frame is being solved.
 """
 
 from __future__ import annotations
@@ -43,11 +44,12 @@ from ..pipeline.units import output_in_units
 from ..process import keep_freed_memory, passive_thread_waits
 from . import camera_info, diagnostics, lifecycle, security, startup
 from .messages import descriptor, executor_advice, publish_outputs, stamp_ns
-from .params import coerce, param_specs, preset_values, settings_from_values
+from .motion_outputs import MOTION_TYPES, MotionOutputs
+from .params import coerce, motion_from_values, param_specs, preset_values, settings_from_values
 from .worker import FrameWorker
 
 _OUTPUTS = (("flow", Image), ("magnitude", Image), ("flow_color", Image), ("confidence", Image),
-            ("flow_pair", TimeReference), ("camera_info", CameraInfo))
+            ("flow_pair", TimeReference), ("camera_info", CameraInfo), *MOTION_TYPES.items())
 
 
 class FlowNode(LifecycleNode):
@@ -64,6 +66,7 @@ class FlowNode(LifecycleNode):
         self._stats = diagnostics.NodeStats()
         self._stream: FlowStream | None = None
         self._worker: FrameWorker | None = None
+        self._motion: MotionOutputs | None = None  # the derived outputs (~/motion/*), between configure and cleanup
         self._pubs: dict[str, LifecyclePublisher] = {}
         self._sub: Subscription | None = None
         self._sub_info: Subscription | None = None
@@ -114,6 +117,7 @@ class FlowNode(LifecycleNode):
         worker created; a managed node also waits for the warm-up here (an unmanaged one warms up on the
         worker once active, while the executor answers parameter services)."""
         settings = settings_from_values(self._values())  # ConfigError: FAILURE, stays unconfigured
+        self._motion = MotionOutputs(motion_from_values(self._values()))
         stream = FlowStream(settings)
         self._stats, self._stream, self._camera_info = diagnostics.NodeStats(), stream, None
         self._units = self.get_parameter("flow_units").value
@@ -177,7 +181,7 @@ class FlowNode(LifecycleNode):
             self._worker.stop()
         for pub in self._pubs.values():
             self.destroy_lifecycle_publisher(pub)
-        self._worker, self._pubs, self._stream, self._camera_info = None, {}, None, None
+        self._worker, self._pubs, self._stream, self._camera_info, self._motion = None, {}, None, None, None
         self._resolution = "none yet"
 
     def _teardown(self) -> None:
@@ -235,6 +239,7 @@ class FlowNode(LifecycleNode):
         """On-set callback: the whole would-be configuration must be valid, else nothing changes."""
         try:
             settings_from_values(self._values(params))
+            motion_from_values(self._values(params))
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
@@ -244,8 +249,9 @@ class FlowNode(LifecycleNode):
         reads them)."""
         if any(p.name in self._specs for p in params):
             s = settings_from_values(self._values())
-            if self._stream is not None:
+            if self._stream is not None and self._motion is not None:
                 self._stream.update(s.config, s.input_scale, s.color_max_flow)
+                self._motion.update(motion_from_values(self._values()))
             self._units = self.get_parameter("flow_units").value
             self.get_logger().info("parameters changed: " + ", ".join(f"{p.name}={p.value!r}" for p in params))
 
@@ -309,8 +315,8 @@ class FlowNode(LifecycleNode):
         return self._worker is not None and self._worker.ready
 
     def _handle(self, msg: Image | CompressedImage) -> None:
-        stream = self._stream
-        assert stream is not None  # the worker runs between configure and cleanup
+        stream, motion = self._stream, self._motion
+        assert stream is not None and motion is not None  # the worker runs between configure and cleanup
         start = time.perf_counter()
         try:
             frame, label = decode(msg)
@@ -323,6 +329,7 @@ class FlowNode(LifecycleNode):
             self.get_logger().warning(f"image rejected: {exc}", throttle_duration_sec=5.0)
             return
         if out is None:
+            motion.reset()  # a new pair: "motion detected" starts again from off
             self._stats.reset(stream.last_reset_reason)
             self.get_logger().info(f"new pair started: {stream.last_reset_reason}")
             return
@@ -332,6 +339,9 @@ class FlowNode(LifecycleNode):
                 self._stats.dropped()  # solved as the node was deactivated: not published
                 return
             publish_s = publish_outputs(self._pubs, msg.header, out, self._camera_info, self.get_logger())
+            motion_s = motion.publish(self._pubs, msg.header, out)  # only what ~/motion/* subscribers need
+        if motion_s is not None:
+            self._stats.analysed(motion_s)
         self._stats.solved(out.seconds, time.perf_counter() - start - out.seconds, publish_s, out)
 
     def destroy_node(self) -> None:

@@ -1,4 +1,5 @@
-"""The node's ROS parameters: one table built from FlowConfig's field metadata plus a few node-only entries.
+"""The node's ROS parameters: one table built from the field metadata of FlowConfig (engine) and MotionSettings
+(derived outputs, ``motion.*``) plus a few node-only entries.
 
 Descriptors (description, ranges, read_only), the validation of a would-be parameter set, the expansion of
 ``preset`` into its group of values and the YAML files in config/ are all derived from :func:`param_specs`,
@@ -15,6 +16,9 @@ from typing import Any
 
 from ..core.config import PRESETS, FlowConfig, field_names, fields_info
 from ..core.errors import ConfigError
+from ..core.settings import fields_info as settings_fields_info
+from ..core.settings import from_flat
+from ..pipeline.derived import MotionSettings
 from ..pipeline.stream import COLOR_MAX_FLOW_RANGE, INPUT_SCALE_RANGE, StreamSettings
 from ..pipeline.units import FLOW_UNITS
 
@@ -42,9 +46,14 @@ READ_ONLY_FIELDS = frozenset({"backend", "threads"})
 # and FlowConfig's plain defaults take ~0.3 s); docs/node.md, "Defaults".
 NODE_PRESET = "fastest"
 
+# The derived outputs' settings (MotionSettings' fields, nested ones flattened) are parameters under this
+# prefix: motion.samples, motion.mask.abs_px, motion.detector.on_frames, ...
+MOTION_PREFIX = "motion."
+
 
 def param_specs() -> list[ParamSpec]:
-    """Every parameter of the node, engine fields first (in FlowConfig order), then node-only ones.
+    """Every parameter of the node, engine fields first (in FlowConfig order), then the derived outputs'
+    (MotionSettings, ``motion.*``), then node-only ones.
 
     The engine fields' defaults are those of NODE_PRESET (``preset`` defaults to it)."""
     defaults = StreamSettings()
@@ -56,6 +65,8 @@ def param_specs() -> list[ParamSpec]:
     for f in fields_info():
         specs.append(ParamSpec(f.name, f.type, getattr(engine, f.name), f.help, f.lo, f.hi, f.choices,
                                f.name in READ_ONLY_FIELDS))
+    specs += [ParamSpec(f.name, f.type, f.default, f.help, f.lo, f.hi, f.choices)
+              for f in settings_fields_info(MotionSettings, MOTION_PREFIX)]
     specs += [
         ParamSpec("input_scale", float, defaults.input_scale,
                   "process frames shrunk by this factor; flow is published at that resolution, in pixels of the "
@@ -106,6 +117,12 @@ def settings_from_values(values: Mapping[str, Any]) -> StreamSettings:
     cfg = FlowConfig.from_mapping({k: values[k] for k in field_names() if k in values})
     return StreamSettings(cfg, input_scale=values.get("input_scale", StreamSettings().input_scale),
                           color_max_flow=values.get("color_max_flow", StreamSettings().color_max_flow))
+
+
+def motion_from_values(values: Mapping[str, Any]) -> MotionSettings:
+    """The derived outputs' settings from the ``motion.*`` parameters in ``values`` (others ignored, missing
+    ones take MotionSettings' defaults); ConfigError naming the parameter if one is invalid."""
+    return from_flat(MotionSettings, values, MOTION_PREFIX)
 
 
 def preset_values(name: str) -> dict[str, Any]:

@@ -1,0 +1,127 @@
+"""What each ~/motion/* topic of the node costs per frame, as a ratio to the realtime preset's solve time.
+
+    python -m bench.motion_cost                        # 320x240 and 640x480 -> bench/results/motion_cost.json
+
+The node computes a derived output only while its topic is subscribed (flow_node/ros/motion_outputs.py), so a
+topic's cost is what the node's worker does for it when it is the only one subscribed: a fresh
+MotionAnalysis of the pair, what the topic needs of it (the homography, the mask and the flag need the
+dominant motion; the flag the mask) and the rclpy message (flow_node.pipeline.motion_msgs with the node's
+RclpyKit), publishing excluded (it depends on the subscribers and the middleware: the mask and the
+divergence are images like ~/magnitude). "all" is every topic at once (the dominant motion shared). The
+confidence they take (all but the divergence) is reported on its own: the node computes it once per pair
+for every consumer, and not at all when ~/confidence is subscribed anyway. Pairs from
+flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
+Every time is the best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
+shared machine only adds time, and weighs on all of them alike).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from std_msgs.msg import Header
+
+from flow_node.bag.motion_scenes import motion_scene
+from flow_node.bag.scenes import render_grey_pair
+from flow_node.core import FlowEstimator, FlowResult
+from flow_node.core.config import FlowConfig
+from flow_node.core.fusion import confidence
+from flow_node.pipeline.derived import MOTION_TOPICS, MotionAnalysis
+from flow_node.pipeline.motion import MotionDetector
+from flow_node.pipeline.motion_msgs import motion_messages
+from flow_node.ros.motion_outputs import RclpyKit
+
+from .common import REPO, machine, write_json
+from .motion_regime import quantise8
+
+CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
+
+
+def topic_time(flow: np.ndarray, conf: np.ndarray, names: tuple[str, ...]) -> float:
+    """Seconds the node's worker spends on ``names`` for one pair, the confidence given (module docstring)."""
+    header = Header(frame_id="camera")
+    start = time.perf_counter()
+    a = MotionAnalysis(flow, conf, 0.1)
+    detected = MotionDetector().update(a.moving_fraction) if "motion/detected" in names else None
+    for _ in motion_messages(RclpyKit(), header, a, detected, names):
+        pass
+    return time.perf_counter() - start
+
+
+def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: FlowResult, conf: np.ndarray) -> float:
+    """Seconds of one run of ``name``: the engine on the pair, the confidence, a topic or "all"."""
+    start = time.perf_counter()
+    if name == "engine":
+        est.estimate(f0, f1)
+        return time.perf_counter() - start
+    if name == "confidence":
+        confidence(*res.frames, res.flow)
+        return time.perf_counter() - start
+    return topic_time(res.flow, conf, tuple(MOTION_TOPICS) if name == "all" else (name,))
+
+
+def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[dict[str, Any]]:
+    est = FlowEstimator(FlowConfig.preset("realtime"))
+    est.warmup(size[::-1])
+    rows = []
+    for k in range(pairs):
+        for j, (kind, share) in enumerate(CASES):
+            scene, _ = motion_scene(kind, size, np.random.default_rng(seed + 10 * k + j), share, objects=1)
+            i0, i1, _ = render_grey_pair(scene)
+            f0, f1 = quantise8(i0, 0.0, seed), quantise8(i1, 0.0, seed + 1)
+            res = est.estimate(f0, f1)
+            conf = confidence(*res.frames, res.flow)
+            times: dict[str, float] = {}
+            for _ in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike
+                for name in ("engine", "confidence", *MOTION_TOPICS, "all"):
+                    times[name] = min(times.get(name, math.inf), _time(name, f0, f1, est, res, conf))
+            row: dict[str, Any] = {"kind": kind} | {f"{name}_s": t for name, t in times.items()}
+            rows.append(row)
+            print(f"{size[0]}x{size[1]} {kind}: engine {1e3 * row['engine_s']:.1f} ms, all {1e3 * row['all_s']:.2f} "
+                  f"ms, confidence {1e3 * row['confidence_s']:.2f} ms", flush=True)
+    return rows
+
+
+def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """Median over the pairs of each topic's time / the engine's, and of the times themselves (ms)."""
+    engine = np.array([r["engine_s"] for r in rows])
+    out: dict[str, Any] = {"engine_ms_median": 1e3 * float(np.median(engine))}
+    for name in (*MOTION_TOPICS, "all", "confidence"):
+        t = np.array([r[f"{name}_s"] for r in rows])
+        out[name] = {"ratio_median": float(np.median(t / engine)), "ms_median": 1e3 * float(np.median(t))}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="320x240,640x480", help="comma-separated WxH")
+    ap.add_argument("--pairs", type=int, default=3, help="pairs per scene kind and size")
+    ap.add_argument("--repeat", type=int, default=5, help="time each this often, keep the best")
+    ap.add_argument("--seed", type=int, default=4100)
+    ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion_cost.json")
+    args = ap.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    results = {}
+    for text in args.sizes.split(","):
+        size = tuple(int(v) for v in text.lower().split("x"))
+        rows = measure(size, args.pairs, args.repeat, args.seed)
+        results[text] = {"summary": summarise(rows), "pairs": rows}
+    print(f"{'topic':22s}" + "".join(f"{s:>22s}" for s in results))
+    for name in (*MOTION_TOPICS, "all", "confidence"):
+        cells = [f"{100 * r['summary'][name]['ratio_median']:6.2f} % {r['summary'][name]['ms_median']:6.2f} ms"
+                 for r in results.values()]
+        print(f"{name:22s}" + "".join(f"{c:>22s}" for c in cells))
+    print(f"{'realtime (ms)':22s}" + "".join(f"{r['summary']['engine_ms_median']:19.1f} ms" for r in results.values()))
+    write_json(args.output, {"command": "python -m bench.motion_cost " + " ".join(argv), "machine": machine(),
+                             "results": results})
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
