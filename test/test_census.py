@@ -62,17 +62,23 @@ def test_signature_under_a_tone_curve_changes_far_less_than_grey_values() -> Non
     assert rel_sig < 0.1 and rel_grey > 0.25
 
 
+def form_and_channels(seed: int, robust: bool) -> tuple[np.ndarray, ...]:
+    """The form of a random linearisation and the channels written out: q, the residual at v0 r0 = F(W) - F(I0)
+    (K, H, W), the channel gradients ax, ay (K, H, W), the outside mask and v0."""
+    i0, i1, a, c, v0 = random_linearisation(seed)
+    f0, g0 = level_signature(i0)
+    warped, outside = census.warped_frame(i0, i1, a, c, v0)
+    q = quadratic_form(f0, g0, warped, outside, v0, robust=robust)
+    f1 = signature(warped)
+    g1 = census.signature_gradient(f1)
+    return q, f1 - f0, 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1]), outside, v0
+
+
 def test_quadratic_form_is_the_sum_of_squared_channel_residuals() -> None:
     """L2: 1/2 v^T T v + g . v + const = 1/2 sum_k (a_k . v + c_k)^2 for any v (checks T and g channel by
     channel against the linearisation written out)."""
-    i0, i1, a, c, v0 = random_linearisation(3)
-    f0, g0 = level_signature(i0)
-    warped, outside = census.warped_frame(i0, i1, a, c, v0)
-    q = quadratic_form(f0, g0, warped, outside, v0, robust=False)
-    f1 = signature(warped)
-    g1 = census.signature_gradient(f1)
-    ax, ay = 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1])
-    ck = f1 - f0 - ax * v0[0] - ay * v0[1]
+    q, r0, ax, ay, outside, v0 = form_and_channels(3, robust=False)
+    ck = r0 - ax * v0[0] - ay * v0[1]
     rng = np.random.default_rng(4)
     values = []
     for v in (rng.standard_normal((2, H, W)), rng.standard_normal((2, H, W)), np.zeros((2, H, W))):
@@ -85,14 +91,7 @@ def test_quadratic_form_is_the_sum_of_squared_channel_residuals() -> None:
 def test_robust_form_majorises_the_l1_term_touching_at_v0() -> None:
     """L1: with the weights 1 / sqrt(rho_k(v0)^2 + delta^2) the form's gradient at v0 is the smoothed L1
     term's gradient sum_k rho_k / sqrt(rho_k^2 + delta^2) a_k (IRLS)."""
-    i0, i1, a, c, v0 = random_linearisation(5)
-    f0, g0 = level_signature(i0)
-    warped, outside = census.warped_frame(i0, i1, a, c, v0)
-    q = quadratic_form(f0, g0, warped, outside, v0, robust=True)
-    f1 = signature(warped)
-    g1 = census.signature_gradient(f1)
-    ax, ay = 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1])
-    r0 = f1 - f0
+    q, r0, ax, ay, outside, v0 = form_and_channels(5, robust=True)
     smooth = r0 / np.sqrt(r0 * r0 + census.CENSUS.delta**2) * ~outside
     expect = np.stack([(smooth * ax).sum(0), (smooth * ay).sum(0)])
     np.testing.assert_allclose(census.form_residual(q, v0), expect, atol=1e-5)
