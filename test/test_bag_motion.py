@@ -78,3 +78,20 @@ def test_no_motion_topics_without_the_flag(tmp_path):
     assert not any("/motion/" in t for t in out)
     report = json.loads((tmp_path / "o" / "report.json").read_text())
     assert report["models"][0]["summary"]["motion"] is None
+
+
+@pytest.mark.parametrize("scene", ["approach", "pan_objects"])
+def test_synth_scenes_with_known_derived_outputs(tmp_path, scene):
+    """`flow_bag synth --scene approach | pan_objects`: exact ground truth, and eval --motion's derived outputs
+    against what the ground-truth flow gives (time to contact within 15 %; the objects' mask and the pan)."""
+    bag = tmp_path / scene
+    assert flow_bag(["synth", str(bag), "--scene", scene, "--frames", "4", "--seed", "3"]) == 0
+    assert flow_bag(["eval", str(bag), "--output", str(tmp_path / "o"), "--motion", "-q", "--preset", "realtime"]) == 0
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    truth = [f["motion"]["vs_ground_truth"] for f in report["models"][0]["frames"] if f["motion"] is not None]
+    assert len(truth) == 3
+    if scene == "approach":
+        assert max(t["ttc_centre_rel_err"] for t in truth) < 0.15
+    else:
+        assert max(t["translation_err_px"] for t in truth) < 0.05
+        assert min(t["mask_iou"] for t in truth) > 0.7

@@ -40,8 +40,7 @@ def _size(text: str) -> tuple[int, int]:
 
 def build_parser() -> argparse.ArgumentParser:
     from .bagio import STORAGES  # imports rosbags: here, so that main() can say it is missing
-    from .scenes import SCENES
-    from .synth import ENCODINGS, SynthSpec
+    from .synth import ALL_SCENES, ENCODINGS, SynthSpec
 
     d = SynthSpec()
     p = OneLineParser(prog="flow_bag", description=__doc__.splitlines()[0])
@@ -49,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("synth", help="write a synthetic rosbag2 with exact ground-truth flow")
     s.add_argument("output", help="bag folder to create (must not exist)")
-    s.add_argument("--scene", choices=SCENES, default=d.scene, help="motion to render")
+    s.add_argument("--scene", choices=ALL_SCENES, default=d.scene,
+                   help="motion to render (approach, pan_objects: known time to contact / moving objects)")
     s.add_argument("--frames", type=int, default=d.frames, help="number of frames")
     s.add_argument("--size", type=_size, default=d.size, metavar="WxH", help="frame size in px")
     s.add_argument("--fps", type=float, default=d.fps, help="frame rate (header stamps and bag time)")

@@ -107,3 +107,18 @@ def motion_scene(kind: str, size: tuple[int, int], rng: np.random.Generator, obj
     share = float(np.mean(scene.layer_map(0) > 0)) if object_share > 0.0 else 0.0
     truth = MotionTruth(kind, float(t[0]), float(t[1]), math.degrees(bg.theta), bg.scale, ttc, foe, share)
     return scene, truth
+
+
+# `flow_bag synth`'s scenes with known derived outputs (docs/bags.md): an approaching textured plane (time to
+# contact 10-200 frames, the focus of expansion in the middle half), and a pan with two objects covering ~20 %
+# of the image moving on their own
+SYNTH_SCENES: dict[str, tuple[str, float]] = {"approach": ("approach", 0.0), "pan_objects": ("pan", 0.2)}
+
+
+def synth_scene(name: str, size: tuple[int, int], rng: np.random.Generator, brightness: float = 0.0) -> Scene:
+    """Scene ``name`` (one of SYNTH_SCENES) for ``flow_bag synth``, with its brightness change per frame."""
+    if name not in SYNTH_SCENES:
+        raise ConfigError(f"unknown scene {name!r}; choose one of {', '.join(SYNTH_SCENES)}")
+    kind, share = SYNTH_SCENES[name]
+    scene, _ = motion_scene(kind, size, rng, object_share=share)
+    return Scene(name, size, scene.layers, brightness)

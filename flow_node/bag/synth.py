@@ -18,6 +18,7 @@ import numpy as np
 from ..core.errors import ConfigError
 from ..pipeline.codec import array_to_image_fields
 from .bagio import COMPRESSED, IMAGE, NS, BagError, BagWriter, compressed_message, header, image_message
+from .motion_scenes import SYNTH_SCENES, synth_scene
 from .scenes import SCENES, make_scene
 
 IMAGE_TOPIC = "/camera/image_raw"
@@ -29,6 +30,7 @@ COMPRESSED_ENCODINGS = ("png", "jpeg")
 ENCODINGS = RAW_ENCODINGS + COMPRESSED_ENCODINGS
 
 
+ALL_SCENES = SCENES + tuple(SYNTH_SCENES)  # the flow scenes, then those with known derived outputs
 MAX_SIDE = 4096  # px: the renderer works in float64, a few arrays of the frame size at once
 
 @dataclass(frozen=True)
@@ -47,8 +49,8 @@ class SynthSpec:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if self.scene not in SCENES:
-            raise ConfigError(f"unknown scene {self.scene!r}; choose one of {', '.join(SCENES)}")
+        if self.scene not in ALL_SCENES:
+            raise ConfigError(f"unknown scene {self.scene!r}; choose one of {', '.join(ALL_SCENES)}")
         if self.encoding not in ENCODINGS:
             raise ConfigError(f"unknown encoding {self.encoding!r}; choose one of {', '.join(ENCODINGS)}")
         if self.frames < 2:
@@ -88,7 +90,8 @@ def quantise(rgb: np.ndarray, encoding: str) -> np.ndarray:
 def render_frames(spec: SynthSpec) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Frames as encoded arrays and ground truths (float32 (H, W, 2), one per frame from frame 1)."""
     rng = np.random.default_rng(spec.seed)
-    scene = make_scene(spec.scene, spec.size, rng, spec.brightness)
+    build = synth_scene if spec.scene in SYNTH_SCENES else make_scene
+    scene = build(spec.scene, spec.size, rng, spec.brightness)
     noise_rng = np.random.default_rng([spec.seed, 1])
     frames, gts = [], []
     for t in range(spec.frames):
