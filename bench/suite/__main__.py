@@ -1,7 +1,7 @@
 """``python -m bench.suite``: run the broad accuracy suite and write its JSON, Markdown and plot.
 
     python -m bench.suite                       # full, report seeds -> bench/results/suite/suite.{json,md,png}
-    python -m bench.suite --quick               # 1-3 min loop -> bench/results/suite_quick.{json,md,png}
+    python -m bench.suite --quick               # 1-3 min loop -> bench/results/suite/suite_quick.{json,md,png}
     python -m bench.suite --regimes fine_320,exposure --split tune --quick
     python -m bench.suite --regimes photometric_real,real_exact --split report --quick --peers dis_medium,dualtvl1
     python -m bench.suite --quick --split tune --method cand=realtime,alpha=0.03 --method realtime=realtime
