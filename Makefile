@@ -9,7 +9,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba_cache
 
-.PHONY: all venv test lint demo fuzz bench bench-quick bench-frontier bench-accuracy bench-venv paper clean test-noble noble-venv
+.PHONY: all venv test lint demo fuzz bench bench-quick bench-frontier bench-accuracy bench-node bench-batch bench-venv paper clean test-noble noble-venv
 
 all: test
 
@@ -32,7 +32,7 @@ demo: $(STAMP)
 	$(PY) -m flow_node.demo
 
 # The property-based fuzz tests at 20x their make-test example count, then the live-node campaign over DDS
-# (bench/fuzz_node.py; results in bench/results/fuzz_node.json, BENCHMARKS.md).
+# (bench/fuzz_node.py; results in bench/results/node/fuzz_node.json, BENCHMARKS.md).
 fuzz: $(STAMP)
 	FLOW_FUZZ_SCALE=20 $(PY) -m pytest -q test/test_fuzz.py
 	$(PY) -m bench.fuzz_node
@@ -51,7 +51,7 @@ $(BENCH_STAMP): bench/requirements.txt requirements.txt setup.py
 bench-venv: $(BENCH_STAMP)
 
 # The broad accuracy suite (issue 11): every preset and the peers on every regime, one run (~20-30 min);
-# writes bench/results/suite.{json,md,png} and the generated section of BENCHMARKS.md.
+# writes bench/results/suite/suite.{json,md,png} and the generated summary in BENCHMARKS.md.
 bench: $(BENCH_STAMP)
 	nice $(BENCH_VENV)/bin/python -m bench.suite --update-benchmarks
 
@@ -59,13 +59,26 @@ bench-quick: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.suite --quick
 
 # The speed presets' frontier against their time targets (issue 11 / 12): a ladder of cheaper settings with the
-# DIS peers in one run (~3-4 min); bench/results/frontier.{json,md,png}.
+# DIS peers in one run (~3-4 min); bench/results/frontier/frontier.{json,md,png}.
 bench-frontier: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.frontier
 
 # Middlebury only, every model and preset (issue 2).
 bench-accuracy: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.accuracy
+
+# The live node over DDS (issues 4, 13; ~5 min, nothing else running): latency and in-node overhead per preset
+# and size with the package's Fast DDS profile in both processes, then delivery of ~/flow to another process per
+# middleware setting; bench/results/node/node_latency.json, node_delivery.json.
+bench-node: $(STAMP)
+	FASTRTPS_DEFAULT_PROFILES_FILE=$(CURDIR)/config/fastdds_localhost.xml \
+		$(PY) -m bench.node_latency --frames 20 --presets fastest realtime quality
+	$(PY) -m bench.node_delivery --seconds 10 --repeats 2
+
+# Batch evaluation on Dask against a plain loop, 1 and 2 workers (issue 14; ~8 min on a quiet machine);
+# bench/results/batch/batch.json.
+bench-batch: $(STAMP)
+	$(PY) -m bench.batch --size 160x120:24 --variants loop,dask-1,dask-2 --repeats 6
 
 paper: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.paper

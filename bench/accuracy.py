@@ -1,6 +1,6 @@
 """Accuracy on the Middlebury training pairs (issue 2): every model and preset beside the peers, one run.
 
-    python -m bench.accuracy                       # all configs + peers -> bench/results/accuracy.json
+    python -m bench.accuracy                       # all configs + peers -> bench/results/accuracy/accuracy.json
     python -m bench.accuracy --search quality      # the documented preset search -> accuracy_search_quality.json
     python -m bench.accuracy --only l1_tv --no-peers --set iterations=30   # ad hoc
 
@@ -30,7 +30,7 @@ from .common import (
     write_json,
 )
 
-RESULTS = REPO / "bench" / "results"
+RESULTS = REPO / "bench" / "results" / "accuracy"
 
 # The most accurate setting found (not a preset: ~2.5x the quality preset's iterations per level).
 ACCURATE = dict(model="l1_tv", warps=5, iterations=50, level_alpha_factor=0.65)
@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="override every config")
     ap.add_argument("--search", metavar="PRESET", help="run the preset search from PRESET instead")
     ap.add_argument("--model-search", action="store_true", help="run the per-model weight search instead")
-    ap.add_argument("--output", type=Path, help="JSON file (default bench/results/accuracy*.json)")
+    ap.add_argument("--output", type=Path, help="JSON file (default bench/results/accuracy/accuracy*.json)")
     ap.add_argument("--markdown", type=Path, metavar="JSON", help="print the table of a results file and exit")
     args = ap.parse_args(argv)
     if args.markdown:

@@ -2,7 +2,7 @@
 
     .venv/bin/python -m bench.batch [--size 160x120:24 --size 320x240:12] [--distinct 8] [--frames 50]
                                     [--preset realtime] [--repeats 3] [--variants loop,dask-1,dask-2]
-                                    [--per-bag process|thread] [--out bench/results/batch.json]
+                                    [--per-bag process|thread] [--out bench/results/batch/batch.json]
 
 For every ``--size WxH:BAGS``: writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds
 0..) of ``--frames`` frames and copies them up to BAGS bags. Every run writes into a fresh output (nothing
@@ -282,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--variants", default=",".join(VARIANTS), help="a subset of loop,dask-1,dask-2, in that order")
     p.add_argument("--per-bag", choices=("process", "thread"),
                    help="also the per-bag pairs: a separate dask worker process, or the embedded worker thread")
-    p.add_argument("--out", default=str(REPO / "bench" / "results" / "batch.json"))
+    p.add_argument("--out", default=str(REPO / "bench" / "results" / "batch" / "batch.json"))
     p.add_argument("--loop-run", nargs=2, metavar=("BAGS", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.loop_run:

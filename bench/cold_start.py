@@ -1,7 +1,7 @@
 """Cold start (issue 29): what a fresh process pays for its first flow, per preset, on a large-motion pair
 (initialisation and fusion run) and a small one, against a warm call in one process.
 
-    python -m bench.cold_start                   # -> bench/results/cold_start.json, a table on stdout
+    python -m bench.cold_start                   # -> bench/results/cold_start/cold_start.json, a table on stdout
     python -m bench.cold_start --runs 5 --no-new-install
 
 Every process is ``flow_estimate`` itself (``python -m flow_node.cli.estimate ... -v``) on the tree this
@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--runs", type=int, default=3, help="fresh processes per row (median)")
     p.add_argument("--presets", default=",".join(PRESETS))
     p.add_argument("--no-new-install", action="store_true", help="skip the empty-cache first calls (slow)")
-    p.add_argument("--out", type=Path, default=Path("bench/results/cold_start.json"))
+    p.add_argument("--out", type=Path, default=Path("bench/results/cold_start/cold_start.json"))
     args = p.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         rows = [measure(pair, preset, Path(tmp), args.runs, not args.no_new_install)

@@ -1,6 +1,6 @@
 """The measured frontier of the speed presets against their time targets (issue 11; issue 12's realtime).
 
-    .venv-bench/bin/python -m bench.frontier [--out bench/results/frontier.json] [--repeats 5] [--keep-freed]
+    .venv-bench/bin/python -m bench.frontier [--out bench/results/frontier/frontier.json] [--repeats 5] [--keep-freed]
     make bench-frontier                                   # the same, ~3-4 min on a quiet 2-core machine
 
 A ladder of settings around ``realtime`` and ``fastest``, from dearer to much cheaper (fewer and shorter warps,
@@ -207,7 +207,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.frontier", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", type=Path, default=Path("bench/results/frontier.json"))
+    ap.add_argument("--out", type=Path, default=Path("bench/results/frontier/frontier.json"))
     ap.add_argument("--repeats", type=int, default=5, help="timed runs per pair and method")
     ap.add_argument("--keep-freed", action="store_true", help="apply keep_freed_memory first, as the node does")
     ap.add_argument("--from-json", action="store_true",

@@ -2,7 +2,7 @@
 lengths, NaN/inf and huge float values, stamps going back and jumping, size changes, garbage, truncated and
 oversized compressed data, interleaved with random ``set_parameters`` (valid and invalid) and ``~/reset``.
 
-    .venv/bin/python -m bench.fuzz_node [--messages 300] [--seed 15] [--out bench/results/fuzz_node.json]
+    .venv/bin/python -m bench.fuzz_node [--messages 300] [--seed 15] [--out bench/results/node/fuzz_node.json]
 
 The node runs as its own process (``python -m flow_node.ros.node``), once subscribed to raw Images and once
 to CompressedImages, ``--messages`` each. Every 20 hostile messages, two valid frames follow and the time
@@ -47,7 +47,7 @@ from bench.node_latency import _wait as wait
 
 NS, NAME = "/fuzz", "flow_node"
 H, W = 60, 80
-OUT = Path(__file__).resolve().parent / "results" / "fuzz_node.json"
+OUT = Path(__file__).resolve().parent / "results" / "node" / "fuzz_node.json"
 
 
 def texture(seed: int, h: int = H, w: int = W) -> np.ndarray:

@@ -1,6 +1,6 @@
 """What each ~/motion/* topic of the node costs per frame, as a ratio to the realtime preset's solve time.
 
-    python -m bench.motion_cost                        # 320x240 and 640x480 -> bench/results/motion_cost.json
+    python -m bench.motion_cost                        # 320x240 and 640x480 -> bench/results/motion/motion_cost.json
 
 The node computes a derived output only while its topic is subscribed (flow_node/ros/motion_outputs.py), so a
 topic's cost is what the node's worker does for it when it is the only one subscribed: a fresh
@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pairs", type=int, default=3, help="pairs per scene kind and size")
     ap.add_argument("--repeat", type=int, default=5, help="time each this often, keep the best")
     ap.add_argument("--seed", type=int, default=4100)
-    ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion_cost.json")
+    ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion" / "motion_cost.json")
     args = ap.parse_args(argv)
     argv = sys.argv[1:] if argv is None else argv
     results = {}

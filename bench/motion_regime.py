@@ -1,6 +1,6 @@
 """The derived motion outputs (issue 28) scored on exactly rendered scenes through the `realtime` preset.
 
-    python -m bench.motion_regime                       # -> bench/results/motion_regime.json
+    python -m bench.motion_regime                       # -> bench/results/motion/motion_regime.json
     python -m bench.motion_regime --pairs 4 --size 640x480
 
 Scenes come from flow_node.bag.motion_scenes (band-limited textures at the exact inverse motion, 8-bit):
@@ -158,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=2800, help="first seed (tests use others)")
     ap.add_argument("--repeat", type=int, default=3, help="time the engine and each output this often, keep the best")
     ap.add_argument("--noise", type=float, default=0.0, help="Gaussian sensor noise, grey levels of 255")
-    ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion_regime.json")
+    ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion" / "motion_regime.json")
     args = ap.parse_args(argv)
     argv = sys.argv[1:] if argv is None else argv
     size = tuple(int(v) for v in args.size.lower().split("x"))

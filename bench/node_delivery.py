@@ -1,6 +1,6 @@
 """Delivery of ~/flow to a reliable subscriber in another process, at VGA and 720p, per middleware setting.
 
-    .venv/bin/python -m bench.node_delivery [--seconds 10] [--repeats 2] [--out bench/results/node_delivery.json]
+    .venv/bin/python -m bench.node_delivery [--seconds 10] [--repeats 2] [--out bench/results/node/node_delivery.json]
 
 Three processes per run, all with the same middleware environment: the node (``python -m flow_node.ros.node``,
 its default realtime preset), a camera (this module's ``--camera``: mono8 frames at 30 Hz, best effort) and a
@@ -167,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--variants", default=",".join(VARIANTS))
-    p.add_argument("--out", type=Path, default=ROOT / "bench/results/node_delivery.json")
+    p.add_argument("--out", type=Path, default=ROOT / "bench/results/node/node_delivery.json")
     p.add_argument("--camera", choices=tuple(SIZES), help=argparse.SUPPRESS)
     p.add_argument("--subscribe", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)

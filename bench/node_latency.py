@@ -1,6 +1,6 @@
 """Node latency, throughput and overhead beyond the engine's solve time, over real DDS.
 
-    .venv/bin/python -m bench.node_latency [--frames N] [--in-process] [--out bench/results/node_latency.json]
+    .venv/bin/python -m bench.node_latency [--frames N] [--in-process] [--out bench/results/node/node_latency.json]
 
 The node runs as its own process (``python -m flow_node.ros.node``, as ``ros2 run`` does) and reports its
 per-frame solve time and in-node overhead on /diagnostics (every 50 ms, so each window holds one solve);
@@ -330,7 +330,7 @@ def run(preset: str, size: tuple[int, int], n: int, in_process: bool) -> dict[st
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--frames", type=int, default=5, help="flows per case in the closed loop (default 5)")
-    ap.add_argument("--out", default="bench/results/node_latency.json")
+    ap.add_argument("--out", default="bench/results/node/node_latency.json")
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
     ap.add_argument("--in-process", action="store_true",
                     help="run the node in this process (shares the GIL with the bench client)")

@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=30, help="flows per condition and round")
     ap.add_argument("--size", default="320x240", help="WxH")
     ap.add_argument("--preset", default="realtime")
-    ap.add_argument("--out", default="bench/results/security_latency.json")
+    ap.add_argument("--out", default="bench/results/node/security_latency.json")
     args = ap.parse_args(argv)
     if os.environ.get("RMW_IMPLEMENTATION") != "rmw_cyclonedds_cpp":
         print("run it in a security route's environment (source DIR/activate.sh; source DIR/secure.sh)")

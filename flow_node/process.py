@@ -36,8 +36,8 @@ def keep_freed_memory(limit_bytes: int = KEEP_LIMIT) -> bool:
     Every frame the engine allocates and frees arrays of 0.1-5 MB; with glibc's defaults each is a fresh
     mmap whose pages fault in on first touch, which cost ~3 ms per VGA frame in the grey conversion alone on
     a 2-core VM (docs/node.md, "Memory allocation"), and ~15 % of a ``flow_bag eval`` of a VGA bag with
-    ``realtime`` (BENCHMARKS.md). Memory stays bounded by the per-frame peak: what is kept is reused by the
-    next frame."""
+    ``realtime`` (issue 12/14, ``git show a451d03:BENCHMARKS.md``). Memory stays bounded by the per-frame
+    peak: what is kept is reused by the next frame."""
     try:
         libc = ctypes.CDLL("libc.so.6")
         return bool(libc.mallopt(_M_MMAP_THRESHOLD, limit_bytes)) and bool(libc.mallopt(_M_TRIM_THRESHOLD,

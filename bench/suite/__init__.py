@@ -1,7 +1,7 @@
 """The broad accuracy suite (issue 11): every preset and the peers on Middlebury, large motions, exactly
 rendered synthetic regimes and the bundled bags, in one run.
 
-    .venv-bench/bin/python -m bench.suite                 # full run, report seeds -> bench/results/suite.*
+    .venv-bench/bin/python -m bench.suite                 # full run, report seeds -> bench/results/suite/suite.*
     .venv-bench/bin/python -m bench.suite --quick         # a 1-3 minute loop (DIS peers only)
 
 As a library (tuning loops)::

@@ -1,12 +1,12 @@
 """``python -m bench.suite``: run the broad accuracy suite and write its JSON, Markdown and plot.
 
-    python -m bench.suite                       # full, report seeds -> bench/results/suite.{json,md,png}
-    python -m bench.suite --quick               # 1-3 min loop -> bench/results/suite_quick.{json,md,png}
+    python -m bench.suite                       # full, report seeds -> bench/results/suite/suite.{json,md,png}
+    python -m bench.suite --quick               # 1-3 min loop -> bench/results/suite/suite_quick.{json,md,png}
     python -m bench.suite --regimes fine_320,exposure --split tune --quick
     python -m bench.suite --regimes photometric_real,real_exact --split report --quick --peers dis_medium,dualtvl1
     python -m bench.suite --quick --split tune --method cand=realtime,alpha=0.03 --method realtime=realtime
     python -m bench.suite --update-benchmarks   # also rewrite the generated part of BENCHMARKS.md
-    python -m bench.suite --from-json bench/results/suite.json --update-benchmarks   # re-render only
+    python -m bench.suite --from-json bench/results/suite/suite.json --update-benchmarks   # re-render only
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from .methods import PEERS
 from .regimes import REGIMES
 from .runner import run_suite
 
-RESULTS = REPO / "bench" / "results"
+RESULTS = REPO / "bench" / "results" / "suite"
 
 
 def versions() -> dict[str, Any]:
@@ -63,10 +63,10 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--repeats", type=int, default=None, help="timed runs per pair (default 5; quick 3)")
     ap.add_argument("--slow-repeats", type=int, default=None,
                     help="timed runs per pair of a method slower than 0.25 s per pair (default 1)")
-    ap.add_argument("--out", type=Path, default=None, help="JSON path (default bench/results/suite[_quick].json;"
+    ap.add_argument("--out", type=Path, default=None, help="JSON path (default bench/results/suite/suite[_quick].json;"
                     " the .md and .png go beside it)")
     ap.add_argument("--update-benchmarks", action="store_true", help="rewrite the generated suite section "
-                    "of BENCHMARKS.md")
+                    "of BENCHMARKS.md (its summary table and target count)")
     ap.add_argument("--from-json", type=Path, default=None, help="re-render a saved result instead of running")
     return ap.parse_args(argv)
 
@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     report.plot(res, out.with_suffix(".png"))
     print(md)
     if args.update_benchmarks:
-        report.update_benchmarks(REPO / "BENCHMARKS.md", md)
+        report.update_benchmarks(REPO / "BENCHMARKS.md", report.summary(res))
     return 0
 
 

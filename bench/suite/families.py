@@ -1,7 +1,7 @@
 """Per-family table of a suite result: mean AEE of each method over each photometric family's pairs, and its
 ratio to the same method's unchanged pairs (white balance against the unchanged colour pairs).
 
-    python -m bench.suite.families bench/results/invariance/photometric.json photometric_real [regime ...]
+    python -m bench.suite.families bench/results/suite/invariance/photometric.json photometric_real [regime ...]
 """
 
 from __future__ import annotations

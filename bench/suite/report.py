@@ -93,6 +93,20 @@ def markdown(res: dict[str, Any]) -> str:
     return "\n\n".join(parts) + "\n"
 
 
+def summary(res: dict[str, Any]) -> str:
+    """BENCHMARKS.md's part: how it was run, the mean-AEE table and the target count (the rest: the .md)."""
+    v, checks = res.get("versions", {}), res.get("targets", [])
+    met = sum(c["met"] is True for c in checks)
+    missed = [c for c in checks if c["met"] is False]
+    head = (f"Command: `{res.get('command', 'run_suite(...)').strip()}`; split `{res['split']}`; started "
+            f"{res.get('started', '?')}, wall {res.get('wall_seconds', 0) / 60:.0f} min; "
+            f"commit {v.get('commit', '?')}. "
+            "Mean AEE (px) per regime, in brackets time / DIS medium in the same run (DIS medium: ms per pair).")
+    tail = f"Target checks: **{met} met, {len(missed)} missed**" + "".join(
+        f"\n- missed: {c['target']} ({c['regime']}, {c['method']}): {c['detail']}" for c in missed)
+    return "\n\n".join([head, summary_table(res), tail]) + "\n"
+
+
 def plot(res: dict[str, Any], path: Path) -> None:
     """AEE (log) against ms per pair (log), one panel per regime, presets as dots, peers as squares."""
     import matplotlib

@@ -53,8 +53,8 @@ WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THRE
 # statistical profiler samples the task's stack every 10 ms, the memory monitor reads the process' memory every
 # 100 ms, the event loop's tick runs every 20 ms, the system monitor every 0.5 s and work stealing every 1 s.
 # A batch uses none of them (no dashboard; bags are queued on the scheduler and handed to the next free worker),
-# and without them the cluster idles at ~5 ms per second (BENCHMARKS.md, issue 14, "Quiet cluster"). A cluster
-# given with --scheduler keeps its own settings.
+# and without them the cluster idles at ~5 ms per second (issue 14, "Quiet cluster" in
+# `git show a451d03:BENCHMARKS.md`). A cluster given with --scheduler keeps its own settings.
 QUIET_CLUSTER = {"distributed.worker.profile.enabled": False, "distributed.worker.memory.monitor-interval": "1s",
                  "distributed.admin.tick.interval": "1s", "distributed.admin.system-monitor.interval": "2s",
                  "distributed.scheduler.work-stealing": False}
@@ -299,7 +299,7 @@ def local_cluster(workers: int) -> Any:
     the GIL, but the engine's Python and numpy stages between them do not), started by Dask's nanny with WORKER_ENV
     and the preload dask_worker.py (a fast exit). One worker: a worker thread in this process (``processes=False``),
     the one batch layout in which no two bags compute at once anyway. It spares the fixed cost of a worker process
-    (docs/bags.md, BENCHMARKS.md): spawning it, importing distributed, flow_node, OpenCV and numba a second time,
+    (docs/bags.md): spawning it, importing distributed, flow_node, OpenCV and numba a second time,
     loading the JIT cache there, and waiting for it to exit; tasks, events and results go through the same scheduler
     and Client calls (in-process comm)."""
     import dask

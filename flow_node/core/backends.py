@@ -73,7 +73,7 @@ def fallback_warning(requested: str, used: str) -> str | None:
     """A one-line warning when ``auto`` had to fall back to the numpy reference, else None.
 
     ``requested`` is the config's ``backend``, ``used`` the backend selected. Asking for numpy is no
-    reason to warn; running it because numba is missing is (3-5x slower: BENCHMARKS.md).
+    reason to warn; running it because numba is missing is (3-5x slower: ``git show a451d03:BENCHMARKS.md``).
     """
     if requested != "auto" or used != "numpy":
         return None

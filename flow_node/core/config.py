@@ -271,12 +271,12 @@ def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str,
 
 # The named presets, each complete in one place. Re-tuned on the suite as a whole (issue 11: bench.suite tune
 # split plus the 8 Middlebury pairs), after the exact warp and the photometric stage. Why each value:
-# docs/engine.md, "Presets"; the measurements behind them: BENCHMARKS.md (issue 11 sections) and
-# bench/results/tune/.
+# docs/engine.md, "Presets"; the measurements behind them: `git show a451d03:BENCHMARKS.md` (issue 11 sections)
+# and bench/results/suite/tune/.
 # - quality: many short warps per level on a fine pyramid (Middlebury <= 0.30); balanced: 2 x 15, alpha 0.035
 #   (ahead of DIS medium on sensor noise); realtime: 4 x 6 on the coarse levels, 2 x 16 at full size (the
 #   level that costs); fastest: half size, 4 warps per level, 10 iterations per coarse warp.
-# - initialisation (issue 12, BENCHMARKS.md "Large displacements"): every preset starts from OpenCV DIS where a
+# - initialisation (issue 12, docs/engine.md "Large displacements"): every preset starts from OpenCV DIS where a
 #   pair moves more than init_min_motion; the DIS preset is the one of similar cost, quality's is DIS medium
 #   down to full resolution (dis_fine: ~3x DIS medium's time, on ../shared/data/large 60.7 summed AEE over
 #   the 7 pairs against 61.7 with dis_medium, both with the occlusion-aware fusion; on the large-motion bags

@@ -5,8 +5,9 @@ scratch) are requested here by name and shape instead of being allocated fresh o
 Why: it saves the allocation and a concatenation per level, and it keeps the engine's speed independent of
 the allocator's state. In a loop of same-size calls glibc reuses the freed blocks (no page faults per call
 measured), but a process whose allocator returns large freed blocks to the kernel pays for fresh zeroed pages
-on every call: the warp source of a 640x480 level measured 4-7 ms that way against 0.5 ms (BENCHMARKS.md,
-"Engine speed, round 3"). Allocator settings themselves belong to an executable's main(), not here.
+on every call: the warp source of a 640x480 level measured 4-7 ms that way against 0.5 ms (``git show
+a451d03:BENCHMARKS.md``, "Engine speed, round 3"). Allocator settings themselves belong to an executable's
+main(), not here.
 
 The pool is per thread (threads never share an array: two flows computed at once in two threads, e.g. two
 nodes in one process, each get their own) and bounded (MAX_ENTRIES, least recently used dropped first: a

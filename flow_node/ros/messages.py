@@ -73,8 +73,8 @@ def executor_advice(executor: Executor | None) -> str | None:
 
     rclpy's MultiThreadedExecutor (Jazzy's 7.1.6 at least; ros2/rclpy#1452) re-queues callbacks that have
     not started yet and keeps its spin thread polling while they wait, so under a high input rate it holds
-    the GIL: the node takes a fraction of the frames and solves many times slower (bench.node_flood,
-    BENCHMARKS.md).
+    the GIL: the node takes a fraction of the frames and solves many times slower (docs/node.md, "Threading,
+    drops and latency").
     """
     if isinstance(executor, MultiThreadedExecutor):
         return ("spun by rclpy's MultiThreadedExecutor, which can starve the solver at high input rates "
