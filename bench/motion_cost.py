@@ -31,7 +31,7 @@ from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator, FlowResult
 from flow_node.core.config import FlowConfig
-from flow_node.core.fusion import confidence
+from flow_node.core.confidence import confidence
 from flow_node.pipeline.derived import MOTION_TOPICS, MotionAnalysis
 from flow_node.pipeline.motion import MotionDetector
 from flow_node.pipeline.motion_msgs import motion_messages
