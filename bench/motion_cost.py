@@ -30,8 +30,8 @@ from std_msgs.msg import Header
 from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator, FlowResult
-from flow_node.core.config import FlowConfig
 from flow_node.core.confidence import confidence
+from flow_node.core.config import FlowConfig
 from flow_node.pipeline.derived import MOTION_TOPICS, MotionAnalysis
 from flow_node.pipeline.motion import MotionDetector
 from flow_node.pipeline.motion_msgs import motion_messages
