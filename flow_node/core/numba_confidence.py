@@ -47,10 +47,11 @@ def _planes_row(out, img, i):  # noqa: ANN001, ANN202
 
 
 @njit(**_JIT)
-def _terms_row(out, s0, s1, flow, i):  # noqa: ANN001, ANN202
+def _terms_row(out, s0, s1, flat1, flow, i):  # noqa: ANN001, ANN202
     """Row i of the two box inputs, interleaved: out[..., 0] = |I1(x + f) - I0(x)|_1 over the 3 planes of
     s0, s1 (h, w, 3), I1 sampled bilinearly at x + f clamped into the image (fusion.warp_residual's remap
-    with BORDER_REPLICATE); out[..., 1] = |dI0/dx| + |dI0/dy|. ``flow`` (h, w, 2)."""
+    with BORDER_REPLICATE; ``flat1`` is s1 flat, read at offsets computed once per pixel); out[..., 1] =
+    |dI0/dx| + |dI0/dy|. ``flow`` (h, w, 2)."""
     h, w = s0.shape[0], s0.shape[1]
     right, bottom = _F32(w - 1), _F32(h - 1)
     y_row = _F32(i)
@@ -58,31 +59,33 @@ def _terms_row(out, s0, s1, flow, i):  # noqa: ANN001, ANN202
         x = min(max(_F32(j) + flow[i, j, 0], _F32(0)), right)
         y = min(max(y_row + flow[i, j, 1], _F32(0)), bottom)
         xa, ya = int(x), int(y)  # x, y >= 0: truncation is floor
-        xb, yb = min(xa + 1, w - 1), min(ya + 1, h - 1)
         ax, ay = x - _F32(xa), y - _F32(ya)
+        o00 = 3 * (ya * w + xa)
+        o01 = o00 + (3 if xa < w - 1 else 0)  # the far taps clamped (their weight is 0 there)
+        step = 3 * w if ya < h - 1 else 0
+        o10, o11 = o00 + step, o01 + step
         r = _F32(0)
         for c in range(3):
-            p00, p01, p10, p11 = s1[ya, xa, c], s1[ya, xb, c], s1[yb, xa, c], s1[yb, xb, c]
-            top = p00 + ax * (p01 - p00)
-            r += abs(top + ay * (p10 + ax * (p11 - p10) - top) - s0[i, j, c])
+            top = flat1[o00 + c] + ax * (flat1[o01 + c] - flat1[o00 + c])
+            bottom_row = flat1[o10 + c] + ax * (flat1[o11 + c] - flat1[o10 + c])
+            r += abs(top + ay * (bottom_row - top) - s0[i, j, c])
         out[i, j, 0] = r
         out[i, j, 1] = abs(s0[i, j, 1]) + abs(s0[i, j, 2])
 
 
 @njit(**_JIT)
 def _confidence_row(conf, boxed, flow, inv_scale, i):  # noqa: ANN001, ANN202
-    """Row i of the confidence 1 / (1 + (e / scale)^2), e = box(residual) / (box(gradient) + 1e-3), and 0
-    where x + f leaves the image (operators.warp_maps' test)."""
+    """Row i of the confidence 1 / (1 + e^2), e = box(residual) / (box(gradient) + 1e-3) / scale (as
+    g^2 / (g^2 + r^2): one division), and 0 where x + f leaves the image (operators.warp_maps' test)."""
     h, w = conf.shape
     right, bottom = _F32(w - 1), _F32(h - 1)
     y_row = _F32(i)
     for j in range(w):
         x, y = _F32(j) + flow[i, j, 0], y_row + flow[i, j, 1]
-        if x >= 0 and x <= right and y >= 0 and y <= bottom:
-            e = boxed[i, j, 0] / (boxed[i, j, 1] + _EPS) * inv_scale
-            conf[i, j] = _F32(1) / (_F32(1) + e * e)
-        else:
-            conf[i, j] = _F32(0)
+        g = boxed[i, j, 1] + _EPS
+        r = boxed[i, j, 0] * inv_scale
+        c = g * g / (g * g + r * r)
+        conf[i, j] = c if (x >= 0) & (x <= right) & (y >= 0) & (y <= bottom) else _F32(0)
 
 
 # One driver per row function, written out (not built by a factory: numba_fusion says why).
@@ -96,8 +99,9 @@ def planes_kernel(out, img):  # noqa: ANN001, ANN201
 @njit(parallel=True, **_JIT)
 def terms_kernel(out, s0, s1, flow):  # noqa: ANN001, ANN201
     """:func:`_terms_row` over every row of ``out``."""
+    flat1 = s1.reshape(-1)
     for i in prange(out.shape[0]):
-        _terms_row(out, s0, s1, flow, i)
+        _terms_row(out, s0, s1, flat1, flow, i)
 
 
 @njit(parallel=True, **_JIT)
