@@ -9,7 +9,8 @@ dominant motion; the flag the mask) and the rclpy message (flow_node.pipeline.mo
 RclpyKit), publishing excluded (it depends on the subscribers and the middleware: the mask and the
 divergence are images like ~/magnitude). "all" is every topic at once (the dominant motion shared). The
 confidence they take (all but the divergence) is reported on its own: the node computes it once per pair
-for every consumer, and not at all when ~/confidence is subscribed anyway. Pairs from
+for every consumer (with the estimator's backend: FlowEstimator.confidence, as the stream's outputs do), and
+not at all when ~/confidence is subscribed anyway. Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 Every time is the best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
 shared machine only adds time, and weighs on all of them alike).
@@ -30,7 +31,6 @@ from std_msgs.msg import Header
 from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator, FlowResult
-from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.derived import MOTION_TOPICS, MotionAnalysis
 from flow_node.pipeline.motion import MotionDetector
@@ -61,7 +61,7 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
         est.estimate(f0, f1)
         return time.perf_counter() - start
     if name == "confidence":
-        confidence(*res.frames, res.flow)
+        est.confidence(*res.frames, res.flow)
         return time.perf_counter() - start
     return topic_time(res.flow, conf, tuple(MOTION_TOPICS) if name == "all" else (name,))
 
@@ -76,7 +76,7 @@ def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[d
             i0, i1, _ = render_grey_pair(scene)
             f0, f1 = quantise8(i0, 0.0, seed), quantise8(i1, 0.0, seed + 1)
             res = est.estimate(f0, f1)
-            conf = confidence(*res.frames, res.flow)
+            conf = est.confidence(*res.frames, res.flow)
             times: dict[str, float] = {}
             for _ in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike
                 for name in ("engine", "confidence", *MOTION_TOPICS, "all"):
