@@ -12,7 +12,8 @@ confidence they take (all but the divergence) is reported on its own: the node c
 for every consumer (with the estimator's backend: FlowEstimator.confidence, as the stream's outputs do), and
 not at all when ~/confidence is subscribed anyway. Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
-Every time is the best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
+The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
+best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
 shared machine only adds time, and weighs on all of them alike).
 """
 
@@ -35,6 +36,7 @@ from flow_node.core.config import FlowConfig
 from flow_node.pipeline.derived import MOTION_TOPICS, MotionAnalysis
 from flow_node.pipeline.motion import MotionDetector
 from flow_node.pipeline.motion_msgs import motion_messages
+from flow_node.process import keep_freed_memory
 from flow_node.ros.motion_outputs import RclpyKit
 
 from .common import REPO, machine, write_json
@@ -107,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion_cost.json")
     args = ap.parse_args(argv)
     argv = sys.argv[1:] if argv is None else argv
+    keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
     results = {}
     for text in args.sizes.split(","):
         size = tuple(int(v) for v in text.lower().split("x"))
