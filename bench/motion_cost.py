@@ -8,9 +8,10 @@ MotionAnalysis of the pair, what the topic needs of it (the homography, the mask
 dominant motion; the flag the mask) and the rclpy message (flow_node.pipeline.motion_msgs with the node's
 RclpyKit), publishing excluded (it depends on the subscribers and the middleware: the mask and the
 divergence are images like ~/magnitude). "all" is every topic at once (the dominant motion shared). The
-confidence they take (all but the divergence) is reported on its own: the node computes it once per pair
-for every consumer (with the estimator's backend: FlowEstimator.confidence, as the stream's outputs do), and
-not at all when ~/confidence is subscribed anyway. Pairs from
+confidence they take (all but the divergence) is reported on its own, and with each topic ("+conf": the
+median ratio of topic + confidence, what a topic costs when ~/confidence is not subscribed): the node
+computes it once per pair for every consumer (with the estimator's backend: FlowEstimator.confidence, as
+the stream's outputs do), and not at all when ~/confidence is subscribed anyway. Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
 best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
@@ -43,6 +44,7 @@ from .common import REPO, machine, write_json
 from .motion_regime import quantise8
 
 CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
+NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "all")
 
 
 def topic_time(flow: np.ndarray, conf: np.ndarray, names: tuple[str, ...]) -> float:
@@ -94,9 +96,12 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Median over the pairs of each topic's time / the engine's, and of the times themselves (ms)."""
     engine = np.array([r["engine_s"] for r in rows])
     out: dict[str, Any] = {"engine_ms_median": 1e3 * float(np.median(engine))}
+    conf = np.array([r["confidence_s"] for r in rows])
     for name in (*MOTION_TOPICS, "all", "confidence"):
         t = np.array([r[f"{name}_s"] for r in rows])
         out[name] = {"ratio_median": float(np.median(t / engine)), "ms_median": 1e3 * float(np.median(t))}
+        if name in NEEDS_CONFIDENCE:  # what the topic costs when ~/confidence is not subscribed anyway
+            out[name]["with_confidence_ratio_median"] = float(np.median((t + conf) / engine))
     return out
 
 
@@ -115,11 +120,12 @@ def main(argv: list[str] | None = None) -> int:
         size = tuple(int(v) for v in text.lower().split("x"))
         rows = measure(size, args.pairs, args.repeat, args.seed)
         results[text] = {"summary": summarise(rows), "pairs": rows}
-    print(f"{'topic':22s}" + "".join(f"{s:>22s}" for s in results))
+    print(f"{'topic':22s}" + "".join(f"{s:>22s}{s + ' +conf':>14s}" for s in results))
     for name in (*MOTION_TOPICS, "all", "confidence"):
         cells = [f"{100 * r['summary'][name]['ratio_median']:6.2f} % {r['summary'][name]['ms_median']:6.2f} ms"
-                 for r in results.values()]
-        print(f"{name:22s}" + "".join(f"{c:>22s}" for c in cells))
+                 + (f"{100 * r['summary'][name]['with_confidence_ratio_median']:12.2f} %"
+                    if name in NEEDS_CONFIDENCE else " " * 14) for r in results.values()]
+        print(f"{name:22s}" + "".join(f"{c:>36s}" for c in cells))
     print(f"{'realtime (ms)':22s}" + "".join(f"{r['summary']['engine_ms_median']:19.1f} ms" for r in results.values()))
     write_json(args.output, {"command": "python -m bench.motion_cost " + " ".join(argv), "machine": machine(),
                              "results": results})
