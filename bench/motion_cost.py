@@ -8,10 +8,13 @@ MotionAnalysis of the pair, what the topic needs of it (the homography, the mask
 dominant motion; the flag the mask) and the rclpy message (flow_node.pipeline.motion_msgs with the node's
 RclpyKit), publishing excluded (it depends on the subscribers and the middleware: the mask and the
 divergence are images like ~/magnitude). "all" is every topic at once (the dominant motion shared). The
-confidence they take (all but the divergence) is reported on its own: the node computes it once per pair
-for every consumer, and not at all when ~/confidence is subscribed anyway. Pairs from
+confidence they take (all but the divergence) is reported on its own, and with each topic ("+conf": the
+median ratio of topic + confidence, what a topic costs when ~/confidence is not subscribed): the node
+computes it once per pair for every consumer (with the estimator's backend: FlowEstimator.confidence, as
+the stream's outputs do), and not at all when ~/confidence is subscribed anyway. Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
-Every time is the best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
+The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
+best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
 shared machine only adds time, and weighs on all of them alike).
 """
 
@@ -31,16 +34,17 @@ from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator, FlowResult
 from flow_node.core.config import FlowConfig
-from flow_node.core.fusion import confidence
 from flow_node.pipeline.derived import MOTION_TOPICS, MotionAnalysis
 from flow_node.pipeline.motion import MotionDetector
 from flow_node.pipeline.motion_msgs import motion_messages
+from flow_node.process import keep_freed_memory
 from flow_node.ros.motion_outputs import RclpyKit
 
 from .common import REPO, machine, write_json
 from .motion_regime import quantise8
 
 CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
+NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "all")
 
 
 def topic_time(flow: np.ndarray, conf: np.ndarray, names: tuple[str, ...]) -> float:
@@ -61,7 +65,7 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
         est.estimate(f0, f1)
         return time.perf_counter() - start
     if name == "confidence":
-        confidence(*res.frames, res.flow)
+        est.confidence(*res.frames, res.flow)
         return time.perf_counter() - start
     return topic_time(res.flow, conf, tuple(MOTION_TOPICS) if name == "all" else (name,))
 
@@ -76,7 +80,7 @@ def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[d
             i0, i1, _ = render_grey_pair(scene)
             f0, f1 = quantise8(i0, 0.0, seed), quantise8(i1, 0.0, seed + 1)
             res = est.estimate(f0, f1)
-            conf = confidence(*res.frames, res.flow)
+            conf = est.confidence(*res.frames, res.flow)
             times: dict[str, float] = {}
             for _ in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike
                 for name in ("engine", "confidence", *MOTION_TOPICS, "all"):
@@ -92,9 +96,12 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Median over the pairs of each topic's time / the engine's, and of the times themselves (ms)."""
     engine = np.array([r["engine_s"] for r in rows])
     out: dict[str, Any] = {"engine_ms_median": 1e3 * float(np.median(engine))}
+    conf = np.array([r["confidence_s"] for r in rows])
     for name in (*MOTION_TOPICS, "all", "confidence"):
         t = np.array([r[f"{name}_s"] for r in rows])
         out[name] = {"ratio_median": float(np.median(t / engine)), "ms_median": 1e3 * float(np.median(t))}
+        if name in NEEDS_CONFIDENCE:  # what the topic costs when ~/confidence is not subscribed anyway
+            out[name]["with_confidence_ratio_median"] = float(np.median((t + conf) / engine))
     return out
 
 
@@ -107,16 +114,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion" / "motion_cost.json")
     args = ap.parse_args(argv)
     argv = sys.argv[1:] if argv is None else argv
+    keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
     results = {}
     for text in args.sizes.split(","):
         size = tuple(int(v) for v in text.lower().split("x"))
         rows = measure(size, args.pairs, args.repeat, args.seed)
         results[text] = {"summary": summarise(rows), "pairs": rows}
-    print(f"{'topic':22s}" + "".join(f"{s:>22s}" for s in results))
+    print(f"{'topic':22s}" + "".join(f"{s:>22s}{s + ' +conf':>14s}" for s in results))
     for name in (*MOTION_TOPICS, "all", "confidence"):
         cells = [f"{100 * r['summary'][name]['ratio_median']:6.2f} % {r['summary'][name]['ms_median']:6.2f} ms"
-                 for r in results.values()]
-        print(f"{name:22s}" + "".join(f"{c:>22s}" for c in cells))
+                 + (f"{100 * r['summary'][name]['with_confidence_ratio_median']:12.2f} %"
+                    if name in NEEDS_CONFIDENCE else " " * 14) for r in results.values()]
+        print(f"{name:22s}" + "".join(f"{c:>36s}" for c in cells))
     print(f"{'realtime (ms)':22s}" + "".join(f"{r['summary']['engine_ms_median']:19.1f} ms" for r in results.values()))
     write_json(args.output, {"command": "python -m bench.motion_cost " + " ".join(argv), "machine": machine(),
                              "results": results})

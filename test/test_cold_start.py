@@ -3,11 +3,11 @@ it again, and importing the engine sets no process-wide state (flow_node/process
 
 The cache test runs the engine in two fresh interpreters with the tests' NUMBA_CACHE_DIR (the environment
 is inherited): the first fills the cache for every path a preset takes on a 40 px pan (initialisation,
-fusion and its forward-backward check, refinement, reliability), the second must then find every kernel it
-uses there -- numba's own per-dispatcher statistics, a miss being a compilation. A kernel built so that
-numba cannot key it stably (a closure over another dispatcher, an uncached ``@njit``, a type that differs
-per process) shows up here as a miss, with its name. FlowEstimator.warmup (the node's start-up) must reach
-the fusion's kernels as well.
+fusion and its forward-backward check, refinement, reliability; then the confidence), the second must
+then find every kernel it uses there -- numba's own per-dispatcher statistics, a miss being a compilation. A
+kernel built so that numba cannot key it stably (a closure over another dispatcher, an uncached ``@njit``, a
+type that differs per process) shows up here as a miss, with its name. FlowEstimator.warmup (the node's
+start-up) must reach the fusion's and the confidence's kernels as well.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import pytest
 
 import flow_node
 from flow_node.bag import dask_worker
-from flow_node.core import FlowConfig, FlowEstimator, numba_fusion
+from flow_node.core import FlowConfig, FlowEstimator, numba_confidence, numba_fusion
 
 # One process: every preset on a 240x180 pan moving (40, 12) px -- DIS initialises, the fusion runs on
 # two levels -- then numba's statistics of every flow_node dispatcher alive, as JSON.
@@ -40,6 +40,7 @@ scene = Scene("pan", (240, 180), (pan,))
 i0, i1 = ((scene.render(t) @ np.array([0.299, 0.587, 0.114])).astype(np.float32) for t in (0, 1))
 inits = [FlowEstimator(FlowConfig.preset(p).replace(backend="numba")).estimate_grey(i0, i1).stats.init
          for p in PRESETS]
+FlowEstimator(FlowConfig(backend="numba")).confidence(i0, i1, np.zeros(i0.shape + (2,), np.float32))
 stats = {}
 for d in gc.get_objects():
     if isinstance(d, Dispatcher) and d.py_func.__module__.startswith("flow_node"):
@@ -64,7 +65,8 @@ def test_a_fresh_process_compiles_no_kernel() -> None:
     assert all(second["inits"]), second["inits"]  # every preset took the initialisation and fusion path
     used = {name: hm for name, hm in second["stats"].items() if sum(hm)}
     for kernel in ("iterate", "linearise_kernel", "bspline_columns", "unexplained_kernel", "residual_kernel",
-                   "choose_kernel", "gather_kernel", "consistent_kernel"):
+                   "choose_kernel", "gather_kernel", "consistent_kernel", "planes_kernel", "terms_kernel",
+                   "confidence_kernel"):
         assert any(name.endswith("." + kernel) for name in used), (kernel, sorted(used))
     compiled = {name: misses for name, (_, misses) in used.items() if misses}
     assert not compiled, f"compiled again in a fresh process (not cached): {compiled}"
@@ -91,12 +93,13 @@ def test_the_dask_workers_preload_lets_idle_threads_sleep(monkeypatch: pytest.Mo
 
 def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
     """FlowEstimator.warmup (the node's start-up, flow_bag eval's first bag) reaches the fusion's kernels
-    too, which its small solve does not: the first frame that moves far then neither compiles them (a new
-    install) nor reads them from the cache."""
+    too, which its small solve does not, and the confidence's: the first frame that moves far (or the
+    first subscriber of ~/confidence or a derived output) then neither compiles them (a new install) nor
+    reads them from the cache."""
     called: set[str] = set()
 
-    def counting(name: str) -> Callable[..., Any]:
-        kernel = getattr(numba_fusion, name)
+    def counting(module: Any, name: str) -> Callable[..., Any]:
+        kernel = getattr(module, name)
 
         def run(*args: Any) -> Any:
             called.add(name)
@@ -104,8 +107,11 @@ def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> Non
 
         return run
 
-    kernels = ("residual_kernel", "choose_kernel", "near_kernel", "fill_kernel", "gather_kernel", "consistent_kernel")
-    for name in kernels:
-        monkeypatch.setattr(numba_fusion, name, counting(name))
+    kernels = {numba_fusion: ("residual_kernel", "choose_kernel", "near_kernel", "fill_kernel", "gather_kernel",
+                              "consistent_kernel"),
+               numba_confidence: ("planes_kernel", "terms_kernel", "confidence_kernel")}
+    for module, names in kernels.items():
+        for name in names:
+            monkeypatch.setattr(module, name, counting(module, name))
     FlowEstimator(FlowConfig.preset("fastest").replace(backend="numba")).warmup()
-    assert called == set(kernels)
+    assert called == {name for names in kernels.values() for name in names}

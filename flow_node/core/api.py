@@ -122,9 +122,9 @@ class FlowEstimator:
         self._config = cfg
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
-        """Run one small solve with the current config, and the fusion stage once (engine.warm_fusion), so
-        that JIT compilation (numba), or reading the compiled kernels from numba's cache in a fresh process,
-        happens now, not on the first real frame. Returns the seconds it took."""
+        """Run one small solve with the current config, the fusion stage once (engine.warm_fusion) and the
+        confidence once, so that JIT compilation (numba), or reading the compiled kernels from numba's cache
+        in a fresh process, happens now, not on the first real frame. Returns the seconds it took."""
         rng = np.random.default_rng(0)
         f0 = rng.random(shape, dtype=np.float32)
         f1 = np.roll(f0, 1, axis=1)
@@ -132,7 +132,15 @@ class FlowEstimator:
         self.estimate(f0, f1)
         with self._backend.running():
             warm_fusion(self._backend)
+        self.confidence(f0, f1, np.zeros(shape + (2,), np.float32))
         return time.perf_counter() - start
+
+    def confidence(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
+        """The per-pixel confidence of ``flow`` (H, W, 2) px/frame between grey frames i0, i1 (H, W):
+        (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`), with this estimator's
+        backend on its threads."""
+        with self._backend.running():
+            return self._backend.confidence(i0, i1, flow)
 
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
                  channel_order: str = "rgb") -> FlowResult:

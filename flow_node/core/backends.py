@@ -9,6 +9,7 @@ from contextlib import AbstractContextManager, nullcontext
 from typing import NamedTuple
 
 from .census import CensusForm, LevelSignature, census_form, level_signature
+from .confidence import Confidence, confidence
 from .errors import ConfigError
 from .fusion import Fuse, fuse
 from .initialise import Consistent, forward_backward_consistent
@@ -27,10 +28,10 @@ def _single_threaded(threads: int) -> AbstractContextManager[object]:
 
 class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
-    reliability figure, the fusion and its forward-backward check, and the census data term's level
-    signature and per-warp form (same semantics in every backend; the defaults are the numpy references,
-    the linearisation on ``warper``); the threads its kernels run on and the context that binds them
-    (:meth:`running`).
+    reliability figure, the fusion and its forward-backward check, the census data term's level
+    signature and per-warp form, and the per-pixel confidence of a flow (same semantics in every backend;
+    the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on
+    and the context that binds them (:meth:`running`).
     """
 
     name: str
@@ -42,6 +43,7 @@ class Backend(NamedTuple):
     consistent: Consistent = forward_backward_consistent
     signature: LevelSignature = level_signature
     census_form: CensusForm = census_form
+    confidence: Confidence = confidence
     threads: int = 1
     on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
 
@@ -92,7 +94,7 @@ def select_backend(name: str, threads: int = 0) -> Backend:
         log.info("flow_node backend: numpy (reference, requested)")
         return NUMPY
     try:
-        from . import numba_backend, numba_census, numba_fusion
+        from . import numba_backend, numba_census, numba_confidence, numba_fusion
     except ImportError as exc:
         if name == "numba":
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
@@ -103,5 +105,6 @@ def select_backend(name: str, threads: int = 0) -> Backend:
              numba_backend.cache_dir())
     return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER, numba_backend.linearise_numba,
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
-                   numba_census.level_signature_numba, numba_census.census_form_numba, used,
+                   numba_census.level_signature_numba, numba_census.census_form_numba,
+                   numba_confidence.confidence_numba, used,
                    numba_backend.thread_count)

@@ -8,12 +8,18 @@ eval`` writes and scores it, and the derived motion outputs weigh pixels by it (
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from .fusion import box_mean, planes, warp_residual
 
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
+
+# confidence(i0, i1, flow) -> (H, W) float32 in [0, 1]: a backend's field (backends.Backend.confidence);
+# :func:`confidence` is the numpy reference, numba_confidence.confidence_numba the numba kernels
+Confidence = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 
 def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:

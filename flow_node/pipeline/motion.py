@@ -229,10 +229,20 @@ def moving_mask(flow: np.ndarray, confidence: np.ndarray, motion: DominantMotion
     threshold = threshold if threshold is not None else MaskThreshold()
     if motion is None:
         return np.zeros(confidence.shape, np.uint8)
-    pred = motion.predicted_flow(confidence.shape)
-    dev = flow - pred
-    moving = threshold.deviates(dev[..., 0], dev[..., 1], pred[..., 0], pred[..., 1])
-    moving &= confidence >= threshold.min_confidence
+    # one pass per step, without (H, W, 2) temporaries: the homography's numerators and denominator are
+    # sums of a row and a column term; OpenCV's split and magnitude are single SIMD passes
+    h, w = confidence.shape
+    hm = np.asarray(motion.homography, np.float32)
+    x, y = np.arange(w, dtype=np.float32)[None, :], np.arange(h, dtype=np.float32)[:, None]
+    den = (hm[2, 0] * x + hm[2, 2]) + hm[2, 1] * y
+    pu = ((hm[0, 0] * x + hm[0, 2]) + hm[0, 1] * y) / den - x  # the predicted flow (apply_homography)
+    pv = ((hm[1, 0] * x + hm[1, 2]) + hm[1, 1] * y) / den - y
+    limit = cv2.magnitude(pu, pv)  # abs_px + rel x |predicted flow| (MaskThreshold.deviates)
+    limit *= np.float32(threshold.rel)
+    limit += np.float32(threshold.abs_px)
+    u, v = cv2.split(np.ascontiguousarray(flow, dtype=np.float32))
+    deviation = cv2.magnitude(np.subtract(u, pu, out=u), np.subtract(v, pv, out=v))
+    moving = (deviation > limit) & (confidence >= threshold.min_confidence)
     mask = moving.view(np.uint8) * np.uint8(255)
     if threshold.opening_px > 0:
         r = threshold.opening_px

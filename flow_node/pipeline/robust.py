@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -118,6 +119,14 @@ def reweight(residual: np.ndarray, confidence: np.ndarray, scale: np.ndarray | N
     return confidence * psi(residual / scale), scale
 
 
+def _ends(a: np.ndarray, axis: int, d: int) -> tuple[np.ndarray, np.ndarray]:
+    """Views of ``a`` without its last ``d`` and without its first ``d`` entries along ``axis`` (< 0): the
+    first and the second sample of each pair ``d`` apart."""
+    lo, hi = [slice(None)] * a.ndim, [slice(None)] * a.ndim
+    lo[axis], hi[axis] = slice(0, a.shape[axis] - d), slice(d, None)
+    return a[tuple(lo)], a[tuple(hi)]
+
+
 def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Robust d(field)/dx and d(field)/dy of fields sampled on regular grids, arrays (..., ny, nx): the
     median, over every pair of samples SLOPE_SPAN of the grid apart along x (along y) whose both samples
@@ -129,13 +138,23 @@ def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndar
     for axis, coord in ((-1, x), (-2, y)):
         n = field.shape[axis]
         d = max(1, int(round(SLOPE_SPAN * n)))
-        first, second = np.arange(n - d), np.arange(d, n)
-        df, dc = (np.take(a, second, axis=axis) - np.take(a, first, axis=axis) for a in (field, coord))
-        both = np.take(keep, first, axis=axis) & np.take(keep, second, axis=axis) & (dc != 0)
+        df, dc = (second - first for first, second in (_ends(a, axis, d) for a in (field, coord)))
+        first, second = _ends(keep, axis, d)
+        both = first & second & (dc != 0)
         flat = field.shape[:-2] + (-1,)
         slope = df / np.where(dc != 0, dc, 1.0)
         out.append(masked_median(slope.reshape(flat), both.reshape(flat)))
     return out[0], out[1]
+
+
+@lru_cache(maxsize=32)
+def _spread(m: int, candidates: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`medoid_offset`'s candidates and references: ~``candidates`` and ~4 x ``candidates`` indices
+    spread evenly over m samples (the same for every frame of a size: computed once)."""
+    idx, ref = (np.unique(np.rint(np.linspace(0, m - 1, min(m, c))).astype(np.int64))
+                for c in (candidates, 4 * candidates))
+    idx.flags.writeable = ref.flags.writeable = False
+    return idx, ref
 
 
 def medoid_offset(rest: np.ndarray, keep: np.ndarray, candidates: int = START_CANDIDATES) -> np.ndarray:
@@ -144,9 +163,7 @@ def medoid_offset(rest: np.ndarray, keep: np.ndarray, candidates: int = START_CA
     ~4 x ``candidates`` of them spread over the m) is the least (least median of squares over candidates).
     Unlike the per-component median it is one sample of one group, also when two groups are almost
     equally large. Shape (..., 2); 0 where nothing is kept."""
-    m = rest.shape[-2]
-    idx, ref = (np.unique(np.rint(np.linspace(0, m - 1, min(m, c))).astype(np.int64))
-                for c in (candidates, 4 * candidates))
+    idx, ref = _spread(rest.shape[-2], candidates)
     cand, other = rest[..., idx, :], rest[..., ref, :]  # (..., c, 2), (..., r, 2)
     d = np.hypot(other[..., None, :, 0] - cand[..., :, None, 0], other[..., None, :, 1] - cand[..., :, None, 1])
     score = np.where(keep[..., idx], masked_median(d, np.broadcast_to(keep[..., None, ref], d.shape)), np.inf)

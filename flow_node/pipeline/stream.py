@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from ..core.api import FlowEstimator, to_grey
-from ..core.confidence import confidence
+from ..core.confidence import Confidence, confidence
 from ..core.config import FlowConfig
 from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
@@ -113,7 +113,8 @@ class FlowOutput:
     times the input size), in px/frame or, after :meth:`in_units`, in its units (``frame_flow`` then keeps
     the px/frame flow). Magnitude, colour image, confidence and summary are computed
     on first use only (the node publishes magnitude, colour and confidence only when subscribed, summarises
-    only for diagnostics). ``frames`` holds the two grey frames the flow was solved on (for the confidence).
+    only for diagnostics). ``frames`` holds the two grey frames the flow was solved on (for the confidence);
+    ``confidence_of`` computes it (the stream's: its estimator's backend; the numpy reference by default).
     """
 
     flow: np.ndarray
@@ -128,6 +129,7 @@ class FlowOutput:
     unexplained: float = 0.0  # FlowResult.unexplained: fraction of pixels the flow does not explain
     frames: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     frame_flow: np.ndarray | None = field(default=None, repr=False)  # px/frame when ``flow`` is not (units)
+    confidence_of: Confidence = field(default=confidence, repr=False)
     _confidence: np.ndarray | None = field(default=None, repr=False)
     _magnitude: np.ndarray | None = field(default=None, repr=False)
     _color: np.ndarray | None = field(default=None, repr=False)
@@ -149,12 +151,12 @@ class FlowOutput:
 
     def confidence(self) -> np.ndarray:
         """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`:
-        low where the data residual says the flow is wrong or the pixel occluded), cached."""
+        low where the data residual says the flow is wrong or the pixel occluded; ``confidence_of``), cached."""
         if self._confidence is None:
             if self.frames is None:
                 raise ValueError("this output keeps no frames; the confidence cannot be computed")
             flow = self.flow if self.frame_flow is None else self.frame_flow
-            self._confidence = confidence(self.frames[0], self.frames[1], flow)
+            self._confidence = self.confidence_of(self.frames[0], self.frames[1], flow)
         return self._confidence
 
     def color(self) -> np.ndarray:
@@ -288,5 +290,5 @@ class FlowStream:
         self._prev_flow = result.flow if s.config.temporal_init else None
         out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
-                         result.frames)
+                         result.frames, confidence_of=self._estimator.confidence)
         return out.in_units(s.flow_units)

@@ -1,0 +1,76 @@
+"""The numba confidence (numba_confidence.confidence_numba) against the numpy reference
+(confidence.confidence), the oracle: random frames and flows that leave the image in places, and a pair
+rendered exactly with the realtime preset's flow; rows run serially and in parallel; the backends' wiring
+(Backend.confidence, FlowEstimator.confidence, the stream's FlowOutput.confidence)."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+from flow_node.bag.motion_scenes import motion_scene
+from flow_node.bag.scenes import render_grey_pair
+from flow_node.core import FlowEstimator, numba_backend
+from flow_node.core.backends import NUMPY, select_backend
+from flow_node.core.confidence import confidence
+from flow_node.core.config import FlowConfig
+from flow_node.core.numba_confidence import confidence_numba
+from flow_node.pipeline.stream import FlowStream, StreamSettings
+
+TOL = 1e-5
+
+
+@pytest.fixture(params=["serial", "parallel"])
+def rows(request, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Both ways the kernels run their rows: serially, or in parallel from any size (the threshold the
+    confidence reads, numba_backend.LINEARISE_PARALLEL_MIN_PIXELS, patched)."""
+    parallel = request.param == "parallel"
+    monkeypatch.setattr(numba_backend, "LINEARISE_PARALLEL_MIN_PIXELS", 0 if parallel else 1 << 40)
+    if parallel:
+        assert numba_backend.threads() > 1 or numba.config.NUMBA_NUM_THREADS == 1
+    return request.param
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (3, 7), (37, 53), (120, 160)])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_random_inputs_match_the_reference(shape, seed, rows) -> None:
+    rng = np.random.default_rng(seed)
+    i0, i1 = (rng.random(shape, dtype=np.float32) for _ in range(2))
+    flow = rng.normal(0.0, 4.0, shape + (2,)).astype(np.float32)  # many pixels leave the image
+    ref = confidence(i0, i1, flow)
+    out = confidence_numba(i0, i1, flow)
+    assert out.dtype == np.float32 and out.shape == shape
+    assert np.array_equal(out == 0, ref == 0)  # the same pixels leave the image
+    np.testing.assert_allclose(out, ref, rtol=0, atol=TOL)
+
+
+def rendered_pair(kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An exactly rendered 160x120 motion scene (a pan with an object, an approach) and the realtime
+    preset's flow of it: (i0, i1, flow (H, W, 2)) as the stream judges them (the photometric stage's pair)."""
+    scene, _ = motion_scene(kind, (160, 120), np.random.default_rng(7), 0.2 if kind == "pan" else 0.0, objects=1)
+    i0, i1, _ = render_grey_pair(scene)
+    res = FlowEstimator(FlowConfig.preset("realtime")).estimate(i0, i1)
+    return res.frames[0], res.frames[1], res.flow
+
+
+@pytest.mark.parametrize("kind", ["pan", "approach"])
+def test_rendered_pair_matches_the_reference(kind, rows) -> None:
+    i0, i1, flow = rendered_pair(kind)
+    ref = confidence(i0, i1, flow)
+    assert 0.2 < ref.mean() < 0.99  # confident mostly, not everywhere
+    np.testing.assert_allclose(confidence_numba(i0, i1, flow), ref, rtol=0, atol=TOL)
+
+
+def test_backends_and_stream_use_their_confidence() -> None:
+    assert NUMPY.confidence is confidence and select_backend("numba").confidence is confidence_numba
+    i0, i1, flow = rendered_pair("pan")
+    est = FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba"))
+    np.testing.assert_allclose(est.confidence(i0, i1, flow), confidence(i0, i1, flow), rtol=0, atol=TOL)
+    for backend in ("numpy", "numba"):
+        stream = FlowStream(StreamSettings(config=FlowConfig.preset("realtime").replace(backend=backend)))
+        assert stream.process((255 * i0).astype(np.uint8), 0) is None
+        out = stream.process((255 * i1).astype(np.uint8), 100_000_000)
+        assert out.backend == backend
+        conf = out.confidence()
+        np.testing.assert_allclose(conf, confidence(*out.frames, out.flow), rtol=0, atol=TOL)
