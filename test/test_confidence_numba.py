@@ -8,6 +8,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 import pytest
+from test_fusion_numba import REMAP_EXACT
 
 from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
@@ -18,7 +19,16 @@ from flow_node.core.config import FlowConfig
 from flow_node.core.numba_confidence import confidence_numba
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 
-TOL = 1e-5
+# The kernels sample bilinearly at the exact position, as OpenCV 5's remap (the reference's) does; OpenCV 4.x (the
+# Ubuntu 24.04 venv) snaps the reference's positions to 1/32 px, which moves its confidence by up to ~0.01
+# (measured with 4.6: max 0.0084, mean 0.0006 on these cases): there the bound is on that scale instead.
+TOL = 1e-5 if REMAP_EXACT else 2e-2
+MEAN_TOL = 1e-5 if REMAP_EXACT else 2e-3
+
+
+def assert_matches(out: np.ndarray, ref: np.ndarray) -> None:
+    np.testing.assert_allclose(out, ref, rtol=0, atol=TOL)
+    assert float(np.abs(out - ref).mean()) <= MEAN_TOL
 
 
 @pytest.fixture(params=["serial", "parallel"])
@@ -42,7 +52,7 @@ def test_random_inputs_match_the_reference(shape, seed, rows) -> None:
     out = confidence_numba(i0, i1, flow)
     assert out.dtype == np.float32 and out.shape == shape
     assert np.array_equal(out == 0, ref == 0)  # the same pixels leave the image
-    np.testing.assert_allclose(out, ref, rtol=0, atol=TOL)
+    assert_matches(out, ref)
 
 
 def rendered_pair(kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -59,18 +69,18 @@ def test_rendered_pair_matches_the_reference(kind, rows) -> None:
     i0, i1, flow = rendered_pair(kind)
     ref = confidence(i0, i1, flow)
     assert 0.2 < ref.mean() < 0.99  # confident mostly, not everywhere
-    np.testing.assert_allclose(confidence_numba(i0, i1, flow), ref, rtol=0, atol=TOL)
+    assert_matches(confidence_numba(i0, i1, flow), ref)
 
 
 def test_backends_and_stream_use_their_confidence() -> None:
     assert NUMPY.confidence is confidence and select_backend("numba").confidence is confidence_numba
     i0, i1, flow = rendered_pair("pan")
     est = FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba"))
-    np.testing.assert_allclose(est.confidence(i0, i1, flow), confidence(i0, i1, flow), rtol=0, atol=TOL)
+    assert_matches(est.confidence(i0, i1, flow), confidence(i0, i1, flow))
     for backend in ("numpy", "numba"):
         stream = FlowStream(StreamSettings(config=FlowConfig.preset("realtime").replace(backend=backend)))
         assert stream.process((255 * i0).astype(np.uint8), 0) is None
         out = stream.process((255 * i1).astype(np.uint8), 100_000_000)
         assert out.backend == backend
         conf = out.confidence()
-        np.testing.assert_allclose(conf, confidence(*out.frames, out.flow), rtol=0, atol=TOL)
+        assert_matches(conf, confidence(*out.frames, out.flow))
