@@ -54,6 +54,11 @@ has "$(graph ros2 param set /smoke_flow preset quality)" "Set parameter successf
 has "$(param /smoke_flow finest_level)" "Integer value is: 0" || fail "quality kept finest_level: $(param /smoke_flow finest_level)"
 echo "ok: preset fastest -> quality sets finest_level 0"
 
+# the node's first warm-up compiles its kernels (a fresh workspace has an empty numba cache: tens of seconds, while
+# the parameter services answer); the bag is played after it, so the check below times the flow, not the compiler
+for _ in $(seq 150); do grep -q "engine warm-up" "$log/node" && break; sleep 1; done
+grep -q "engine warm-up" "$log/node" || fail "no engine warm-up line within 150 s: $(cat "$log/node")"
+
 # flow_bag play into the node, stopped with Ctrl-C: exit 0 and the real count, no rcl remap warning
 start play ros2 run flow_node flow_bag play "$bag" --loop --topic-remap /camera/image_raw:=/smoke/image
 sleep 4
