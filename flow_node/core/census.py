@@ -40,7 +40,6 @@ from .warping import Sample, sample_coefficients
 
 # the 8 neighbours (dy, dx) of the 3 x 3 neighbourhood
 OFFSETS: tuple[tuple[int, int], ...] = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
-FORM_CHANNELS = 5  # T11, T12, T22, g1, g2
 
 
 @dataclass(frozen=True)
@@ -70,8 +69,12 @@ def signature(img: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
     """The soft census signature F(img) of the module doc: (H, W) float32 -> (K, H, W) float32."""
     img = img.astype(np.float32, copy=False)
     diffs = np.stack([shifted(img, dy, dx) - img for dy, dx in OFFSETS])
-    contrast = np.sqrt(np.mean(diffs * diffs, axis=0))
-    return (diffs * (np.float32(params.gain) / (contrast + np.float32(params.eps)))).astype(np.float32)
+    return (normalised(diffs, params) * np.float32(params.gain)).astype(np.float32)
+
+
+def normalised(diffs: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
+    """The K neighbour differences (K, ...) over their RMS plus EPS: the signature in units of the gain."""
+    return diffs / (np.sqrt(np.mean(diffs * diffs, axis=0)) + np.float32(params.eps))
 
 
 def signature_gradient(f: np.ndarray) -> np.ndarray:
@@ -150,9 +153,8 @@ OUTLIER = 0.5  # mean |signature residual| / gain above which a pixel is unexpla
 
 def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients,
                 params: CensusParams = CENSUS) -> float:
-    """photometric.reliability for the census data term: the fraction of sampled pixels (SAMPLE_SPACING
-    times its stride)
-    whose signature is not explained by the flow, i.e. whose mean |F(I1)(x + flow) - F(I0)(x)| over the K
+    """photometric.reliability for the census data term: the fraction of sampled pixels (SAMPLE_SPACING times
+    its stride) whose signature is not explained by the flow, i.e. whose mean |F(I1)(x + flow) - F(I0)(x)| over the K
     channels exceeds OUTLIER (in units of the gain). F(I1) at x + flow is the signature of I1 sampled (Keys)
     at x + flow and its 8 neighbours; F(I0) is taken on the sampled pixels only. Invariant to what the data
     term is invariant to, so a tone change the flow handles does not read as unexplained. i0, i1 (H, W) as
@@ -170,12 +172,7 @@ def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample
     my = np.concatenate([map_y + dy for dy, _ in offsets])
     warped = sample(np.asarray(i1, np.float32), mx, my, "keys").reshape((len(offsets),) + map_x.shape)
     grid = np.stack([i0[np.clip(ys + dy, 0, h - 1)][:, np.clip(xs + dx, 0, w - 1)] for dy, dx in offsets])
-    residual = np.mean(np.abs(sample_signature(warped, params) - sample_signature(grid, params)), axis=0)
+    residual = np.mean(np.abs(normalised(warped[1:] - warped[0], params) - normalised(grid[1:] - grid[0], params)),
+                       axis=0)
     return float(np.mean(residual[inside] > OUTLIER))
 
-
-def sample_signature(values: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
-    """The signature (in units of the gain) of sampled neighbourhoods: values (1 + K, ...) = each sample's
-    centre then its K neighbours (OFFSETS order) -> (K, ...)."""
-    diffs = values[1:] - values[0]
-    return diffs / (np.sqrt(np.mean(diffs * diffs, axis=0)) + np.float32(params.eps))

@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit, prange
 
 from .census import OFFSETS, CensusParams
+from .workspace import scratch
 
 _JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
 _F32 = np.float32
@@ -121,10 +122,10 @@ def form_kernel(f0, f1, keep, v0, robust, delta, out):  # noqa: ANN001, ANN201
                       o0[::e], o1[::e], o2[::e], o3[::e], o4[::e], zero, ry, d2, robust)
 
 
-def signature_numba(img: np.ndarray, params: CensusParams) -> np.ndarray:
-    """census.signature with the kernel: (H, W) -> (K, H, W) float32."""
+def signature_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
+    """census.signature with the kernel: (H, W) -> (K, H, W) float32 (into ``out`` when given)."""
     src = np.ascontiguousarray(img, dtype=_F32)
-    out = np.empty((len(OFFSETS),) + src.shape, _F32)
+    out = np.empty((len(OFFSETS),) + src.shape, _F32) if out is None else out
     signature_kernel(src, _DY, _DX, _F32(params.gain), _F32(params.eps), out)
     return out
 
@@ -137,13 +138,15 @@ def level_signature_numba(i0: np.ndarray, params: CensusParams) -> tuple[np.ndar
 
 def census_form_numba(i0: np.ndarray, i1: np.ndarray, f0: np.ndarray, g0: None, a: np.ndarray, c: np.ndarray,
                       v0: np.ndarray, robust: bool, params: CensusParams) -> np.ndarray:
-    """census.census_form with the kernels: the quadratic form (5, H, W) of one warp."""
+    """census.census_form with the kernels: the quadratic form (5, H, W) of one warp. The warped frame, its
+    mask and its signature are the calling thread's scratch arrays (workspace.py: every warp of every level
+    needs them, and they are dead once the form is built); the form itself is fresh (a Bregman step reuses
+    the last warp's)."""
     h, w = i0.shape
-    warped = np.empty((h, w), _F32)
-    keep = np.empty((h, w), _F32)
+    warped, keep = scratch("census.warped", (h, w)), scratch("census.keep", (h, w))
     v0 = np.ascontiguousarray(v0, dtype=_F32)
     warped_kernel(np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32), a, c, v0, warped, keep)
-    f1 = signature_numba(warped, params)
+    f1 = signature_numba(warped, params, out=scratch("census.f1", (len(OFFSETS), h, w)))
     out = np.empty((5, h, w), _F32)
     form_kernel(f0, f1, keep, v0, robust, _F32(params.delta), out)
     return out
