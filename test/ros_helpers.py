@@ -83,7 +83,7 @@ class Harness:
         wait_for(lambda: self.node.ready, 30.0, "engine warm-up")
         wait_for(lambda: self.pub.get_subscription_count() > 0 or self.pub_compressed.get_subscription_count() > 0,
                  10.0, "node subscription matched")
-        wait_for(lambda: self.node._pubs["flow"].get_subscription_count() > 0, 10.0, "flow subscription matched")
+        wait_for(lambda: self.subscribers("flow") > 0, 10.0, "flow subscription matched")
 
     def _collector(self, topic: str) -> Callable[[Any], None]:
         def cb(msg: Any) -> None:
@@ -108,7 +108,11 @@ class Harness:
 
     @property
     def totals(self) -> Any:
-        return self.node._stats.totals
+        return self.node.stats.totals
+
+    def subscribers(self, output: str) -> int:
+        """Subscriptions matched to the node's output ``~/<output>`` (0 when it has none)."""
+        return self.node.state().subscribers.get(output, 0)
 
     def send(self, msg: Image | CompressedImage, until: Callable[[], Any], what: str, timeout: float = 10.0) -> Any:
         """Publish ``msg`` until ``until()``; re-published after a second only if the node did not receive it

@@ -1,4 +1,5 @@
-"""The project's own import graph, read from the source: no cycle anywhere, and the layers point one way.
+"""The project's own import graph, read from the source: no cycle anywhere, and the layers point one way;
+and tests that use only public names (the AST scan at the end).
 
 Every import of a ``flow_node`` module counts, wherever it stands: at the top, inside a function (a "lazy"
 import only hides a cycle until that function runs) or under ``if TYPE_CHECKING`` (a type dependency is a
@@ -113,3 +114,45 @@ def test_the_engine_and_the_pipeline_import_nothing_above_them(graph: Graph) -> 
     wrong = [(m, d) for m, deps in graph.items() if layer(m) in allowed
              for d in deps if layer(d) not in allowed[layer(m)]]
     assert not wrong, f"imports against the layers: {wrong}"
+
+
+# namedtuple's public API is spelled with a leading underscore
+NAMEDTUPLE_API = frozenset({"_replace", "_asdict", "_fields", "_make", "_field_defaults"})
+ATTRIBUTE_CALLS = frozenset({"getattr", "setattr", "hasattr", "delattr"})
+
+
+def private_accesses(source: str) -> list[tuple[int, str]]:
+    """(line, text) of every access to another object's private name in ``source``: ``x._name`` where ``x``
+    is not ``self``/``cls`` (dunders and namedtuple's API aside), and ``getattr(x, "_name")`` and its kin,
+    ``monkeypatch.setattr(x, "_name", ...)`` included."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Attribute):
+            name, owner = node.attr, node.value
+            mine = isinstance(owner, ast.Name) and owner.id in ("self", "cls")
+            if name.startswith("_") and not name.startswith("__") and name not in NAMEDTUPLE_API and not mine:
+                found.append((node.lineno, ast.unparse(node)))
+        elif isinstance(node, ast.Call) and len(node.args) >= 2:
+            fn = node.func
+            called = fn.id if isinstance(fn, ast.Name) else fn.attr if isinstance(fn, ast.Attribute) else ""
+            key = node.args[1]
+            if (called in ATTRIBUTE_CALLS and isinstance(key, ast.Constant) and isinstance(key.value, str)
+                    and key.value.startswith("_") and not key.value.startswith("__")):
+                found.append((node.lineno, ast.unparse(node)))
+    return found
+
+
+def test_the_private_access_scan_finds_what_it_should() -> None:
+    source = ("h.node._stats.totals\nself._x = 1\nt._replace(a=1)\nx.__class__\n"
+              "monkeypatch.setattr(messages, '_FLAG', True)\ngetattr(est, 'backend')\n")
+    assert sorted(private_accesses(source)) == [(1, "h.node._stats"),
+                                                (5, "monkeypatch.setattr(messages, '_FLAG', True)")]
+
+
+def test_tests_use_only_public_names() -> None:
+    """No test reaches into a private name of flow_node code (or anyone's): what a test needs to know, the
+    code offers as a public, read-only accessor (FlowNode.state(), FlowNode.stats, ...), or the test
+    observes it through behaviour."""
+    wrong = [f"{path.name}:{line}: {text}" for path in sorted((ROOT / "test").glob("*.py"))
+             for line, text in private_accesses(path.read_text(encoding="utf-8"))]
+    assert not wrong, "private names used by tests:\n" + "\n".join(wrong)

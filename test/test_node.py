@@ -41,7 +41,7 @@ def harness(request: pytest.FixtureRequest) -> Harness:
 
 
 def test_known_motion_outputs_with_new_frame_header(harness: Harness) -> None:
-    qos = harness.node._sub.qos_profile  # sensor-data QoS, depth 1
+    qos = harness.node.state().input_qos  # sensor-data QoS, depth 1
     assert (qos.reliability, qos.depth) == (ReliabilityPolicy.BEST_EFFORT, 1)
     stamp0, stamp1 = 1_700_000_000_000_000_000, 1_700_000_000_033_000_000
     flow_msg = harness.send_pair(image(mono8(I0), "mono8", stamp0), image(mono8(I1), "mono8", stamp1))
@@ -138,17 +138,17 @@ def test_resets_on_stamp_back_size_change_and_service(harness: Harness) -> None:
     published, resets = harness.totals.published, harness.totals.resets
     harness.send_frame(image(mono8(I0), "mono8", 1_000))  # stamp went back: a looping bag
     assert harness.totals.resets == resets + 1 and harness.totals.published == published
-    assert harness.node._stream.last_reset_reason.startswith("stamp went back")
+    assert harness.node.stats.last_reset.startswith("stamp went back")
     harness.send_frame(image(mono8(I1[:40, :60]), "mono8", 2_000))  # size changed
     assert harness.totals.resets == resets + 2
-    assert harness.node._stream.last_reset_reason.startswith("size changed")
+    assert harness.node.stats.last_reset.startswith("size changed")
     cli = harness.client.create_client(Trigger, f"{harness.full_name}/reset")
     assert cli.wait_for_service(timeout_sec=5.0)
     res = call(cli, Trigger.Request())
     assert res.success
     harness.send_frame(image(mono8(I0[:40, :60]), "mono8", 3_000))
     assert harness.totals.resets == resets + 3 and harness.totals.published == published
-    assert harness.node._stream.last_reset_reason == "reset requested"
+    assert harness.node.stats.last_reset == "reset requested"
     # after the reset the next frame pairs again
     flow = image_to_array(harness.send_pair(image(mono8(I0), "mono8", 4_000), image(mono8(I1), "mono8", 4_100)))
     assert aee(flow, GT) < AEE_BOUND
@@ -193,8 +193,9 @@ def test_compressed_input() -> None:
             msgs.append(msg)
         flow = image_to_array(h.send_pair(*msgs))
         assert aee(flow, GT) < AEE_BOUND
-        assert h.node._sub.topic_name == "/t_compressed/image/compressed"
-        assert h.node._stats._last is not None and not h.node._stats._last.color_computed  # nobody subscribed
+        assert h.node.state().input_topic == "/t_compressed/image/compressed"
+        last = h.node.stats.last
+        assert last is not None and not last.color_computed  # nobody subscribed
     finally:
         h.close()
 
@@ -268,9 +269,9 @@ def test_every_executable_applies_the_process_settings_before_its_work(setting: 
 @pytest.mark.parametrize("direct", [True, False])
 def test_published_payload_is_the_array_on_both_message_paths(direct: bool, monkeypatch: pytest.MonkeyPatch) -> None:
     """image_msg hands the numpy payload to publish without a Python copy where the generated class allows it
-    (messages._DIRECT_DATA), else through an array.array; over DDS both arrive as exactly the array sent."""
-    assert messages._DIRECT_DATA  # the fast path exists on Jazzy; if rosidl changes, this says so
-    monkeypatch.setattr(messages, "_DIRECT_DATA", direct)
+    (messages.DIRECT_DATA), else through an array.array; over DDS both arrive as exactly the array sent."""
+    assert messages.DIRECT_DATA  # the fast path exists on Jazzy; if rosidl changes, this says so
+    monkeypatch.setattr(messages, "DIRECT_DATA", direct)
     ctx = Context()
     rclpy.init(context=ctx)
     try:

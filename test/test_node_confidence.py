@@ -16,11 +16,11 @@ def test_confidence_is_published_only_while_subscribed() -> None:
     h = Harness("/t_confidence", name="flow_conf", color=False)
     try:
         h.send_pair(image(mono8(I0), "mono8", 1_000), image(mono8(I1), "mono8", 2_000))
-        last = h.node._stats._last
+        last = h.node.stats.last
         assert last is not None and not last.confidence_computed  # nobody subscribed: not even computed
         got: list[Image] = []
         sub = h.client.create_subscription(Image, f"{h.full_name}/confidence", got.append, 10)
-        wait_for(lambda: h.node._pubs["confidence"].get_subscription_count() > 0, 10.0,
+        wait_for(lambda: h.subscribers("confidence") > 0, 10.0,
                  "confidence subscription matched")
         h.send_frame(image(mono8(I0), "mono8", 3_000))  # the pair (I1 -> I0) is the motion reversed
         wait_for(lambda: got, 10.0, "a confidence message")
@@ -32,8 +32,8 @@ def test_confidence_is_published_only_while_subscribed() -> None:
         assert np.median(conf) > 0.5  # a textured shift solved well: confident in the interior
         assert conf[:, :2].mean() < 0.2  # the motion is -1.5 px in x from I1 to I0: the left edge leaves
         h.client.destroy_subscription(sub)
-        wait_for(lambda: h.node._pubs["confidence"].get_subscription_count() == 0, 10.0, "confidence unsubscribed")
+        wait_for(lambda: h.subscribers("confidence") == 0, 10.0, "confidence unsubscribed")
         h.send_frame(image(mono8(I1), "mono8", 4_000))
-        assert not h.node._stats._last.confidence_computed
+        assert not h.node.stats.last.confidence_computed
     finally:
         h.close()

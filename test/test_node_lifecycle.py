@@ -209,9 +209,9 @@ def test_invalid_parameters_fail_configure_with_the_reason_and_a_fixed_one_succe
         assert lifecycle.state_label(node) == "unconfigured"  # constructed: invalid values wait for configure
         assert node.trigger_configure() == lifecycle.FAILURE
         assert lifecycle.state_label(node) == "unconfigured" and not node.ready
-        assert node._transitions.reason.startswith("configure failed: alpha1 must be > 0 for model 'l1_tv_l2'")
+        assert node.state().failure.startswith("configure failed: alpha1 must be > 0 for model 'l1_tv_l2'")
         assert node.set_parameters([Parameter("alpha1", value=0.02)])[0].successful
-        assert node.trigger_configure() == lifecycle.SUCCESS and node._transitions.reason == ""
+        assert node.trigger_configure() == lifecycle.SUCCESS and node.state().failure == ""
         assert lifecycle.state_label(node) == "inactive" and node.settings.config.alpha1 == 0.02
         assert node.ready  # managed: configure returned after the warm-up
         assert node.trigger_shutdown() == lifecycle.SUCCESS and node.finalized.done()
@@ -224,12 +224,13 @@ def test_unmanaged_node_is_active_once_constructed(context: Context) -> None:
                     context=context)
     try:
         assert lifecycle.state_label(node) == "active" and not node.managed
-        assert node._sub is not None and node._sub.topic_name == "/image"
-        assert node.trigger_deactivate() == lifecycle.SUCCESS and node._sub is None
-        assert node.trigger_cleanup() == lifecycle.SUCCESS and node._stream is None and not node.ready
+        assert node.state().input_topic == "/image"
+        assert node.trigger_deactivate() == lifecycle.SUCCESS and node.state().input_topic is None
+        assert node.trigger_cleanup() == lifecycle.SUCCESS and node.state().subscribers == {} and not node.ready
         # configured again: the publishers' QoS override parameters exist already and are reused
         assert node.trigger_configure() == lifecycle.SUCCESS and node.trigger_activate() == lifecycle.SUCCESS
-        assert node._sub is not None and set(node._pubs) == {"flow", "magnitude", "flow_color", "confidence",
-                                                              "flow_pair", "camera_info", *MOTION_TOPICS}
+        state = node.state()
+        assert state.input_topic == "/image" and set(state.subscribers) == {
+            "flow", "magnitude", "flow_color", "confidence", "flow_pair", "camera_info", *MOTION_TOPICS}
     finally:
         node.destroy_node()

@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import PointStamped, TwistStamped
 from lifecycle_msgs.msg import Transition
-from rclpy.lifecycle import LifecyclePublisher
 from ros_helpers import Harness, call, image, wait_for
 from sensor_msgs.msg import Image
 from std_msgs.msg import Bool, Float32MultiArray, Float64MultiArray
@@ -48,13 +47,13 @@ class Outputs:
         self.subs = [h.client.create_subscription(TYPES[n], f"{h.full_name}/{n}", self.got[n].append, 10)
                      for n in names]
         for n in names:
-            wait_for(lambda n=n: h.node._pubs[n].get_subscription_count() > 0, 10.0, f"{n} subscription matched")
+            wait_for(lambda n=n: h.subscribers(n) > 0, 10.0, f"{n} subscription matched")
 
     def close(self) -> None:
         for sub in self.subs:
             self.h.client.destroy_subscription(sub)
         for n in self.got:
-            wait_for(lambda n=n: self.h.node._pubs[n].get_subscription_count() == 0, 10.0, f"{n} unsubscribed")
+            wait_for(lambda n=n: self.h.subscribers(n) == 0, 10.0, f"{n} unsubscribed")
 
 
 def analysed(h: Harness) -> int:
@@ -84,17 +83,17 @@ def harness(request: pytest.FixtureRequest) -> Harness:
 
 def test_computed_only_while_subscribed_and_near_the_truth(harness: Harness) -> None:
     h = harness
-    assert all(isinstance(h.node._pubs[n], LifecyclePublisher) for n in TYPES)  # created at configure
+    assert set(TYPES) <= set(h.node.state().subscribers)  # created at configure
     h.send_frame(frame(0))
     h.send_frame(frame(1))
     # nobody subscribes to ~/motion/*: nothing analysed, not even the confidence
-    assert analysed(h) == 0 and h.node._stats._last is not None and h.node._stats._last._confidence is None
+    assert analysed(h) == 0 and h.node.stats.last is not None and not h.node.stats.last.confidence_computed
     assert diagnostics_value(h, "frames analysed (motion)", "frames published", "1") == "0"
 
     div = Outputs(h, ["motion/divergence"])  # the divergence alone needs no confidence
     h.send_frame(frame(2))
     wait_for(lambda: div.got["motion/divergence"], 10.0, "a divergence image")
-    assert analysed(h) == 1 and h.node._stats._last._confidence is None
+    assert analysed(h) == 1 and not h.node.stats.last.confidence_computed
     msg = div.got["motion/divergence"][-1]
     assert (msg.encoding, msg.height, msg.width) == ("32FC1", H, W)
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == divmod(12 * INTERVAL_NS, 1_000_000_000)
@@ -103,7 +102,7 @@ def test_computed_only_while_subscribed_and_near_the_truth(harness: Harness) -> 
     out = Outputs(h, ["motion/dominant", "motion/moving_mask", "motion/homography", "motion/ttc"])
     h.send_frame(frame(3))  # the pair 2 -> 3
     wait_for(lambda: all(out.got.values()), 10.0, "dominant, mask, homography, ttc")
-    assert analysed(h) == 2 and h.node._stats._last._confidence is not None
+    assert analysed(h) == 2 and h.node.stats.last.confidence_computed
     twist = out.got["motion/dominant"][-1]
     assert (twist.header.stamp.sec, twist.header.stamp.nanosec) == divmod(13 * INTERVAL_NS, 1_000_000_000)
     assert twist.header.frame_id == "cam_test"
@@ -153,7 +152,6 @@ def test_detected_flips_with_hysteresis_and_resets_with_the_stream(harness: Harn
         still.header.stamp.nanosec += 1
         feed(still)
     assert flags == [False, True, True, True, False]
-    assert h.node._motion.detector.hysteresis.on_frames == 2
 
     feed(frame(4))  # moving again: 1 frame counted ...
     reset = h.client.create_client(Trigger, f"{h.full_name}/reset")
@@ -180,8 +178,7 @@ def test_managed_node_inactive_publishes_none_of_them() -> None:
         for t in (2, 3, 4):  # the camera goes on: the inactive node neither takes frames nor publishes
             h.pub.publish(frame(t))
             time.sleep(0.3)
-        # even a pair handed to the outputs now goes nowhere: the publishers are disabled until activate
-        assert h.node._motion.publish(h.node._pubs, frame(1).header, h.node._stats._last) is not None
+        assert h.node.state().input_topic is None  # unsubscribed until activate
         time.sleep(1.0)
         assert {n: len(v) for n, v in out.got.items()} == counts
         assert (h.totals.received, h.totals.analysed) == (2, 1)

@@ -110,7 +110,8 @@ def test_invalid_values_rejected_with_reason(harness: Harness, name: str, value:
     (result,) = harness.set_params(**{name: value})
     assert not result.successful and reason in result.reason
     assert harness.node.get_parameter(name).value != value
-    assert harness.node._stream.update() == before  # nothing was scheduled
+    harness.send_frame(image(mono8(I0), "mono8", 1))  # a frame applies whatever was scheduled: nothing
+    assert harness.node.settings == before
 
 
 def test_invalid_combination_rejected_atomically(harness: Harness) -> None:
@@ -284,7 +285,7 @@ def test_qos_override_parameters() -> None:
     h = Harness(ns, {f"qos_overrides.{ns}/image.subscription.reliability": "reliable",
                      f"qos_overrides.{ns}/image.subscription.depth": 3}, name="flow_qos", color=False)
     try:
-        qos = h.node._sub.qos_profile
+        qos = h.node.state().input_qos
         assert (qos.reliability, qos.depth) == (ReliabilityPolicy.RELIABLE, 3)
         assert h.node.get_parameter(f"qos_overrides.{ns}/image.subscription.history").value == "keep_last"
     finally:

@@ -153,7 +153,7 @@ def test_flow_in_px_per_second_with_the_pairs_earlier_stamp() -> None:
     pairs: list[TimeReference] = []
     h.client.create_subscription(TimeReference, "/t_units/flow_units/flow_pair", pairs.append, 10)
     try:
-        wait_for(lambda: h.node._pubs["flow_pair"].get_subscription_count() > 0, 10.0, "flow_pair subscription")
+        wait_for(lambda: h.subscribers("flow_pair") > 0, 10.0, "flow_pair subscription")
         t0, t1 = 5_000_000_000, 5_250_000_000
         flow = image_to_array(h.send_pair(image(mono8(I0), "mono8", t0), image(mono8(I1), "mono8", t1)))
         assert aee(flow, GT * 4.0) < 4.0 * 0.25
@@ -167,7 +167,7 @@ def test_flow_in_px_per_second_with_the_pairs_earlier_stamp() -> None:
         rejected, published = h.totals.rejected, h.totals.published
         h.send_frame(image(mono8(I1), "mono8", t1 + 500))  # same stamp: no interval, no velocity
         assert (h.totals.rejected, h.totals.published) == (rejected + 1, published)
-        assert "the pair's stamps are 0 ns apart" in h.node._stats.last_rejection
+        assert "the pair's stamps are 0 ns apart" in h.node.stats.last_rejection
         results = h.set_params(flow_units="px/frame")
         assert all(r.successful for r in results)
         (bad,) = h.set_params(flow_units="m/s")
@@ -192,11 +192,11 @@ def test_camera_info_republished_scaled_to_the_output() -> None:
     h.client.create_subscription(CameraInfo, "/t_cinfo/flow_cinfo/camera_info", got.append, 10)
     info_pub = h.client.create_publisher(CameraInfo, "/t_cinfo/camera_info", 10)
     try:
-        assert h.node._sub_info.topic_name == "/t_cinfo/camera_info"  # beside the image topic
+        assert h.node.state().camera_info_topic == "/t_cinfo/camera_info"  # beside the image topic
         wait_for(lambda: info_pub.get_subscription_count() > 0
-                 and h.node._pubs["camera_info"].get_subscription_count() > 0, 10.0, "camera_info matched")
+                 and h.subscribers("camera_info") > 0, 10.0, "camera_info matched")
         info_pub.publish(camera_info(80, 60))
-        wait_for(lambda: h.node._camera_info is not None, 10.0, "camera_info received")
+        wait_for(lambda: h.node.state().camera_info_received, 10.0, "camera_info received")
         flow = h.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2))
         wait_for(lambda: got, 5.0, "scaled camera_info")
         out = got[-1]

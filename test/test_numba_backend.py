@@ -140,10 +140,10 @@ def test_non_contiguous_and_float64_state_is_accepted() -> None:
 
 def test_buffers_are_reused_for_the_same_shape() -> None:
     v = np.zeros((2, 17, 23), np.float32)
-    first = numba_backend._work_buffers(v, None)
-    again = numba_backend._work_buffers(v.copy(), None)
+    first = numba_backend.work_buffers(v, None)
+    again = numba_backend.work_buffers(v.copy(), None)
     assert all(x is y for x, y in zip(first, again, strict=True))
-    other = numba_backend._work_buffers(np.zeros((2, 18, 23), np.float32), None)
+    other = numba_backend.work_buffers(np.zeros((2, 18, 23), np.float32), None)
     assert other[0] is not first[0] and other[0].shape == (2, 18, 23)
 
 
@@ -152,10 +152,10 @@ def test_threads_get_their_own_kernel_buffers() -> None:
     extrapolated variables or the kernels' row scratch: the kernels index the latter by numba's thread id,
     which starts at 0 in every calling thread's team."""
     v = np.zeros((2, 17, 23), np.float32)
-    mine = (*numba_backend._work_buffers(v, None), *numba_backend._row_scratch(23))
+    mine = (*numba_backend.work_buffers(v, None), *numba_backend.row_scratch(23))
     theirs: list[tuple[np.ndarray, ...]] = []
     t = threading.Thread(target=lambda: theirs.append(
-        (*numba_backend._work_buffers(v, None), *numba_backend._row_scratch(23))))
+        (*numba_backend.work_buffers(v, None), *numba_backend.row_scratch(23))))
     t.start()
     t.join()
     assert not any(np.shares_memory(a, b) for a, b in zip(mine, theirs[0], strict=True) if a.size > 4)

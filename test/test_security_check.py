@@ -107,7 +107,7 @@ def test_permissive_trap_is_reported_over_dds(monkeypatch: pytest.MonkeyPatch, t
     monkeypatch.setenv("ROS_SECURITY_KEYSTORE", str(tmp_path / "keystore"))  # no keystore at all
     h = Harness("/sec_trap", name="flow_trap")
     try:
-        assert h.node._security.secured is False
+        assert h.node.state().secured is False
         logs: list[Log] = []
         statuses: list[DiagnosticStatus] = []
         qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,

@@ -77,7 +77,7 @@ def _f32c(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=_F32)
 
 
-def _work_buffers(v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, ...]:
+def work_buffers(v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, ...]:
     """(v_bar, w_bar, xbuf, zero_b) for this shape: the extrapolated variables (2, H, W) and (2, 2, H, W),
     the per-thread row scratch of the primal kernel (threads, 2, W + 1) and the zero Bregman row (2, 1, W),
     float32. The calling thread's scratch arrays (workspace.py), reused across calls and frames."""
@@ -88,7 +88,7 @@ def _work_buffers(v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, ...]
             scratch("numba.xbuf", (numba.config.NUMBA_NUM_THREADS, 2, width + 1)), zero_b)
 
 
-def _row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:
+def row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-thread row scratch of the linearisation kernel for images ``width`` wide: tap weights and mask
     (threads, 9, width) float32, tap bases (threads, 2, width) int32; the calling thread's scratch arrays."""
     n = numba.config.NUMBA_NUM_THREADS
@@ -107,7 +107,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         state.w = _f32c(state.w)
     if state.z is not None:
         state.z = _f32c(state.z)
-    v_bar, w_bar, xbuf, zero_b = _work_buffers(state.v, state.w)
+    v_bar, w_bar, xbuf, zero_b = work_buffers(state.v, state.w)
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
@@ -158,7 +158,7 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
     c = np.empty((h, w), _F32)
     interpolated = scheme == "interpolated"
     parallel = threads() > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS
-    rows, base = _row_scratch(w)
+    rows, base = row_scratch(w)
     nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),
                         KERNEL_CODES[kernel], interpolated, a, c, rows, base, parallel)
     return a, c

@@ -78,6 +78,12 @@ class NodeStats:
     solve_max: float = 0.0  # longest solve since start (s)
     solve_total: float = 0.0  # seconds spent solving since start
 
+    @property
+    def last(self) -> FlowOutput | None:
+        """The last published output (its colour, confidence, ... as far as they were computed), or None."""
+        with self._lock:
+            return self._last
+
     def received(self, dropped_previous: bool) -> None:
         with self._lock:
             self.totals.received += 1

@@ -19,6 +19,7 @@ from lifecycle_msgs.srv import ChangeState
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
+from rclpy.qos import QoSProfile
 
 from ..core.errors import FlowError
 from .startup import rcl_error_line
@@ -31,6 +32,22 @@ def state_label(node: LifecycleNode) -> str:
     """The node's lifecycle state: ``unconfigured``, ``inactive``, ``active``, ``finalized`` or a transition
     state (``configuring``, ...). rclpy 7 (Jazzy) has no public getter: its state machine is read directly."""
     return str(node._state_machine.current_state[1])  # noqa: SLF001 -- see the docstring
+
+
+@dataclass(frozen=True)
+class NodeState:
+    """What the node is doing, as one read-only snapshot (:meth:`FlowNode.state`), for users and tests."""
+
+    lifecycle: str  # state_label(): unconfigured, inactive, active, finalized or a transition
+    failure: str  # TransitionLog.reason of the last transition: '' after a success
+    ready: bool  # configured and warmed up
+    input_topic: str | None  # the image (or compressed image) subscription's topic; None unless active
+    input_qos: QoSProfile | None  # its QoS, after the qos_overrides parameters
+    camera_info_topic: str | None  # the camera_info subscription's topic; None unless active
+    camera_info_received: bool  # a camera_info message arrived since configure
+    subscribers: dict[str, int]  # output name (``~/<name>``) -> matched subscriptions; {} unless configured
+    frame_waiting: bool  # a received frame waits for the worker
+    secured: bool | None  # the start-up security check (security.SecurityCheck.secured)
 
 
 @dataclass

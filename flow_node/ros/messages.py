@@ -46,21 +46,21 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
 # The generated Image class keeps ``data`` in this slot; its setter turns anything but an array.array into one
 # (a full copy), while the C conversion in ``publish`` takes any buffer (rosidl's fast path for arrays of
 # primitives) and copies it once into the C message.
-_DIRECT_DATA = "_data" in getattr(Image, "__slots__", ())
+DIRECT_DATA = "_data" in getattr(Image, "__slots__", ())
 
 
 def image_msg(header: Header, fields: dict[str, Any]) -> Image:
     """An rclpy Image from a header and :func:`array_to_image_fields` output, for publishing.
 
-    The numpy payload goes into the message without a Python-side copy (``_DIRECT_DATA``; at 640x480 32FC2
+    The numpy payload goes into the message without a Python-side copy (``DIRECT_DATA``; at 640x480 32FC2
     the copy into an ``array.array`` cost ~0.5 ms a frame); ``publish`` copies it once into the C message.
     Such a message's ``data`` is then the numpy array, so it is for publishing, not for handing around.
     """
     msg = Image(header=header, height=fields["height"], width=fields["width"], encoding=fields["encoding"],
                 is_bigendian=fields["is_bigendian"], step=fields["step"])
     payload = fields["data"]  # contiguous 1-D uint8 (array_to_image_fields)
-    if _DIRECT_DATA:
-        msg._data = payload  # noqa: SLF001 -- see _DIRECT_DATA
+    if DIRECT_DATA:
+        msg._data = payload  # noqa: SLF001 -- see DIRECT_DATA
     else:
         data = array.array("B")
         data.frombytes(payload)

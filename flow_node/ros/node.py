@@ -36,7 +36,6 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image, TimeReference
 from std_srvs.srv import Trigger
 
 from ..core.backends import fallback_warning
-from ..core.config import implied_weights
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import decode
 from ..pipeline.stream import FlowStream, StreamSettings
@@ -45,7 +44,7 @@ from ..process import keep_freed_memory, passive_thread_waits
 from . import camera_info, diagnostics, lifecycle, security, startup
 from .messages import descriptor, executor_advice, publish_outputs, stamp_ns
 from .motion_outputs import MOTION_TYPES, MotionOutputs
-from .params import coerce, motion_from_values, param_specs, preset_values, settings_from_values
+from .params import declared_defaults, expand_preset, motion_from_values, param_specs, settings_from_values
 from .worker import FrameWorker
 
 _OUTPUTS = (("flow", Image), ("magnitude", Image), ("flow_color", Image), ("confidence", Image),
@@ -196,20 +195,29 @@ class FlowNode(LifecycleNode):
     def managed(self) -> bool:
         return self._managed
 
+    @property
+    def stats(self) -> diagnostics.NodeStats:
+        """The counters since the last configure (totals, solve_max, last_reset, last_rejection, last output);
+        for reading: the node records into it."""
+        return self._stats
+
+    def state(self) -> lifecycle.NodeState:
+        """A snapshot of the lifecycle state, subscriptions, matched outputs and worker (lifecycle.NodeState)."""
+        sub, info, worker = self._sub, self._sub_info, self._worker
+        return lifecycle.NodeState(
+            lifecycle.state_label(self), self._transitions.reason, self.ready,
+            None if sub is None else sub.topic_name, None if sub is None else sub.qos_profile,
+            None if info is None else info.topic_name, self._camera_info is not None,
+            {name: pub.get_subscription_count() for name, pub in self._pubs.items()},
+            worker is not None and worker.mailbox.waiting, self._security.secured)
+
     # ------------------------------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> None:
-        """Declare ``preset`` first; its values (if any) become the defaults of the other parameters, so a
-        params file with ``preset: realtime`` and ``iterations: 20`` means realtime with 20 iterations. An
-        unknown preset is left to configure, which fails with the reason."""
+        """Declare ``preset`` first; its values become the other parameters' defaults (params.declared_defaults)."""
         spec = self._specs["preset"]
         preset = self.declare_parameter("preset", spec.default, descriptor(spec)).value
-        try:
-            base = preset_values(preset) if preset else {}
-        except ConfigError:
-            base = {}
-        for name, spec in self._specs.items():
-            if name != "preset":
-                self.declare_parameter(name, base.get(name, spec.default), descriptor(spec))
+        for name, value in declared_defaults(preset).items():
+            self.declare_parameter(name, value, descriptor(self._specs[name]))
 
     def _values(self, changes: list[Parameter] | None = None) -> dict[str, Any]:
         """Current values of our parameters with ``changes`` laid over them."""
@@ -220,20 +228,9 @@ class FlowNode(LifecycleNode):
         return values
 
     def _expand_preset(self, params: list[Parameter]) -> list[Parameter]:
-        """Pre-set callback: setting ``preset`` also sets its group, setting ``model`` its calibrated weights
-        (config.implied_weights); values given in the same call win."""
-        names = {p.name for p in params}
-        out = list(params)
-        for p in params:
-            if p.name == "preset" and p.value and isinstance(p.value, str):
-                try:
-                    group = preset_values(p.value)
-                except ConfigError:
-                    continue  # _validate rejects it with the reason
-                out += [Parameter(k, value=coerce(self._specs[k], v)) for k, v in group.items() if k not in names]
-        given = {p.name: p.value for p in out}  # a new model without weights brings its calibrated ones
-        out += [Parameter(k, value=v) for k, v in implied_weights(self.get_parameter("model").value, given).items()]
-        return out
+        """Pre-set callback: a preset brings its group, a model its calibrated weights (params.expand_preset)."""
+        given = [(p.name, p.value) for p in params]
+        return params + [Parameter(k, value=v) for k, v in expand_preset(given, self.get_parameter("model").value)]
 
     def _validate(self, params: list[Parameter]) -> SetParametersResult:
         """On-set callback: the whole would-be configuration must be valid, else nothing changes."""

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from ..core.config import PRESETS, FlowConfig, field_names, fields_info
+from ..core.config import PRESETS, FlowConfig, field_names, fields_info, implied_weights
 from ..core.errors import ConfigError
 from ..core.settings import fields_info as settings_fields_info
 from ..core.settings import from_flat
@@ -137,6 +137,33 @@ def preset_values(name: str) -> dict[str, Any]:
     specs = specs_by_name()
     return {k: coerce(specs[k], v) for k, v in FlowConfig.preset(name).to_dict().items()
             if k not in READ_ONLY_FIELDS}
+
+
+def declared_defaults(preset: str) -> dict[str, Any]:
+    """The default of every parameter but ``preset`` when the node starts with ``preset``: its values over
+    the specs' defaults, so a params file with ``preset: realtime`` and ``iterations: 20`` means realtime
+    with 20 iterations. An unknown preset adds nothing here (configure then fails with the reason)."""
+    try:
+        base = preset_values(preset) if preset else {}
+    except ConfigError:
+        base = {}
+    return {s.name: base.get(s.name, s.default) for s in param_specs() if s.name != "preset"}
+
+
+def expand_preset(given: list[tuple[str, Any]], model: str) -> list[tuple[str, Any]]:
+    """What a set of parameters ``given`` (name, value) implies besides itself: a ``preset`` its group, a new
+    model without weights its calibrated ones (config.implied_weights; ``model`` is the current one); values
+    given in the same call win. An unknown preset implies nothing (validation rejects it with the reason)."""
+    specs, names = specs_by_name(), {name for name, _ in given}
+    out = list(given)
+    for name, value in given:
+        if name == "preset" and value and isinstance(value, str):
+            try:
+                group = preset_values(value)
+            except ConfigError:
+                continue
+            out += [(k, coerce(specs[k], v)) for k, v in group.items() if k not in names]
+    return out[len(given):] + list(implied_weights(model, dict(out)).items())
 
 
 def _yaml_value(value: Any) -> str:

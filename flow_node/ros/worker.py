@@ -27,6 +27,12 @@ class Mailbox:
             self._cond.notify()
             return replaced
 
+    @property
+    def waiting(self) -> bool:
+        """True while an item waits to be taken."""
+        with self._cond:
+            return self._item is not None
+
     def take(self) -> Any:
         """The waiting item, or None once closed."""
         with self._cond:
