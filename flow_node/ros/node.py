@@ -39,7 +39,6 @@ from ..core.backends import fallback_warning
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import decode
 from ..pipeline.stream import FlowStream, StreamSettings
-from ..pipeline.units import output_in_units
 from ..process import keep_freed_memory, passive_thread_waits
 from . import camera_info, diagnostics, lifecycle, security, startup
 from .messages import descriptor, executor_advice, publish_outputs, stamp_ns
@@ -74,7 +73,6 @@ class FlowNode(LifecycleNode):
         self._resolution = "none yet"
         self._frame_id = ""
         self._executor_checked = False
-        self._units: str = self.get_parameter("flow_units").value
         self._camera_info: CameraInfo | None = None
         self._backend_warning: str | None = None
         self._pub_diag = self.create_publisher(diagnostics.DiagnosticArray, "/diagnostics", 10)
@@ -119,7 +117,6 @@ class FlowNode(LifecycleNode):
         self._motion = MotionOutputs(motion_from_values(self._values()))
         stream = FlowStream(settings)
         self._stats, self._stream, self._camera_info = diagnostics.NodeStats(), stream, None
-        self._units = self.get_parameter("flow_units").value
         self._backend_warning = fallback_warning(settings.config.backend, stream.backend)
         overrides = QoSOverridingOptions.with_default_policies()
         self._pubs = {name: self.create_lifecycle_publisher(kind, f"~/{name}", 1, qos_overriding_options=overrides)
@@ -247,9 +244,8 @@ class FlowNode(LifecycleNode):
         if any(p.name in self._specs for p in params):
             s = settings_from_values(self._values())
             if self._stream is not None and self._motion is not None:
-                self._stream.update(s.config, s.input_scale, s.color_max_flow)
+                self._stream.update(s.config, s.input_scale, s.color_max_flow, s.flow_units)
                 self._motion.update(motion_from_values(self._values()))
-            self._units = self.get_parameter("flow_units").value
             self.get_logger().info("parameters changed: " + ", ".join(f"{p.name}={p.value!r}" for p in params))
 
     @property
@@ -318,9 +314,7 @@ class FlowNode(LifecycleNode):
         try:
             frame, label = decode(msg)
             self._frame_id = msg.header.frame_id
-            out = stream.process(frame, stamp_ns(msg.header), label)
-            if out is not None:
-                out = output_in_units(out, self._units)
+            out = stream.process(frame, stamp_ns(msg.header), label)  # in the settings' flow_units
         except InputError as exc:
             self._stats.rejected(str(exc))
             self.get_logger().warning(f"image rejected: {exc}", throttle_duration_sec=5.0)

@@ -19,8 +19,7 @@ from ..core.errors import ConfigError
 from ..core.settings import fields_info as settings_fields_info
 from ..core.settings import from_flat
 from ..pipeline.derived import MotionSettings
-from ..pipeline.stream import COLOR_MAX_FLOW_RANGE, INPUT_SCALE_RANGE, StreamSettings
-from ..pipeline.units import FLOW_UNITS
+from ..pipeline.stream import COLOR_MAX_FLOW_RANGE, FLOW_UNITS, INPUT_SCALE_RANGE, StreamSettings
 
 
 @dataclass(frozen=True)
@@ -74,7 +73,7 @@ def param_specs() -> list[ParamSpec]:
         ParamSpec("color_max_flow", float, defaults.color_max_flow,
                   "flow length (in flow_units) drawn at full saturation in ~/flow_color; 0 = each frame's "
                   "maximum", *COLOR_MAX_FLOW_RANGE),
-        ParamSpec("flow_units", str, FLOW_UNITS[0], "units of ~/flow and ~/magnitude: px/frame (displacement "
+        ParamSpec("flow_units", str, defaults.flow_units, "units of ~/flow and ~/magnitude: px/frame (displacement "
                   "over the pair) or px/s (divided by the pair's interval, ~/flow_pair)", choices=FLOW_UNITS),
         ParamSpec("use_compressed", bool, False, "subscribe to <image>/compressed (sensor_msgs/CompressedImage, "
                   "decoded with OpenCV) instead of image", read_only=True),
@@ -111,12 +110,11 @@ def settings_from_values(values: Mapping[str, Any]) -> StreamSettings:
     preset = values.get("preset", "")
     if preset not in specs_by_name()["preset"].choices:
         raise ConfigError(f"preset: {preset!r} is not one of {', '.join(PRESETS)} (or '')")
-    units = values.get("flow_units", FLOW_UNITS[0])
-    if units not in FLOW_UNITS:
-        raise ConfigError(f"flow_units: {units!r} is not one of {', '.join(FLOW_UNITS)}")
     cfg = FlowConfig.from_mapping({k: values[k] for k in field_names() if k in values})
-    return StreamSettings(cfg, input_scale=values.get("input_scale", StreamSettings().input_scale),
-                          color_max_flow=values.get("color_max_flow", StreamSettings().color_max_flow))
+    defaults = StreamSettings()
+    return StreamSettings(cfg, input_scale=values.get("input_scale", defaults.input_scale),
+                          color_max_flow=values.get("color_max_flow", defaults.color_max_flow),
+                          flow_units=values.get("flow_units", defaults.flow_units))  # validated there
 
 
 def motion_from_values(values: Mapping[str, Any]) -> MotionSettings:
