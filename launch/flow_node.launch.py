@@ -8,7 +8,7 @@ Arguments: ``image`` (input topic, default /image), ``params_file`` (default the
 config/flow_node.yaml), ``namespace`` (default empty), ``node_name`` (default flow_node), ``log_level``,
 ``dds_profile`` (a Fast DDS XML profile for the node's process; empty, the default, leaves the choice to the
 node, whose ``main()`` applies the package's config/fastdds_localhost.xml unless the environment already names a
-profile, Fast DDS's built-in transports or another RMW: ``startup.use_shipped_dds_profile``, docs/node.md,
+profile, Fast DDS's built-in transports or another RMW: ``middleware.use_shipped_dds_profile``, docs/node.md,
 "Middleware"), ``managed`` (default false: the node configures and activates itself; true: the node parameter
 ``managed`` is set and the node starts unconfigured) and ``autostart`` (default true; with ``managed:=true``
 the launch file then brings the node to active itself with lifecycle ChangeState events: configure, and

@@ -147,9 +147,9 @@ def test_cli_play_ctrl_c_reports_what_it_published_and_exits_0():
 
 def test_play_publishes_with_the_shipped_dds_profile(monkeypatch: pytest.MonkeyPatch) -> None:
     """flow_bag play publishes frames as a camera driver does, so it applies the node's Fast DDS profile choice
-    (startup.use_shipped_dds_profile: large frames whole through shared memory) before rclpy starts."""
+    (middleware.use_shipped_dds_profile: large frames whole through shared memory) before rclpy starts."""
+    from flow_node import middleware
     from flow_node.bag import cli
-    from flow_node.ros import startup
 
     class Applied(Exception):
         pass
@@ -157,6 +157,6 @@ def test_play_publishes_with_the_shipped_dds_profile(monkeypatch: pytest.MonkeyP
     def applied() -> None:
         raise Applied
 
-    monkeypatch.setattr(startup, "use_shipped_dds_profile", applied)
+    monkeypatch.setattr(middleware, "use_shipped_dds_profile", applied)
     with pytest.raises(Applied):
         cli.main(["play", str(BAGS / "translation")])

@@ -116,6 +116,15 @@ def test_the_engine_and_the_pipeline_import_nothing_above_them(graph: Graph) -> 
     assert not wrong, f"imports against the layers: {wrong}"
 
 
+def test_the_node_and_the_bag_tools_do_not_import_each_other(graph: Graph) -> None:
+    """ros/ (rclpy) and bag/ (rosbags) sit side by side on the pipeline: neither imports the other. What both
+    need lives below them (flow_node/middleware.py: the Fast DDS profile the node and `flow_bag play` apply)."""
+    apart = {"ros": "bag", "bag": "ros"}
+    wrong = [(m, d) for m, deps in graph.items() if layer(m) in apart for d in deps if layer(d) == apart[layer(m)]]
+    assert not wrong, f"imports between ros/ and bag/: {wrong}"
+    assert all("flow_node.middleware" in graph[m] for m in ("flow_node.bag.cli", "flow_node.ros.node"))
+
+
 # namedtuple's public API is spelled with a leading underscore
 NAMEDTUPLE_API = frozenset({"_replace", "_asdict", "_fields", "_make", "_field_defaults"})
 ATTRIBUTE_CALLS = frozenset({"getattr", "setattr", "hasattr", "delattr"})

@@ -24,13 +24,13 @@ from rclpy.qos import ReliabilityPolicy
 from ros_helpers import GT, I0, I1, Harness, call, image, mono8
 from sensor_msgs.msg import Image
 
+from flow_node import middleware
 from flow_node.core.config import MODEL_WEIGHTS, PRESETS, FlowConfig, fields_info
 from flow_node.core.errors import ConfigError
 from flow_node.core.metrics import aee
 from flow_node.core.settings import fields_info as settings_fields_info
 from flow_node.pipeline.codec import image_to_array
 from flow_node.pipeline.derived import MotionSettings
-from flow_node.ros import startup
 from flow_node.ros.params import (
     MOTION_PREFIX,
     NODE_PRESET,
@@ -221,8 +221,8 @@ def test_params_file_honoured_end_to_end_and_sigterm_exits_cleanly(tmp_path: Pat
     assert 0 <= out.find("subscribed to") < out.find("engine warm-up (numpy)"), out
     # the middleware in effect is logged: the shipped Fast DDS profile unless this environment chose otherwise
     env = dict(os.environ)
-    startup.use_shipped_dds_profile(env)
-    assert startup.middleware_line(env) in out, out
+    middleware.use_shipped_dds_profile(env)
+    assert middleware.middleware_line(env) in out, out
 
 
 def check_pfile_node(proc: subprocess.Popen) -> str:
@@ -293,25 +293,25 @@ def test_qos_override_parameters() -> None:
 
 
 def test_the_node_uses_the_shipped_dds_profile_unless_the_user_chose(tmp_path, monkeypatch) -> None:
-    """startup.use_shipped_dds_profile (main() calls it before rclpy.init): sets FASTRTPS_DEFAULT_PROFILES_FILE
+    """middleware.use_shipped_dds_profile (main() calls it before rclpy.init): sets FASTRTPS_DEFAULT_PROFILES_FILE
     to the package's profile only if the user set no profile file, no FASTDDS_BUILTIN_TRANSPORTS and no other
     RMW; and leaves the environment alone when the package's file cannot be found."""
-    shipped = startup.shipped_dds_profile()
+    shipped = middleware.shipped_dds_profile()
     assert shipped is not None and shipped.name == "fastdds_localhost.xml"
     env: dict[str, str] = {}
-    assert startup.use_shipped_dds_profile(env) == str(shipped) and env == {startup.PROFILE_VAR: str(shipped)}
+    assert middleware.use_shipped_dds_profile(env) == str(shipped) and env == {middleware.PROFILE_VAR: str(shipped)}
     env = {"RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
-    assert startup.use_shipped_dds_profile(env) == str(shipped)
-    for chosen in ({startup.PROFILE_VAR: ""}, {startup.PROFILE_VAR: str(tmp_path / "mine.xml")},
+    assert middleware.use_shipped_dds_profile(env) == str(shipped)
+    for chosen in ({middleware.PROFILE_VAR: ""}, {middleware.PROFILE_VAR: str(tmp_path / "mine.xml")},
                    {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}, {"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"}):
         env = dict(chosen)
-        assert startup.use_shipped_dds_profile(env) is None and env == chosen
-    monkeypatch.setattr(startup, "shipped_dds_profile", lambda: None)
+        assert middleware.use_shipped_dds_profile(env) is None and env == chosen
+    monkeypatch.setattr(middleware, "shipped_dds_profile", lambda: None)
     env = {}
-    assert startup.use_shipped_dds_profile(env) is None and env == {}
+    assert middleware.use_shipped_dds_profile(env) is None and env == {}
     # what the start-up log says of each case
-    assert startup.middleware_line({}) == "middleware rmw_fastrtps_cpp, Fast DDS defaults"
-    assert startup.middleware_line({startup.PROFILE_VAR: str(shipped)}).endswith(f"profile {shipped}")
-    assert startup.middleware_line({"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}).endswith("built-in transports UDPv4")
-    assert startup.middleware_line({"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp", startup.PROFILE_VAR: "x"}) \
+    assert middleware.middleware_line({}) == "middleware rmw_fastrtps_cpp, Fast DDS defaults"
+    assert middleware.middleware_line({middleware.PROFILE_VAR: str(shipped)}).endswith(f"profile {shipped}")
+    assert middleware.middleware_line({"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}).endswith("built-in transports UDPv4")
+    assert middleware.middleware_line({"RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp", middleware.PROFILE_VAR: "x"}) \
         == "middleware rmw_cyclonedds_cpp"

@@ -13,6 +13,7 @@ import sys
 import threading
 from typing import TYPE_CHECKING
 
+from .. import middleware
 from ..cli.common import (
     OneLineParser,
     add_config_options,
@@ -197,9 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     passive_thread_waits()
     try:
         if args.command == "play":  # rclpy logs through fd 2: keep it
-            from ..ros.startup import use_shipped_dds_profile
-
-            use_shipped_dds_profile()  # it publishes frames as a camera does: large ones whole (docs/node.md)
+            middleware.use_shipped_dds_profile()  # it publishes frames as a camera does (docs/node.md)
             return _run(args)
         silence_opencv_log()
         with native_stderr_silenced():  # libpng warnings while decoding compressed frames

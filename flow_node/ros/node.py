@@ -35,6 +35,7 @@ from rclpy.task import Future
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image, TimeReference
 from std_srvs.srv import Trigger
 
+from .. import middleware
 from ..core.backends import fallback_warning
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import decode
@@ -122,7 +123,7 @@ class FlowNode(LifecycleNode):
         self._pubs = {name: self.create_lifecycle_publisher(kind, f"~/{name}", 1, qos_overriding_options=overrides)
                       for name, kind in _OUTPUTS}
         self.get_logger().info(f"configured: input {self._image_topic()}; model {settings.config.model}, "
-                               f"backend {stream.backend}; {startup.middleware_line()}")
+                               f"backend {stream.backend}; {middleware.middleware_line()}")
         if self._backend_warning:
             self.get_logger().warning(self._backend_warning)
         warmup = self._warmup if self.get_parameter("warmup").value else None
@@ -348,7 +349,7 @@ def main(args: list[str] | None = None) -> int:
     reason when it cannot start (an unmanaged node whose configure failed: invalid parameters)."""
     keep_freed_memory()
     passive_thread_waits()
-    startup.use_shipped_dds_profile()  # ros2 run, ros2 launch and python -m get the same delivery
+    middleware.use_shipped_dds_profile()  # ros2 run, ros2 launch and python -m get the same delivery
     argv = sys.argv if args is None else args
     log = rclpy.logging.get_logger("flow_node")
     try:

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-from .startup import FAST_DDS_RMWS
+from ..middleware import FAST_DDS_RMWS
 
 # rmw_dds_common::get_security_files: an enclave needs all of these (the key and certificate may be PKCS#11
 # URIs in key.p11 / cert.p11 instead of PEM files).
