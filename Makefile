@@ -63,7 +63,7 @@ bench-quick: $(BENCH_STAMP)
 bench-frontier: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.frontier
 
-# Middlebury only, every model and preset (issue 2).
+# Middlebury only: every model with quality's schedule (issue 2; presets and peers: the suite's middlebury regime).
 bench-accuracy: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.accuracy
 

@@ -2,7 +2,7 @@
 
     .venv/bin/python -m bench.batch [--size 160x120:24 --size 320x240:12] [--distinct 8] [--frames 50]
                                     [--preset realtime] [--repeats 3] [--variants loop,dask-1,dask-2]
-                                    [--per-bag process|thread] [--out bench/results/batch/batch.json]
+                                    [--out bench/results/batch/batch.json]
 
 For every ``--size WxH:BAGS``: writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds
 0..) of ``--frames`` frames and copies them up to BAGS bags. Every run writes into a fresh output (nothing
@@ -17,10 +17,6 @@ cached). Measurements:
    over repeats the result. Bags per minute from the median process time.
 2. **Fixed costs** beside it (median of 3): ``import distributed`` in a fresh interpreter, and starting and
    closing the embedded cluster of 1 and of 2 workers.
-3. With ``--per-bag process|thread``, **the Dask layer paired bag by bag**: with ``dask scheduler`` and one
-   ``dask worker`` running (separate processes), or the embedded cluster's worker thread in this process,
-   every bag is evaluated twice in turn (who goes first alternates): once by ``evaluate_bag`` in this
-   process, once submitted to the worker and waited for. ``--repeats 0`` runs only this.
 
 All processes run in ``WORKER_ENV`` (one numeric thread, glibc keeping freed memory): this process
 re-executes itself with it. The machine may be shared: compare the paired ratios, not absolute times.
@@ -40,14 +36,12 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from flow_node.bag.batch import WORKER_ENV, dask_client, evaluate_bag, find_bags, make_jobs
 from flow_node.bag.batch_report import write_batch_report
-from flow_node.bag.results import BagJob, EvalOptions
+from flow_node.bag.results import EvalOptions
 from flow_node.bag.scenes import SCENES
 from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.config import FlowConfig
@@ -151,75 +145,6 @@ def _timed(fn: Any) -> float:
     return time.monotonic() - start
 
 
-def _relocated(job: BagJob, out: Path) -> BagJob:
-    return BagJob(job.bag, job.name, str(out / "bags" / job.name), job.configs, job.opts, job.config_digest)
-
-
-@contextmanager
-def external_worker(work: Path) -> Iterator[str]:
-    """`dask scheduler` and one `dask worker --no-nanny --nthreads 1` (distributed's CLIs) on 127.0.0.1, so
-    that this process holds no scheduler thread while it runs the loop; the worker inherits WORKER_ENV (no
-    nanny to override it). Yields the scheduler address; stops both."""
-    dask = str(Path(sys.executable).with_name("dask"))
-    info = work / "scheduler.json"
-    work.mkdir(parents=True, exist_ok=True)
-    procs = [subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                               "--scheduler-file", str(info)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        deadline = time.monotonic() + 60
-        while not info.exists() and time.monotonic() < deadline:
-            time.sleep(0.2)
-        address = json.loads(info.read_text())["address"]
-        procs.append(subprocess.Popen([dask, "worker", address, "--no-nanny", "--nthreads", "1", "--host",
-                                       "127.0.0.1", "--no-dashboard"], stdout=subprocess.DEVNULL,
-                                      stderr=subprocess.DEVNULL))
-        yield address
-    finally:
-        for proc in procs[::-1]:
-            proc.terminate()
-            try:
-                proc.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-
-
-@contextmanager
-def one_worker(where: str, work: Path) -> Iterator[Any]:
-    """A client of one worker: a separate `dask worker` process ('process'), or the embedded cluster's
-    worker thread in this process ('thread', as ``flow_bag eval --workers 1`` runs it)."""
-    if where == "thread":
-        with dask_client(None, 1) as client:
-            yield client
-    else:
-        with external_worker(work) as address, dask_client(address) as client:
-            yield client
-
-
-def paired_layer_cost(bags: Path, work: Path, preset: str, where: str) -> dict[str, Any]:
-    """Per bag: seconds evaluated here vs submitted to one Dask worker (``one_worker(where)``), alternating.
-    With 'thread' the cluster idles in this process while the bag is evaluated directly, so what the pair
-    measures is the cost of running as a task (submission, events, results, the event loop's share of the
-    GIL while the task runs), not the periodic bookkeeping of an idle cluster."""
-    jobs = make_jobs(find_bags([str(bags)]), work / "loop", [FlowConfig.preset(preset)], EvalOptions(progress=False))
-    pairs = []
-    with one_worker(where, work) as client:
-        evaluate_bag(_relocated(jobs[0], work / "warm-loop"))  # JIT cache and imports warm on both sides
-        client.submit(evaluate_bag, _relocated(jobs[0], work / "warm-dask"), pure=False).result()
-        for k, job in enumerate(jobs):
-            here, there = _relocated(job, work / "loop"), _relocated(job, work / "dask")
-            loop = lambda j=here: evaluate_bag(j)  # noqa: E731
-            dask = lambda j=there: client.submit(evaluate_bag, j, pure=False).result()  # noqa: E731
-            first, second = (loop, dask) if k % 2 == 0 else (dask, loop)
-            t1, t2 = _timed(first), _timed(second)
-            pairs.append({"bag": job.name, "loop": t1 if k % 2 == 0 else t2, "dask": t2 if k % 2 == 0 else t1})
-    ratios = [p["dask"] / p["loop"] for p in pairs]
-    return {
-        "pairs": pairs, "per_bag_loop_seconds_median": statistics.median(p["loop"] for p in pairs),
-        "per_bag_dask_over_loop_median": statistics.median(ratios),
-        "per_bag_dask_over_loop_sum": sum(p["dask"] for p in pairs) / sum(p["loop"] for p in pairs),
-    }
-
-
 def fixed_costs() -> dict[str, Any]:
     """``import distributed`` in a fresh interpreter, and the embedded cluster's start and close with 1 and 2
     workers (dask_client, as flow_bag eval runs it); 3 of each. Run after the other measurements: a closed
@@ -251,7 +176,7 @@ def _size(text: str) -> tuple[int, int, int]:
 
 
 def measure_size(tmp: Path, size: tuple[int, int, int], args: argparse.Namespace) -> dict[str, Any]:
-    """The paired whole-process runs (and with --per-bag the per-bag pairs) on BAGS bags of one size."""
+    """The paired whole-process runs on BAGS bags of one size."""
     w, h, count = size
     bags = tmp / f"bags_{w}x{h}"
     make_bags(bags, count, min(args.distinct, count), args.frames, (w, h))
@@ -263,11 +188,8 @@ def measure_size(tmp: Path, size: tuple[int, int, int], args: argparse.Namespace
             print(json.dumps(runs[-1] | {"size": f"{w}x{h}"}), flush=True)
     result = {"size": f"{w}x{h}", "bags": count, "runs": runs,
               "summary": summarise(runs, args.repeats) if runs else None}
-    if args.per_bag:
-        result["per_bag"] = paired_layer_cost(bags, tmp / "paired", args.preset, args.per_bag)
     shutil.rmtree(bags)
-    per_bag = {k: v for k, v in result.get("per_bag", {}).items() if k != "pairs"}
-    print(json.dumps(result["summary"]), json.dumps(per_bag), flush=True)
+    print(json.dumps(result["summary"]), flush=True)
     return result
 
 
@@ -280,8 +202,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--preset", default="realtime")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--variants", default=",".join(VARIANTS), help="a subset of loop,dask-1,dask-2, in that order")
-    p.add_argument("--per-bag", choices=("process", "thread"),
-                   help="also the per-bag pairs: a separate dask worker process, or the embedded worker thread")
     p.add_argument("--out", default=str(REPO / "bench" / "results" / "batch" / "batch.json"))
     p.add_argument("--loop-run", nargs=2, metavar=("BAGS", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)

@@ -1,8 +1,7 @@
-"""Shared benchmark helpers: the Middlebury training pairs, the peer methods, and timing one method.
+"""Shared benchmark helpers: the Middlebury training pairs, timing one method, and the results files.
 
-Frames are handed to every method as the same grey image (BT.601 luma of the RGB PNG): float32 in [0, 1]
-for flow_node and scikit-image, and that image rounded to uint8 for the OpenCV peers (which require 8-bit
-input). Flow is always returned as float32 (H, W, 2), channel 0 = u (x), 1 = v (y), I1(x + flow) ~ I0(x).
+Frames are grey float32 in [0, 1] (BT.601 luma of the RGB PNG). Flow is float32 (H, W, 2), channel 0 = u (x),
+1 = v (y), I1(x + flow) ~ I0(x). The peers live with the suite (bench/suite/methods.py).
 """
 
 from __future__ import annotations
@@ -20,7 +19,6 @@ import numpy as np
 from flow_node.core.api import FlowEstimator, to_grey
 from flow_node.core.config import FlowConfig
 from flow_node.core.flowio import read_flo, read_image
-from flow_node.core.initialise import to_u8  # the engine's own conversion; also used by the benches
 from flow_node.core.metrics import aee, angular_error
 
 REPO = Path(__file__).resolve().parent.parent
@@ -52,41 +50,6 @@ def load_middlebury(data: Path, names: tuple[str, ...] = SEQUENCES) -> list[Pair
         i1 = to_grey(read_image(seq / "frame11.png"), "frame11")
         pairs.append(Pair(name, i0, i1, read_flo(seq / "flow10.flo")))
     return pairs
-
-
-# ------------------------------------------------------------------------------------------------- peers
-def opencv_dualtvl1() -> Method:
-    """OpenCV contrib DualTVL1 with its default parameters."""
-    import cv2
-
-    algo = cv2.optflow.DualTVL1OpticalFlow_create()
-    return lambda i0, i1: algo.calc(to_u8(i0), to_u8(i1), None).astype(np.float32)
-
-
-def opencv_dis_medium() -> Method:
-    """OpenCV DIS optical flow, MEDIUM preset."""
-    import cv2
-
-    algo = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    return lambda i0, i1: algo.calc(to_u8(i0), to_u8(i1), None).astype(np.float32)
-
-
-def skimage_tvl1() -> Method:
-    """scikit-image optical_flow_tvl1 with its defaults; it returns (row, col) flow, reordered to (u, v)."""
-    from skimage.registration import optical_flow_tvl1
-
-    def run(i0: np.ndarray, i1: np.ndarray) -> np.ndarray:
-        rc = optical_flow_tvl1(i0, i1)
-        return np.stack([rc[1], rc[0]], axis=-1).astype(np.float32)
-
-    return run
-
-
-PEERS: dict[str, Callable[[], Method]] = {
-    "opencv_dualtvl1": opencv_dualtvl1,
-    "skimage_tvl1": skimage_tvl1,
-    "opencv_dis_medium": opencv_dis_medium,
-}
 
 
 def flow_node_method(cfg: FlowConfig) -> Method:

@@ -98,13 +98,6 @@ def consistency(i0: np.ndarray, i1: np.ndarray, g: np.ndarray) -> float:
     return float(np.mean(np.abs(warped - i0)[inner]))
 
 
-def backward_warp(i0: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """The literal reading I2(x) = I0(x + g(x)); kept only to show it has flow -g (see consistency)."""
-    hh, ww = i0.shape
-    xs, ys = np.meshgrid(np.arange(ww, dtype=np.float32), np.arange(hh, dtype=np.float32))
-    return _sample(i0, xs + g[..., 0], ys + g[..., 1], cv2.INTER_CUBIC)
-
-
 @dataclass(frozen=True)
 class PaperPair(Pair):
     """A synthesised pair; ``gt`` is the scaled ground truth (unknown pixels as in flow10.flo)."""

@@ -16,10 +16,10 @@ import numpy as np
 
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
+from flow_node.core.initialise import to_u8
 from flow_node.core.metrics import aee, angular_error, valid_mask
 
-from ..common import to_u8
-from .algorithms import ALGORITHMS, TABLE2_ALPHA_PAPER, Algorithm
+from .algorithms import ALGORITHMS, TABLE2_ALPHA_PAPER
 from .protocol import PaperPair, fill_unknown
 
 # Both frames are smoothed with a Gaussian of this sigma (px) before estimation: the synthesised second
@@ -142,6 +142,3 @@ def ranks(results: dict[str, Any], kind: str, metric: str) -> dict[str, float]:
 def _mean(per: dict[str, dict[str, float]], metric: str) -> float:
     return float(np.mean([v[metric] for v in per.values()]))
 
-
-def algorithm_by_key(key: str) -> Algorithm:
-    return next(a for a in ALGORITHMS if a.key == key)

@@ -21,8 +21,8 @@ import numpy as np
 
 from flow_node.core.api import FlowEstimator, to_grey
 from flow_node.core.config import PRESETS, FlowConfig
+from flow_node.core.initialise import to_u8
 
-from ..common import to_u8
 from .data import Sample
 
 Output = Any  # np.ndarray flow, or (flow, confidence | None)
