@@ -9,7 +9,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export RMW_IMPLEMENTATION ?= rmw_fastrtps_cpp
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba_cache
 
-.PHONY: all venv test lint demo fuzz bench bench-quick bench-frontier bench-accuracy bench-node bench-batch bench-venv paper clean test-noble noble-venv
+.PHONY: all venv test lint demo fuzz bench bench-quick bench-accuracy bench-node bench-batch bench-venv paper clean test-noble noble-venv
 
 all: test
 
@@ -57,11 +57,6 @@ bench: $(BENCH_STAMP)
 
 bench-quick: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.suite --quick
-
-# The speed presets' frontier against their time targets (issue 11 / 12): a ladder of cheaper settings with the
-# DIS peers in one run (~3-4 min); bench/results/frontier/frontier.{json,md,png}.
-bench-frontier: $(BENCH_STAMP)
-	$(BENCH_VENV)/bin/python -m bench.frontier
 
 # Middlebury only: every model with quality's schedule (issue 2; presets and peers: the suite's middlebury regime).
 bench-accuracy: $(BENCH_STAMP)

@@ -1,10 +1,9 @@
 """Node latency, throughput and overhead beyond the engine's solve time, over real DDS.
 
-    .venv/bin/python -m bench.node_latency [--frames N] [--in-process] [--out bench/results/node/node_latency.json]
+    .venv/bin/python -m bench.node_latency [--frames N] [--out bench/results/node/node_latency.json]
 
 The node runs as its own process (``python -m flow_node.ros.node``, as ``ros2 run`` does) and reports its
-per-frame solve time and in-node overhead on /diagnostics (every 50 ms, so each window holds one solve);
-``--in-process`` runs it in the bench process instead (sharing the GIL with the bench's subscriber). For
+per-frame solve time and in-node overhead on /diagnostics (every 50 ms, so each window holds one solve). For
 each size (320x240, 640x480) and preset (realtime, quality), in one run:
 
 * engine: ``FlowEstimator.estimate`` called here on the same pair right before each node frame (the peer
@@ -43,13 +42,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import Image
 
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.codec import array_to_image_fields, image_to_array
-from flow_node.ros.node import FlowNode
 
 SIZES = ((240, 320), (480, 640))
 PRESETS = ("realtime", "quality")
@@ -193,38 +190,6 @@ class Rig:
         self.thread.join(timeout=5.0)
 
 
-class InProcessRig(Rig):
-    """FlowNode in this process, on the same executor as the client; times read from the node's stats."""
-
-    def __init__(self, preset: str) -> None:
-        super().__init__()
-        params = [Parameter("preset", value=preset), Parameter("diagnostics_period", value=60.0)]
-        self.node = FlowNode(self.NAME, namespace="/bench", parameter_overrides=params, context=self.ctx)
-        self.executor.add_node(self.node)
-        self._start()
-        _wait(lambda: self.node.ready and self.pub.get_subscription_count() > 0
-              and self.node._pubs["flow"].get_subscription_count() > 0, 120.0)
-        self.backend = self.node._stream.backend
-
-    def handled(self) -> int:
-        return self.node._stats.totals.processed
-
-    def frame_times(self, published: int, timeout: float) -> tuple[float, float, float]:
-        _wait(lambda: self.node._stats.totals.published >= published, timeout)
-        w = self.node._stats.window()
-        return w.solve_times[-1], w.overheads[-1], w.publish_times[-1]
-
-    def counters(self) -> dict[str, float]:
-        t = self.node._stats.totals
-        return {"received": t.received, "dropped": t.dropped, "published": t.published,
-                "busy": self.node._stats.solve_total}
-
-    def close(self) -> None:
-        self.executor.shutdown(timeout_sec=5.0)
-        self.node.destroy_node()  # joins the worker before the context goes away
-        super().close()
-
-
 class ProcessRig(Rig):
     """``python -m flow_node.ros.node`` as its own process (as ``ros2 run``); times from its /diagnostics,
     published every 50 ms, so each window holds at most one solve in the closed loop."""
@@ -294,12 +259,12 @@ class ProcessRig(Rig):
         super().close()
 
 
-def run(preset: str, size: tuple[int, int], n: int, in_process: bool) -> dict[str, Any]:
+def run(preset: str, size: tuple[int, int], n: int) -> dict[str, Any]:
     f0, f1 = frames(*size)
     engine = FlowEstimator(FlowConfig.preset(preset))
     engine.warmup()
     first = engine.estimate(f0, f1).seconds
-    rig: Rig = InProcessRig(preset) if in_process else ProcessRig(preset)
+    rig = ProcessRig(preset)
     try:
         loop = rig.closed_loop(f0, f1, n, 30.0 * first + 10.0, engine)
         tput = rig.open_loop(f0, f1, max(3.0, 4 * statistics.median(d["solve"] for d in loop)))
@@ -310,7 +275,7 @@ def run(preset: str, size: tuple[int, int], n: int, in_process: bool) -> dict[st
     eng = med["engine"]
     return {
         "preset": preset, "config": FlowConfig.preset(preset).to_dict(), "width": size[1], "height": size[0],
-        "frames": n, "backend": backend, "node": "in process" if in_process else "own process",
+        "frames": n, "backend": backend, "node": "own process",
         "engine_solve_median_s": eng,
         "node_solve_median_s": med["solve"],
         "latency_median_s": med["latency"],
@@ -332,13 +297,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=5, help="flows per case in the closed loop (default 5)")
     ap.add_argument("--out", default="bench/results/node/node_latency.json")
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
-    ap.add_argument("--in-process", action="store_true",
-                    help="run the node in this process (shares the GIL with the bench client)")
     args = ap.parse_args(argv)
     results = []
     for preset in args.presets:
         for size in SIZES:
-            r = run(preset, size, args.frames, args.in_process)
+            r = run(preset, size, args.frames)
             results.append(r)
             tp = r["throughput"]
             print(f"{preset:9s} {r['width']}x{r['height']} {r['backend']}: "
