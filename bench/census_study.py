@@ -13,11 +13,13 @@ Each ``--method NAME=BASE[,key=value...]`` is a preset with FlowConfig overrides
 - ``grey_gate`` (default 0 = off): lambda per pixel times 1 / (1 + s^2 / (grey_gate * EPS)^2), s the RMS
   of frame 0's neighbour differences on the level (census.py), so the grey term only acts where the census
   signature is EPS-dominated (flat areas);
-- ``coarse_grey_width`` (default 0 = off): levels narrower than this (px) use the grey-value data term alone.
+- ``coarse_grey_width`` (default 0 = off): levels narrower than this (px) use the grey-value data term alone;
+- ``antialias_steps`` (default -1 = the engine's): anti-alias at most this many pyramid steps (the finest
+  ones; pyramid.build_pyramid). The census mode anti-aliases every step (docs/engine.md).
 
-The variants wrap ``refine.census_problem`` for the run of their method (a study tool: the engine is not
-changed). Writes bench/results/census_study/NAME.{json,md}; the numbers are in docs/engine.md, "The census
-data term".
+The variants wrap ``refine.census_problem`` and ``pyramid.build_pyramid`` for the run of their method (a
+study tool: the engine is not changed). Writes bench/results/census_study/NAME.{json,md}; the numbers are
+in docs/engine.md, "The census data term".
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from flow_node.core import refine
+from flow_node.core import pyramid, refine
 from flow_node.core.census import CENSUS, OFFSETS, shifted
 from flow_node.core.config import FlowConfig
 from flow_node.core.solver import Problem
@@ -42,6 +44,7 @@ from .suite.runner import run_suite
 
 RESULTS = REPO / "bench" / "results" / "census_study"
 ORIGINAL = refine.census_problem
+ORIGINAL_PYRAMID = pyramid.build_pyramid
 
 
 @dataclass(frozen=True)
@@ -52,6 +55,7 @@ class Variant:
     grey_delta: float = 0.01
     grey_gate: float = 0.0
     coarse_grey_width: int = 0
+    antialias_steps: int = -1
 
 
 ACTIVE: list[Variant] = [Variant()]  # the variant of the method being run (one at a time)
@@ -85,6 +89,13 @@ def studied_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: An
         return census
     lam = grey_weight_map(i0, v)
     return lambda v0: add_grey(census(v0), v0, lam, v.grey_delta, robust)
+
+
+def studied_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0
+                    ) -> list[np.ndarray]:
+    """pyramid.build_pyramid with at most the active variant's ``antialias_steps`` anti-aliased steps."""
+    steps = ACTIVE[0].antialias_steps
+    return ORIGINAL_PYRAMID(img, shapes, scale, antialias_levels if steps < 0 else min(steps, antialias_levels))
 
 
 class StudiedNode(FlowNode):
@@ -133,6 +144,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--method", action="append", required=True)
     args = ap.parse_args(argv)
     refine.census_problem = studied_problem
+    pyramid.build_pyramid = studied_pyramid
     methods = dict(parse_method(m) for m in args.method)
     res = run_suite(methods, regimes=args.regimes.split(","), split=args.split, quick=args.quick, peers=())
     command = "python -m bench.census_study " + shlex.join(sys.argv[1:] if argv is None else argv)
