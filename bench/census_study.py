@@ -14,6 +14,8 @@ Each ``--method NAME=BASE[,key=value...]`` is a preset with FlowConfig overrides
   of frame 0's neighbour differences on the level (census.py), so the grey term only acts where the census
   signature is EPS-dominated (flat areas);
 - ``coarse_grey_width`` (default 0 = off): levels narrower than this (px) use the grey-value data term alone;
+- ``coarse_eps`` and ``coarse_eps_width`` (default 0 = off): the census term with EPS = ``coarse_eps`` on
+  levels narrower than ``coarse_eps_width`` px (invariant still: EPS only enters the signature);
 - ``antialias_steps`` (default -1 = the engine's): anti-alias at most this many pyramid steps (the finest
   ones; pyramid.build_pyramid). The census mode anti-aliases every step (docs/engine.md).
 
@@ -34,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from flow_node.core import pyramid, refine
-from flow_node.core.census import CENSUS, OFFSETS, shifted
+from flow_node.core.census import CENSUS, OFFSETS, CensusParams, shifted
 from flow_node.core.config import FlowConfig
 from flow_node.core.solver import Problem
 
@@ -55,6 +57,8 @@ class Variant:
     grey_delta: float = 0.01
     grey_gate: float = 0.0
     coarse_grey_width: int = 0
+    coarse_eps: float = 0.0
+    coarse_eps_width: int = 0
     antialias_steps: int = -1
 
 
@@ -78,13 +82,29 @@ def add_grey(problem: Problem, v0: np.ndarray, lam: np.ndarray | float, delta: f
     return Problem(a, c, q=q.astype(np.float32))
 
 
+def census_with(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Any, robust: bool,
+                params: CensusParams) -> Callable[[np.ndarray], Problem]:
+    """refine.census_problem with other census constants ``params``."""
+    grey = refine.grey_problem(i0, i1, cfg, backend, robust)
+    f0, g0 = backend.signature(i0, params)
+
+    def around(v0: np.ndarray) -> Problem:
+        lin = grey(v0)
+        return Problem(lin.a, lin.c, q=backend.census_form(i0, i1, f0, g0, lin.a, lin.c, v0, robust, params))
+
+    return around
+
+
 def studied_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Any, robust: bool
                     ) -> Callable[[np.ndarray], Problem]:
     """refine.census_problem with the active variant."""
     v = ACTIVE[0]
     if i0.shape[1] < v.coarse_grey_width:
         return refine.grey_problem(i0, i1, cfg, backend, robust)
-    census = ORIGINAL(i0, i1, cfg, backend, robust)
+    if i0.shape[1] < v.coarse_eps_width:
+        census = census_with(i0, i1, cfg, backend, robust, CensusParams(eps=v.coarse_eps))
+    else:
+        census = ORIGINAL(i0, i1, cfg, backend, robust)
     if v.grey_weight <= 0:
         return census
     lam = grey_weight_map(i0, v)
