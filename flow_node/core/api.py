@@ -10,11 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backends import Backend, select_backend
-from .census import reliability as census_reliability
 from .config import FlowConfig
 from .engine import estimate_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
-from .photometric import compares_signatures
 from .refine import SolveStats
 
 log = logging.getLogger("flow_node")
@@ -163,14 +161,11 @@ class FlowEstimator:
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
         with self._backend.running():
-            flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
+            flow, stats, judged = estimate_pair(i0, i1, self._config, self._backend, init, prev)
             ensure_finite(flow)
-            if compares_signatures(self._config.photometric):
-                unexplained = census_reliability(*normalised, flow, self._backend.warper.sample)
-            else:
-                unexplained = self._backend.reliability(*normalised, flow)
+            unexplained = judged.unexplained(flow)  # the photometric stage's own judge
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
-        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, judged.frames)
 
 
 def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -> np.ndarray | None:

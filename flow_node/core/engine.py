@@ -6,7 +6,7 @@ Each stage is one function with one interface, in the module named for it:
 ==============  ===================================================================  =======================
 stage           interface                                                            module
 ==============  ===================================================================  =======================
-photometric     (i0, i1, mode) -> (solver pair, normalised pair)                     ``core/photometric.py``
+photometric     (i0, i1, cfg, backend) -> (solver pair, Judged)                      ``core/photometric.py``
 initialisation  (i0, i1, cfg, initial, previous) -> [Candidate]                      ``core/initialise.py``
 refinement      (pyramid, cfg, backend, state, first, last, stats, finest) -> state  ``core/refine.py``
 fusion          (i0, i1, [flow]) -> (flow, choice), a backend field                  ``core/fusion.py``
@@ -27,18 +27,48 @@ initialisation the refinement drifted away from wrongly is recovered there).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import partial
+
 import numpy as np
 
 from .backends import Backend
+from .census import reliability as census_reliability
 from .config import FlowConfig
 from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
-from .photometric import stage
+from .photometric import Reliability, compares_signatures, stage
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
+
+
+@dataclass(frozen=True)
+class Judged:
+    """What the photometric stage hands back besides the solver's pair: the pair a flow is judged on
+    (``frames``, (H, W) float32 each) and the reliability figure that matches the stage's data term
+    (``judge``: census signatures for ``census``, grey values otherwise)."""
+
+    frames: tuple[np.ndarray, np.ndarray]
+    judge: Reliability
+
+    def unexplained(self, flow: np.ndarray) -> float:
+        """The fraction of sampled pixels ``flow`` (H, W, 2) px does not explain (photometric.reliability)."""
+        return self.judge(*self.frames, flow)
+
+
+def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend
+                      ) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
+    """The photometric stage (photometric.stage with the pyramid's noise gain) and its own judge: what the
+    solver sees of the pair (H, W) float32, and the :class:`Judged` pair. A census data term is judged on
+    signatures (census.reliability, with the backend's sampler), a grey-value one by the backend's
+    reliability kernel, so the caller never branches on the mode."""
+    solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
+    judge = (partial(census_reliability, sample=backend.warper.sample) if compares_signatures(cfg.photometric)
+             else backend.reliability)
+    return solver_pair, Judged(frames, judge)
 
 
 def start_level(pyr: Pyramid, cfg: FlowConfig, finest: int | None = None) -> int:
@@ -127,19 +157,19 @@ def on_grid(flow: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
                   initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, SolveStats, tuple[np.ndarray, np.ndarray]]:
+                  ) -> tuple[np.ndarray, SolveStats, Judged]:
     """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px;
-    the stats; and the normalised pair of the photometric stage (what the flow's reliability and
-    confidence are judged on).
+    the stats; and the photometric stage's :class:`Judged` pair (what the flow's reliability and
+    confidence are judged on, and the judge).
 
     ``initial_flow`` (2, H, W) is a caller's warm start; ``previous_flow`` (2, H, W) the previous pair's
     flow in a stream (used when ``cfg.temporal_init``). Both only enter through the fusion, so a wrong one
     costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
     upsampled to (H, W) by the output layout stage.
     """
-    (i0, i1), normalised = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
+    (i0, i1), judged = photometric_stage(i0, i1, cfg, backend)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
     pyr = make_pyramid(i0, i1, cfg)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     state = refine_from(pyr, cfg, backend, candidates, stats)
-    return interleaved_flow(state.v, pyr.shapes[0]), stats, normalised
+    return interleaved_flow(state.v, pyr.shapes[0]), stats, judged
