@@ -30,12 +30,13 @@ from __future__ import annotations
 import numpy as np
 
 from .backends import Backend
+from .colour import normalise_channels
 from .config import FlowConfig
 from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
-from .photometric import stage
+from .photometric import compares_signatures, stage
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
@@ -126,7 +127,8 @@ def on_grid(flow: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 
 def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
-                  initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None
+                  initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None,
+                  channels: tuple[np.ndarray, np.ndarray] | None = None
                   ) -> tuple[np.ndarray, SolveStats, tuple[np.ndarray, np.ndarray]]:
     """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px;
     the stats; and the normalised pair of the photometric stage (what the flow's reliability and
@@ -136,10 +138,19 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     flow in a stream (used when ``cfg.temporal_init``). Both only enter through the fusion, so a wrong one
     costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
     upsampled to (H, W) by the output layout stage.
+
+    ``channels``: both frames' colour channels (C, H, W) float32 in [0, 1] (i0, i1 being their luma); with the
+    census data term they are what it compares (colour.py, each channel normalised on its own), otherwise
+    they are not used.
     """
-    (i0, i1), normalised = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
+    gain = noise_gain(i0.shape, cfg)
+    (i0, i1), normalised = stage(i0, i1, cfg.photometric, gain)
+    if channels is not None and compares_signatures(cfg.photometric):
+        channels = (normalise_channels(channels[0], gain), normalise_channels(channels[1], gain))
+    else:
+        channels = None
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
-    pyr = make_pyramid(i0, i1, cfg)
+    pyr = make_pyramid(i0, i1, cfg, channels)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     state = refine_from(pyr, cfg, backend, candidates, stats)
     return interleaved_flow(state.v, pyr.shapes[0]), stats, normalised

@@ -12,6 +12,7 @@ Importing this module raises ImportError when numba is not installed (backends.p
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numba import njit, prange
@@ -149,4 +150,27 @@ def census_form_numba(i0: np.ndarray, i1: np.ndarray, f0: np.ndarray, g0: None, 
     f1 = signature_numba(warped, params, out=scratch("census.f1", (len(OFFSETS), h, w)))
     out = np.empty((5, h, w), _F32)
     form_kernel(f0, f1, keep, v0, robust, _F32(params.delta), out)
+    return out
+
+
+def colour_form_numba(i0s: np.ndarray, i1s: np.ndarray, f0: np.ndarray, g0: None, a: Sequence[np.ndarray],
+                      c: Sequence[np.ndarray], v0: np.ndarray, robust: bool, params: CensusParams) -> np.ndarray:
+    """colour.colour_form with the kernels: per channel the warped frame and its signature (into one stacked
+    scratch array), the mask of pixels where any channel has a data term, scaled by 1 / C (the form kernel's
+    per-pixel weight: the reference's 1 / C), then one form over all C x K channels."""
+    n, h, w = i0s.shape
+    k_n = len(OFFSETS)
+    warped, keep = scratch("colour.warped", (h, w)), scratch("colour.keep", (h, w))
+    weight = scratch("colour.weight", (h, w))
+    weight[:] = 0.0
+    f1 = scratch("colour.f1", (n * k_n, h, w))
+    v0 = np.ascontiguousarray(v0, dtype=_F32)
+    for k in range(n):
+        warped_kernel(np.ascontiguousarray(i0s[k], dtype=_F32), np.ascontiguousarray(i1s[k], dtype=_F32),
+                      a[k], c[k], v0, warped, keep)
+        np.maximum(weight, keep, out=weight)
+        signature_numba(warped, params, out=f1[k * k_n:(k + 1) * k_n])
+    weight *= _F32(1.0 / n)
+    out = np.empty((5, h, w), _F32)
+    form_kernel(np.ascontiguousarray(f0, dtype=_F32), f1, weight, v0, robust, _F32(params.delta), out)
     return out

@@ -18,6 +18,7 @@ import numpy as np
 from .backends import Backend
 from .bregman import bregman
 from .census import CENSUS
+from .colour import channel_signature
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
@@ -82,11 +83,16 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     place. The data term (``cfg.photometric``): grey values (the backend's fused
     warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked; the level's warp source and
     frame 0's gradient are scratch arrays reused from call to call, workspace.py) or census signatures
-    (:func:`census_problem`). Returns (iterations, Bregman iterations)."""
+    (:func:`census_problem`; with the pyramid's colour channels :func:`colour_problem`). Returns (iterations,
+    Bregman iterations)."""
     warps, per_warp = level_schedule(cfg, on_finest)
     params = level_params(cfg, level, per_warp)
-    linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
-        pyr.i0[level], pyr.i1[level], cfg, backend, params.spec.data == "l1")
+    robust = params.spec.data == "l1"
+    if pyr.c0 is not None and pyr.c1 is not None and compares_signatures(cfg.photometric):
+        linearised = colour_problem(pyr.c0[level], pyr.c1[level], cfg, backend, robust)
+    else:
+        linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
+            pyr.i0[level], pyr.i1[level], cfg, backend, robust)
     iterations = 0
     for _ in range(warps):
         problem = linearised(state.v)
@@ -101,13 +107,14 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
 Linearisation = Callable[[np.ndarray], Problem]
 
 
-def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
+def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
+                 key: str = "refine") -> Linearisation:
     """The paper's data term on grey values: per warp rho(v) = a . v + c (operators.linearise, or the backend's
-    fused kernel) around v0."""
+    fused kernel) around v0. ``key``: the name of the level's scratch arrays (one per image linearised)."""
     h, w = i0.shape
     src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper,
-                       out=scratch("refine.source", (3, h, w)))
-    g0 = (image_gradient(i0, cfg.gradient_scheme, out=scratch("refine.grad0", (2, h, w)))
+                       out=scratch(key + ".source", (3, h, w)))
+    g0 = (image_gradient(i0, cfg.gradient_scheme, out=scratch(key + ".grad0", (2, h, w)))
           if cfg.gradient_scheme == "interpolated" else None)
 
     def around(v0: np.ndarray) -> Problem:
@@ -126,6 +133,23 @@ def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Bac
     def around(v0: np.ndarray) -> Problem:
         lin = grey(v0)
         return Problem(lin.a, lin.c, q=backend.census_form(i0, i1, f0, g0, lin.a, lin.c, v0, robust, CENSUS))
+
+    return around
+
+
+def colour_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool
+                   ) -> Linearisation:
+    """The census data term on colour channels c0, c1 (C, h, w) (colour.py): frame 0's stacked signatures
+    once per level; per warp each channel's grey-value linearisation (its warped frame 1) and the colour
+    form around v0. The problem's (a, c) are the first channel's (the form replaces them in the solve)."""
+    greys = [grey_problem(a, b, cfg, backend, robust, key=f"refine.c{k}")
+             for k, (a, b) in enumerate(zip(c0, c1, strict=True))]
+    f0, g0 = channel_signature(c0, backend.signature, CENSUS)
+
+    def around(v0: np.ndarray) -> Problem:
+        lins = [g(v0) for g in greys]
+        q = backend.colour_form(c0, c1, f0, g0, [p.a for p in lins], [p.c for p in lins], v0, robust, CENSUS)
+        return Problem(lins[0].a, lins[0].c, q=q)
 
     return around
 

@@ -1,0 +1,71 @@
+"""Colour input for the census data term (FlowConfig ``colour = channels``; numpy reference, numba:
+numba_census.colour_form_numba).
+
+With grey input the census data term compares one signature per pixel, K = 8 channels (census.py). A colour
+frame has three grey images, each with its own texture (an edge between two colours of one brightness is
+invisible in luma), and a camera changes each of them on its own: white balance is a gain per channel, and
+tone curves are applied per channel. So each colour channel is normalised on its own (per frame, as the
+census mode does with grey: :func:`normalise_channels`), its signature taken as for grey, and the C x K
+signatures stacked into one data term:
+
+    rho_{c,k}(v) = a_{c,k} . v + c_{c,k},    data = 1/C sum_c sum_k rho_{c,k}^2 (L2)  or  |rho_{c,k}| (L1)
+
+collapsed into the same per-pixel quadratic form (5, H, W) the solver's data prox takes (census.signature_form,
+with the L1 weights of census.py). The 1/C keeps the data term's weight against the regulariser that of grey
+input (alpha means the same for both). Invariant per channel to what the grey signature is invariant to,
+hence to white balance and to per-channel tone curves. A pixel has no data term (x + v0 leaves the image)
+when no channel's linearisation has one. Everything but the data term -- initialisation, fusion,
+reliability, confidence -- stays on the grey (luma) frames.
+
+Costs: per warp C warps of frame 1 (the grey-value linearisation of each channel carries its warped
+sample), C signatures and C x K channels in the form: about C times the census term's per-warp work.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from .census import CENSUS, CensusParams, LevelSignature, signature, signature_form, warped_frame
+from .photometric import normalise_frame
+
+COLOUR_MODES = ("grey", "channels")  # the FlowConfig field ``colour``: luma only, or every channel (census)
+
+
+def normalise_channels(frame: np.ndarray, noise_gain: float = 1.0) -> np.ndarray:
+    """Each channel of a frame (C, H, W) float32 mapped by its own robust range (photometric.normalise_frame):
+    (C, H, W) float32. A per-channel gain (white balance) and offset are undone exactly."""
+    return np.stack([normalise_frame(ch, noise_gain) for ch in frame]).astype(np.float32, copy=False)
+
+
+def channel_signature(frames: np.ndarray, level_signature: LevelSignature, params: CensusParams = CENSUS
+                      ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Frame 0's signatures of every channel of ``frames`` (C, H, W), stacked: (C K, H, W), and their
+    gradients (2, C K, H, W) (None when ``level_signature`` -- census.level_signature or a backend's -- gives
+    none: the numba form takes them itself)."""
+    sigs = [level_signature(np.ascontiguousarray(ch), params) for ch in frames]
+    f0 = np.concatenate([s[0] for s in sigs])
+    g0 = None if sigs[0][1] is None else np.concatenate([s[1] for s in sigs], axis=1)
+    return f0, g0
+
+
+def colour_form(i0s: np.ndarray, i1s: np.ndarray, f0: np.ndarray, g0: np.ndarray | None, a: Sequence[np.ndarray],
+                c: Sequence[np.ndarray], v0: np.ndarray, robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
+    """One warp's colour census data term: the quadratic form (5, H, W) around v0 (2, H, W) (module doc).
+
+    i0s, i1s (C, H, W): the level's channels; f0 (C K, H, W), g0 (2, C K, H, W): :func:`channel_signature`
+    of i0s; a[k] (2, H, W) and c[k] (H, W): channel k's grey-value linearisation around v0 (which carries
+    its warped frame 1, census.warped_frame); ``robust``: the L1 data term (else L2)."""
+    if g0 is None:
+        raise ValueError("colour_form needs frame 0's signature gradients (census.level_signature)")
+    warped = [warped_frame(i0s[k], i1s[k], a[k], c[k], v0) for k in range(len(i0s))]
+    outside = np.logical_and.reduce([w[1] for w in warped])
+    f1 = np.concatenate([signature(w[0], params) for w in warped])
+    form = signature_form(f0, g0, f1, outside, v0, robust, params)
+    return (form * np.float32(1.0 / len(i0s))).astype(np.float32)
+
+
+# colour_form(i0s, i1s, f0, g0, a, c, v0, robust, params) -> q: colour_form or a backend's kernels
+ColourForm = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, Sequence[np.ndarray],
+                       Sequence[np.ndarray], np.ndarray, bool, CensusParams], np.ndarray]
