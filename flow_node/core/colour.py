@@ -11,24 +11,28 @@ signatures stacked into one data term:
     rho_{c,k}(v) = a_{c,k} . v + c_{c,k},    data = 1/C sum_c sum_k rho_{c,k}^2 (L2)  or  |rho_{c,k}| (L1)
 
 collapsed into the same per-pixel quadratic form (5, H, W) the solver's data prox takes (census.signature_form,
-with the L1 weights of census.py). The 1/C keeps the data term's weight against the regulariser that of grey
+with the L1 weights of census.py). Frame 1's channels are sampled at x + v0 directly (one interpolation per
+channel, :func:`warped_channels`), not recovered from a grey-value linearisation as the grey census term does:
+the colour form needs no (a, c) of its own. The 1/C keeps the data term's weight against the regulariser that of grey
 input (alpha means the same for both). Invariant per channel to what the grey signature is invariant to,
-hence to white balance and to per-channel tone curves. A pixel has no data term (x + v0 leaves the image)
-when no channel's linearisation has one. Everything but the data term -- initialisation, fusion,
+hence to white balance and to per-channel tone curves. A pixel whose x + v0 leaves the image has no data
+term. Everything but the data term -- initialisation, fusion,
 reliability, confidence -- stays on the grey (luma) frames.
 
-Costs: per warp C warps of frame 1 (the grey-value linearisation of each channel carries its warped
-sample), C signatures and C x K channels in the form: about C times the census term's per-warp work.
+Costs: per level C prefilters and signatures of frame 0; per warp C samples of frame 1, C signatures and
+C x K channels in the form (measured: docs/engine.md, "The census data term", colour).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
 import numpy as np
 
-from .census import CENSUS, CensusParams, LevelSignature, signature, signature_form, warped_frame
+from .census import CENSUS, CensusParams, LevelSignature, signature, signature_form
+from .operators import warp_maps
 from .photometric import normalise_frame
+from .warping import Sample
 
 COLOUR_MODES = ("grey", "channels")  # the FlowConfig field ``colour``: luma only, or every channel (census)
 
@@ -50,22 +54,30 @@ def channel_signature(frames: np.ndarray, level_signature: LevelSignature, param
     return f0, g0
 
 
-def colour_form(i0s: np.ndarray, i1s: np.ndarray, f0: np.ndarray, g0: np.ndarray | None, a: Sequence[np.ndarray],
-                c: Sequence[np.ndarray], v0: np.ndarray, robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
+def warped_channels(coefs: np.ndarray, i1s: np.ndarray, v0: np.ndarray, kernel: str, sample: Sample
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Frame 1's channels sampled at x + v0 (2, H, W): (C, H, W) float32, from their interpolation
+    coefficients ``coefs`` (C, H, W) (warping.Warper.coefficients, once per level) with a backend's ``sample``;
+    and the mask (H, W) bool of pixels whose x + v0 leaves the image (operators.warp_maps), where the
+    channels of i1s (C, H, W) themselves stand in, as in census.warped_frame."""
+    map_x, map_y, inside = warp_maps(v0)
+    warped = sample(coefs, map_x, map_y, kernel)
+    return np.where(inside, warped, i1s).astype(np.float32, copy=False), ~inside
+
+
+def colour_form(f0: np.ndarray, g0: np.ndarray | None, warped: np.ndarray, outside: np.ndarray, v0: np.ndarray,
+                robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
     """One warp's colour census data term: the quadratic form (5, H, W) around v0 (2, H, W) (module doc).
 
-    i0s, i1s (C, H, W): the level's channels; f0 (C K, H, W), g0 (2, C K, H, W): :func:`channel_signature`
-    of i0s; a[k] (2, H, W) and c[k] (H, W): channel k's grey-value linearisation around v0 (which carries
-    its warped frame 1, census.warped_frame); ``robust``: the L1 data term (else L2)."""
+    f0 (C K, H, W), g0 (2, C K, H, W): :func:`channel_signature` of frame 0's channels; ``warped`` (C, H, W)
+    and ``outside`` (H, W) from :func:`warped_channels`; ``robust``: the L1 data term (else L2)."""
     if g0 is None:
         raise ValueError("colour_form needs frame 0's signature gradients (census.level_signature)")
-    warped = [warped_frame(i0s[k], i1s[k], a[k], c[k], v0) for k in range(len(i0s))]
-    outside = np.logical_and.reduce([w[1] for w in warped])
-    f1 = np.concatenate([signature(w[0], params) for w in warped])
+    f1 = np.concatenate([signature(w, params) for w in warped])
     form = signature_form(f0, g0, f1, outside, v0, robust, params)
-    return (form * np.float32(1.0 / len(i0s))).astype(np.float32)
+    return (form * np.float32(1.0 / len(warped))).astype(np.float32)
 
 
-# colour_form(i0s, i1s, f0, g0, a, c, v0, robust, params) -> q: colour_form or a backend's kernels
-ColourForm = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, Sequence[np.ndarray],
-                       Sequence[np.ndarray], np.ndarray, bool, CensusParams], np.ndarray]
+# colour_form(f0, g0, warped, outside, v0, robust, params) -> q: colour_form or a backend's kernels
+ColourForm = Callable[[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, np.ndarray, bool, CensusParams],
+                      np.ndarray]

@@ -18,7 +18,7 @@ import numpy as np
 from .backends import Backend
 from .bregman import bregman
 from .census import CENSUS
-from .colour import channel_signature
+from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
@@ -107,14 +107,13 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
 Linearisation = Callable[[np.ndarray], Problem]
 
 
-def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
-                 key: str = "refine") -> Linearisation:
+def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
     """The paper's data term on grey values: per warp rho(v) = a . v + c (operators.linearise, or the backend's
-    fused kernel) around v0. ``key``: the name of the level's scratch arrays (one per image linearised)."""
+    fused kernel) around v0."""
     h, w = i0.shape
     src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper,
-                       out=scratch(key + ".source", (3, h, w)))
-    g0 = (image_gradient(i0, cfg.gradient_scheme, out=scratch(key + ".grad0", (2, h, w)))
+                       out=scratch("refine.source", (3, h, w)))
+    g0 = (image_gradient(i0, cfg.gradient_scheme, out=scratch("refine.grad0", (2, h, w)))
           if cfg.gradient_scheme == "interpolated" else None)
 
     def around(v0: np.ndarray) -> Problem:
@@ -139,17 +138,17 @@ def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Bac
 
 def colour_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool
                    ) -> Linearisation:
-    """The census data term on colour channels c0, c1 (C, h, w) (colour.py): frame 0's stacked signatures
-    once per level; per warp each channel's grey-value linearisation (its warped frame 1) and the colour
-    form around v0. The problem's (a, c) are the first channel's (the form replaces them in the solve)."""
-    greys = [grey_problem(a, b, cfg, backend, robust, key=f"refine.c{k}")
-             for k, (a, b) in enumerate(zip(c0, c1, strict=True))]
+    """The census data term on colour channels c0, c1 (C, h, w) (colour.py): frame 0's stacked signatures and
+    frame 1's interpolation coefficients once per level; per warp frame 1's channels sampled at x + v0 and the
+    colour form around v0. The form replaces (a, c) in the solve: they are zeros."""
+    coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
     f0, g0 = channel_signature(c0, backend.signature, CENSUS)
+    h, w = c0.shape[1:]
+    a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
 
     def around(v0: np.ndarray) -> Problem:
-        lins = [g(v0) for g in greys]
-        q = backend.colour_form(c0, c1, f0, g0, [p.a for p in lins], [p.c for p in lins], v0, robust, CENSUS)
-        return Problem(lins[0].a, lins[0].c, q=q)
+        warped, outside = warped_channels(coefs, c1, v0, cfg.warp_kernel, backend.warper.sample)
+        return Problem(a, c, q=backend.colour_form(f0, g0, warped, outside, v0, robust, CENSUS))
 
     return around
 
