@@ -93,8 +93,8 @@ class FlowConfig:
                           choices=PHOTOMETRIC)
     colour: str = _f("grey", "what the data term sees of colour input: grey (the BT.601 luma) or channels (with "
                      "photometric census: the signatures of R, G and B, each channel normalised on its own, "
-                     "stacked into one data term; invariant to white balance; ~2-3x the census term's per-warp "
-                     "cost). Grey input, and the grey-value data terms, use the luma either way",
+                     "stacked into one data term; invariant to white balance; ~1.9x the census term's time, "
+                     "docs/engine.md). Grey input, and the grey-value data terms, use the luma either way",
                      choices=COLOUR_MODES)
     model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1); choosing a "
                     "model without alpha/alpha1 also selects its calibrated weights", choices=MODELS)
