@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import small_frames
-from synth import constant_flow, interior, pair_from_flow, texture
+from synth import constant_flow, interior, isoluminant_pair, pair_from_flow, texture
 
 from flow_node.cli.estimate import read_planes
 from flow_node.core.api import FlowEstimator, to_grey, to_planes
@@ -111,19 +111,6 @@ def test_colour_flow_is_invariant_to_white_balance(backend: str) -> None:
     balanced = est.estimate(c0, c1 * np.array([1.2, 1.0, 0.8], np.float32)).flow
     assert aee(interior(plain), interior(gt)) < 0.1
     np.testing.assert_allclose(balanced, plain, atol=1e-3)
-
-
-def isoluminant_pair(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A pair whose motion only colour shows: R carries a texture, G compensates it so that the BT.601 luma
-    is constant, B is flat."""
-    gt = constant_flow(60, 80, 1.25, 0.5)
-    r0, r1 = pair_from_flow(texture(60, 80, seed=seed), gt)
-
-    def rgb(r: np.ndarray) -> np.ndarray:
-        g = (0.6 - 0.299 * r - 0.114 * 0.5) / 0.587
-        return np.stack([r, g, np.full_like(r, 0.5)], -1).astype(np.float32)
-
-    return rgb(r0), rgb(r1), gt
 
 
 def test_colour_sees_motion_that_luma_does_not() -> None:
