@@ -18,6 +18,7 @@ from flow_node.core.metrics import aee
 from flow_node.core.numba_backend import WARPER
 from flow_node.core.numba_census import colour_form_numba, level_signature_numba
 from flow_node.core.operators import linearise, warp_source
+from flow_node.core.pyramid import build_pyramid, channel_pyramid, pyramid_shapes
 from flow_node.core.warping import NUMPY_WARPER, Sample
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 
@@ -176,3 +177,14 @@ def test_cli_reads_colour_planes(tmp_path: pytest.TempPathFactory) -> None:
     assert planes is not None and planes.shape == (3, 60, 80)
     np.testing.assert_allclose(planes, np.moveaxis(c0, -1, 0), atol=0.6 / 255)
     assert read_planes(str(path), colour=False)[1] is None and grey.shape == (60, 80)
+
+
+@pytest.mark.parametrize("antialias", [0, 6])
+def test_channel_pyramid_is_each_channels_pyramid(antialias: int) -> None:
+    frame = channels(9, h=97, w=131)
+    shapes = pyramid_shapes((97, 131), 6, 0.5, 8)
+    levels = channel_pyramid(frame, shapes, 0.5, antialias)
+    assert [lv.shape for lv in levels] == [(3,) + s for s in shapes]
+    for k in range(3):
+        for got, want in zip(levels, build_pyramid(frame[k], shapes, 0.5, antialias), strict=True):
+            np.testing.assert_allclose(got[k], want, atol=1e-6)

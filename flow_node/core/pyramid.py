@@ -135,6 +135,13 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig,
     grey = (build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1))
     if channels is None:
         return Pyramid(shapes, *grey)
-    c0, c1 = ([np.stack(levels) for levels in zip(*(build_pyramid(ch, shapes, cfg.scale_factor, antialias)
-                                                     for ch in frame), strict=True)] for frame in channels)
+    c0, c1 = (channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels)
     return Pyramid(shapes, *grey, c0, c1)
+
+
+def channel_pyramid(frame: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0
+                    ) -> list[np.ndarray]:
+    """:func:`build_pyramid` of every channel of frame (C, H, W): (C, h, w) per level. OpenCV filters the
+    channels interleaved, one call per step for all of them (the same filter on each)."""
+    levels = build_pyramid(np.ascontiguousarray(np.moveaxis(frame, 0, -1)), shapes, scale, antialias_levels)
+    return [np.ascontiguousarray(np.moveaxis(level.reshape(level.shape[:2] + (-1,)), -1, 0)) for level in levels]
