@@ -35,6 +35,7 @@ from ..core.confidence import Confidence, confidence
 from ..core.config import FlowConfig
 from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
+from ..core.photometric import compares_signatures
 from ..core.refine import SolveStats
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
@@ -250,9 +251,10 @@ class FlowStream:
 
     # -------------------------------------------------------------------------------------------- frames
     def _prepare(self, frame: np.ndarray, channel_order: str) -> tuple[np.ndarray, np.ndarray | None]:
-        """Grey float32 [0, 1] at processing resolution, and with ``config.colour`` ``channels`` and a colour
-        frame its R, G, B planes (3, h, w) there (else None)."""
-        if self._settings.config.colour == "channels":
+        """Grey float32 [0, 1] at processing resolution, and with ``config.colour`` ``channels`` (census data
+        term) and a colour frame its R, G, B planes (3, h, w) there (else None)."""
+        cfg = self._settings.config
+        if cfg.colour == "channels" and compares_signatures(cfg.photometric):
             grey, planes = to_planes(frame, "frame", channel_order)
         else:
             grey, planes = to_grey(frame, "frame", channel_order), None
