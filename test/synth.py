@@ -99,3 +99,16 @@ def block_flow(h: int, w: int, box: tuple[int, int, int, int], u: float, v: floa
 def interior(a: np.ndarray, margin: int = 6) -> np.ndarray:
     """a without a border of `margin` pixels (where warped content leaves the image)."""
     return a[margin:-margin, margin:-margin]
+
+
+def isoluminant_pair(seed: int, h: int = 60, w: int = 80) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An RGB pair (h, w, 3) float32 whose motion (1.25, 0.5) px only colour shows: R carries a texture, G
+    compensates it so that the BT.601 luma is constant, B is flat; and its flow (h, w, 2)."""
+    gt = constant_flow(h, w, 1.25, 0.5)
+    r0, r1 = pair_from_flow(texture(h, w, seed=seed), gt)
+
+    def rgb(r: np.ndarray) -> np.ndarray:
+        g = (0.6 - 0.299 * r - 0.114 * 0.5) / 0.587
+        return np.stack([r, g, np.full_like(r, 0.5)], -1).astype(np.float32)
+
+    return rgb(r0), rgb(r1), gt

@@ -13,6 +13,7 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 import rclpy
 from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParametersAtomically
@@ -23,6 +24,7 @@ from rclpy.parameter import Parameter, parameter_value_to_python
 from rclpy.qos import ReliabilityPolicy
 from ros_helpers import GT, I0, I1, Harness, call, image, mono8
 from sensor_msgs.msg import Image
+from synth import isoluminant_pair
 
 from flow_node import middleware
 from flow_node.core.config import MODEL_WEIGHTS, PRESETS, FlowConfig, fields_info
@@ -69,6 +71,20 @@ def test_valid_change_applies_on_next_frame(harness: Harness) -> None:
     assert flow.shape == (30, 40, 2)  # published at the processing resolution, vectors in its pixels
     assert aee(flow, GT[::2, ::2] * 0.5) < 0.3
     assert harness.node.settings.config.alpha == 0.03
+
+
+def test_colour_channels_see_what_luma_does_not(harness: Harness) -> None:
+    """An RGB camera (bgr8: the codec's channel order) whose motion only colour shows: with census on the
+    colour channels the flow is right, on the luma it is not."""
+    c0, c1, gt = isoluminant_pair(90)
+    bgr = [np.ascontiguousarray(mono8(c)[..., ::-1]) for c in (c0, c1)]
+    results = harness.set_params(photometric="census", colour="channels")
+    assert all(r.successful for r in results), [r.reason for r in results]
+    flow = image_to_array(harness.send_pair(image(bgr[0], "bgr8", 1), image(bgr[1], "bgr8", 2)))
+    assert aee(flow[4:-4, 4:-4], gt[4:-4, 4:-4]) < 0.3
+    assert all(r.successful for r in harness.set_params(colour="grey"))
+    flow = image_to_array(harness.send_pair(image(bgr[0], "bgr8", 3), image(bgr[1], "bgr8", 4)))
+    assert aee(flow[4:-4, 4:-4], gt[4:-4, 4:-4]) > 1.0
 
 
 def test_preset_sets_its_group(harness: Harness) -> None:

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from ..core import FlowError, FlowEstimator, flow_to_color
-from ..core.api import to_grey
+from ..core.api import to_grey, to_planes
 from ..core.config import MODELS
 from ..core.errors import FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
@@ -70,6 +70,12 @@ def _not_regular(mode: int) -> str | None:
 def read_frame(path: str) -> np.ndarray:
     """An image file -> float32 grey (H, W) in [0, 1]; FlowError naming the file for anything unusable
     (missing, a directory/FIFO/device, empty, undecodable, over the size limit, garbage float values)."""
+    return read_planes(path, colour=False)[0]
+
+
+def read_planes(path: str, colour: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """An image file -> (grey (H, W), its R, G, B planes (3, H, W) or None for a grey file or ``colour``
+    False), float32 in [0, 1] (api.to_planes); errors as :func:`read_frame`."""
     shown = short_path(path)
     try:
         why = _not_regular(os.stat(path).st_mode)
@@ -80,7 +86,8 @@ def read_frame(path: str) -> np.ndarray:
         raise FileFormatError(f"cannot read {shown}: {why}")
     if not data:
         raise FileFormatError(f"cannot read {shown}: the file is empty")
-    return to_grey(decode_bytes(np.frombuffer(data, np.uint8), shown), shown)
+    decoded = decode_bytes(np.frombuffer(data, np.uint8), shown)
+    return to_planes(decoded, shown) if colour else (to_grey(decoded, shown), None)
 
 
 def _temp_for(path: str, k: int) -> Path | None:
@@ -151,8 +158,9 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args: argparse.Namespace) -> int:
     try:
         cfg = config_from_args(args)
-        i0, i1 = read_frame(args.frame0), read_frame(args.frame1)
-        result = FlowEstimator(cfg).estimate_grey(i0, i1)
+        colour = cfg.colour == "channels"
+        (i0, c0), (i1, c1) = read_planes(args.frame0, colour), read_planes(args.frame1, colour)
+        result = FlowEstimator(cfg).estimate_grey(i0, i1, channels=None if c0 is None or c1 is None else (c0, c1))
         write_outputs(result.flow, args.output, args.color, args.max_flow)
     except FlowError as exc:
         print(f"flow_estimate: error: {one_line(exc)}", file=sys.stderr)

@@ -33,6 +33,23 @@ def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") ->
     ``channel_order`` is ``rgb`` or ``bgr`` for colour input (alpha, if present, is ignored). Raises
     InputError naming the problem.
     """
+    out = to_unit(img, name, channel_order)
+    return np.ascontiguousarray(out @ _LUMA if out.ndim == 3 else out, dtype=np.float32)
+
+
+def to_planes(img: np.ndarray, name: str = "image", channel_order: str = "rgb"
+              ) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`to_grey` of an image and, for colour input, its R, G, B planes (3, H, W) float32 in [0, 1]
+    (None for grey input): what the census data term compares with ``colour = channels`` (colour.py)."""
+    out = to_unit(img, name, channel_order)
+    if out.ndim == 2:
+        return np.ascontiguousarray(out, dtype=np.float32), None
+    return np.ascontiguousarray(out @ _LUMA, dtype=np.float32), np.ascontiguousarray(np.moveaxis(out, -1, 0))
+
+
+def to_unit(img: np.ndarray, name: str = "image", channel_order: str = "rgb") -> np.ndarray:
+    """Validate an image (as :func:`to_grey`) and convert it to float32 in [0, 1]: (H, W) for grey input,
+    (H, W, 3) RGB for colour input (possibly a view)."""
     if not isinstance(img, np.ndarray):
         raise InputError(f"{name}: expected a numpy array, got {type(img).__name__}")
     if img.ndim == 3 and img.shape[2] in (1, 3, 4):
@@ -56,11 +73,10 @@ def to_grey(img: np.ndarray, name: str = "image", channel_order: str = "rgb") ->
     else:
         raise InputError(f"{name}: unsupported dtype {img.dtype}; use uint8, uint16 or float in [0, 1]")
     if channels == 1:
-        out = out[:, :, 0]
-    elif channels >= 3:
-        rgb = out[:, :, :3] if channel_order == "rgb" else out[:, :, 2::-1]
-        out = rgb @ _LUMA
-    return np.ascontiguousarray(out, dtype=np.float32)
+        return out[:, :, 0]
+    if channels >= 3:
+        return out[:, :, :3] if channel_order == "rgb" else out[:, :, 2::-1]
+    return out
 
 
 def ensure_finite(flow: np.ndarray) -> np.ndarray:
@@ -142,26 +158,38 @@ class FlowEstimator:
 
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
                  channel_order: str = "rgb") -> FlowResult:
-        """Flow from frame0 to frame1 (both images of the same size), I1(x + flow) ~ I0(x)."""
-        return self.estimate_grey(to_grey(frame0, "frame0", channel_order), to_grey(frame1, "frame1", channel_order),
-                                  initial_flow)
+        """Flow from frame0 to frame1 (both images of the same size), I1(x + flow) ~ I0(x). Colour frames are
+        compared by their luma, or with ``config.colour`` ``channels`` (and the census data term) channel by
+        channel."""
+        if self._config.colour != "channels":
+            return self.estimate_grey(to_grey(frame0, "frame0", channel_order),
+                                      to_grey(frame1, "frame1", channel_order), initial_flow)
+        (i0, c0), (i1, c1) = to_planes(frame0, "frame0", channel_order), to_planes(frame1, "frame1", channel_order)
+        return self.estimate_grey(i0, i1, initial_flow, channels=None if c0 is None or c1 is None else (c0, c1))
 
     def estimate_grey(self, i0: np.ndarray, i1: np.ndarray, initial_flow: np.ndarray | None = None,
-                      previous_flow: np.ndarray | None = None) -> FlowResult:
+                      previous_flow: np.ndarray | None = None,
+                      channels: tuple[np.ndarray, np.ndarray] | None = None) -> FlowResult:
         """:meth:`estimate` for frames that already went through :func:`to_grey` (float32 (H, W) in [0, 1],
         finite): a stream that converts each frame once on arrival need not validate it again per pair.
 
         ``initial_flow`` (H, W, 2) px is a warm start; ``previous_flow`` (H, W, 2) the flow of the pair
         that ended with i0 (a stream's; used when ``config.temporal_init`` is 1). Both are fused per pixel
-        with the pyramid's estimate on the level where they are trusted (``config.init_scale``)."""
+        with the pyramid's estimate on the level where they are trusted (``config.init_scale``).
+        ``channels``: both frames' colour planes (C, H, W) from :func:`to_planes` (i0, i1 their luma), used by
+        the census data term when ``config.colour`` is ``channels`` (colour.py)."""
         if i0.shape != i1.shape:
             raise InputError(f"frames differ in size: frame0 is {i0.shape[1]}x{i0.shape[0]}, "
                              f"frame1 is {i1.shape[1]}x{i1.shape[0]}")
+        if channels is not None and (channels[0].shape != channels[1].shape or channels[0].shape[1:] != i0.shape):
+            raise InputError(f"colour planes {channels[0].shape} and {channels[1].shape} do not match the "
+                             f"frames' size {i0.shape}")
         init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
         with self._backend.running():
-            flow, stats, judged = estimate_pair(i0, i1, self._config, self._backend, init, prev)
+            flow, stats, judged = estimate_pair(i0, i1, self._config, self._backend, init, prev,
+                                                channels if self._config.colour == "channels" else None)
             ensure_finite(flow)
             unexplained = judged.unexplained(flow)  # the photometric stage's own judge
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work

@@ -9,6 +9,7 @@ from contextlib import AbstractContextManager, nullcontext
 from typing import NamedTuple
 
 from .census import CensusForm, LevelSignature, census_form, level_signature
+from .colour import ColourForm, colour_form
 from .confidence import Confidence, confidence
 from .errors import ConfigError
 from .fusion import Fuse, fuse
@@ -29,7 +30,8 @@ def _single_threaded(threads: int) -> AbstractContextManager[object]:
 class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
     reliability figure, the fusion and its forward-backward check, the census data term's level
-    signature and per-warp form, and the per-pixel confidence of a flow (same semantics in every backend;
+    signature and per-warp form (``colour_form``: its colour version, colour.py), and the per-pixel
+    confidence of a flow (same semantics in every backend;
     the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on
     and the context that binds them (:meth:`running`).
     """
@@ -46,6 +48,7 @@ class Backend(NamedTuple):
     confidence: Confidence = confidence
     threads: int = 1
     on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
+    colour_form: ColourForm = colour_form
 
     def running(self) -> AbstractContextManager[object]:
         """The context each estimate runs in: the backend's kernels on its ``threads``, bound to the calling
@@ -107,4 +110,4 @@ def select_backend(name: str, threads: int = 0) -> Backend:
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
                    numba_census.level_signature_numba, numba_census.census_form_numba,
                    numba_confidence.confidence_numba, used,
-                   numba_backend.thread_count)
+                   numba_backend.thread_count, numba_census.colour_form_numba)

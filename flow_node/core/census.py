@@ -104,7 +104,13 @@ def quadratic_form(f0: np.ndarray, g0: np.ndarray, warped: np.ndarray, outside: 
 
     f0 (K, H, W), g0 (2, K, H, W): frame 0's signature and its gradient on this level; ``warped`` (H, W) and
     ``outside`` from :func:`warped_frame`; v0 (2, H, W) px; ``robust``: the L1 data term's weights (else 1)."""
-    f1 = signature(warped, params)
+    return signature_form(f0, g0, signature(warped, params), outside, v0, robust, params)
+
+
+def signature_form(f0: np.ndarray, g0: np.ndarray, f1: np.ndarray, outside: np.ndarray, v0: np.ndarray,
+                   robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
+    """:func:`quadratic_form` from the warped frame's signature f1 (K, H, W) (any K: colour.py stacks the
+    signatures of several channels)."""
     g1 = signature_gradient(f1)
     ax, ay = 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1])
     r0 = f1 - f0

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .colour import COLOUR_MODES
 from .errors import ConfigError, FileFormatError, short_path
 from .initialise import SOURCES as INITIALISATIONS
 from .models import MODEL_SPECS
@@ -90,6 +91,11 @@ class FlowConfig:
                           "change is detected and undone), local_contrast, structure_texture (grey values after "
                           "local normalisation / Wedel's texture part), none (grey / max)",
                           choices=PHOTOMETRIC)
+    colour: str = _f("grey", "what the data term sees of colour input: grey (the BT.601 luma) or channels (with "
+                     "photometric census: the signatures of R, G and B, each channel normalised on its own, "
+                     "stacked into one data term; invariant to white balance; ~1.9x the census term's time, "
+                     "docs/engine.md). Grey input, and the grey-value data terms, use the luma either way",
+                     choices=COLOUR_MODES)
     model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1); choosing a "
                     "model without alpha/alpha1 also selects its calibrated weights", choices=MODELS)
     alpha: float = _f(CALIBRATED, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv); default: the "

@@ -34,6 +34,7 @@ import numpy as np
 
 from .backends import Backend
 from .census import reliability as census_reliability
+from .colour import normalise_channels
 from .config import FlowConfig
 from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
@@ -69,6 +70,17 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     judge = (partial(census_reliability, sample=backend.warper.sample) if compares_signatures(cfg.photometric)
              else backend.reliability)
     return solver_pair, Judged(frames, judge)
+
+
+def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray] | None, cfg: FlowConfig
+                 ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The colour part of the photometric stage: both frames' channels (C, H, W) each normalised on its own
+    (colour.normalise_channels, with the pyramid's noise gain) when the census data term compares them; None
+    otherwise (grey-value terms and grey input use the luma only)."""
+    if channels is None or not compares_signatures(cfg.photometric):
+        return None
+    gain = noise_gain(shape, cfg)
+    return normalise_channels(channels[0], gain), normalise_channels(channels[1], gain)
 
 
 def start_level(pyr: Pyramid, cfg: FlowConfig, finest: int | None = None) -> int:
@@ -156,7 +168,8 @@ def on_grid(flow: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 
 def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
-                  initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None
+                  initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None,
+                  channels: tuple[np.ndarray, np.ndarray] | None = None
                   ) -> tuple[np.ndarray, SolveStats, Judged]:
     """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px;
     the stats; and the photometric stage's :class:`Judged` pair (what the flow's reliability and
@@ -166,10 +179,15 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     flow in a stream (used when ``cfg.temporal_init``). Both only enter through the fusion, so a wrong one
     costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
     upsampled to (H, W) by the output layout stage.
+
+    ``channels``: both frames' colour channels (C, H, W) float32 in [0, 1] (i0, i1 being their luma); with the
+    census data term they are what it compares (colour.py, each channel normalised on its own), otherwise
+    they are not used.
     """
+    channels = colour_stage(i0.shape, channels, cfg)
     (i0, i1), judged = photometric_stage(i0, i1, cfg, backend)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
-    pyr = make_pyramid(i0, i1, cfg)
+    pyr = make_pyramid(i0, i1, cfg, channels)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     state = refine_from(pyr, cfg, backend, candidates, stats)
     return interleaved_flow(state.v, pyr.shapes[0]), stats, judged

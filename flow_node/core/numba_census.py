@@ -2,7 +2,8 @@
 
 :func:`signature_kernel` computes the soft census signature of an image; :func:`warped_kernel` recovers the
 warped frame 1 from the grey-value linearisation (census.warped_frame); :func:`form_kernel` builds one
-warp's quadratic form from frame 0's signature and the warped frame's (both gradients taken inside it).
+warp's quadratic form from frame 0's signature and the warped frame's (both gradients taken inside it);
+:func:`colour_form_numba` the same over the stacked signatures of colour channels (colour.py).
 Rows run in parallel (prange), each row's loops over whole rows (1-D views, so they vectorise). Same
 float32 arithmetic as the reference up to the order of the sums (to ~1e-6 relative).
 
@@ -149,4 +150,22 @@ def census_form_numba(i0: np.ndarray, i1: np.ndarray, f0: np.ndarray, g0: None, 
     f1 = signature_numba(warped, params, out=scratch("census.f1", (len(OFFSETS), h, w)))
     out = np.empty((5, h, w), _F32)
     form_kernel(f0, f1, keep, v0, robust, _F32(params.delta), out)
+    return out
+
+
+
+def colour_form_numba(f0: np.ndarray, g0: None, warped: np.ndarray, outside: np.ndarray, v0: np.ndarray,
+                      robust: bool, params: CensusParams) -> np.ndarray:
+    """colour.colour_form with the kernels: the signature of each warped channel (C, H, W) into one stacked
+    scratch array, the form kernel's per-pixel weight (1 / C inside, 0 ``outside``: the reference's mask and
+    1 / C), then one form over all C x K channels (5, H, W)."""
+    n, h, w = warped.shape
+    k_n = len(OFFSETS)
+    f1 = scratch("colour.f1", (n * k_n, h, w))
+    for k in range(n):
+        signature_numba(warped[k], params, out=f1[k * k_n:(k + 1) * k_n])
+    weight = np.where(outside, _F32(0.0), _F32(1.0 / n)).astype(_F32)
+    out = np.empty((5, h, w), _F32)
+    form_kernel(np.ascontiguousarray(f0, dtype=_F32), f1, weight, np.ascontiguousarray(v0, dtype=_F32), robust,
+                _F32(params.delta), out)
     return out

@@ -82,11 +82,14 @@ def resize_state(state: PDState, shape: tuple[int, int]) -> PDState:
 
 @dataclass(frozen=True)
 class Pyramid:
-    """Both frames on every level, finest first: ``shapes[l]`` (h, w), ``i0[l]`` and ``i1[l]`` float32."""
+    """Both frames on every level, finest first: ``shapes[l]`` (h, w), ``i0[l]`` and ``i1[l]`` float32; with
+    colour input for the data term (colour.py), also their channels ``c0[l]``, ``c1[l]`` (C, h, w) float32."""
 
     shapes: list[tuple[int, int]]
     i0: list[np.ndarray]
     i1: list[np.ndarray]
+    c0: list[np.ndarray] | None = None
+    c1: list[np.ndarray] | None = None
 
     @property
     def coarsest(self) -> int:
@@ -118,13 +121,27 @@ def noise_gain(shape: tuple[int, int], cfg: FlowConfig) -> float:
     return min(1.0, 1.0 / (2.0 * math.sqrt(math.pi) * sigma))
 
 
-def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig) -> Pyramid:
+def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig,
+                 channels: tuple[np.ndarray, np.ndarray] | None = None) -> Pyramid:
     """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
     level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
     finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
     flow, which must not have converged to an aliased texture's wrong minimum either. With the census data
     term every step is anti-aliased too: it normalises contrast away, so an aliased remnant of fine texture
-    on a coarse level -- faint in grey values -- would weigh as much as real structure there."""
+    on a coarse level -- faint in grey values -- would weigh as much as real structure there. ``channels``:
+    both frames' colour channels (C, H, W), pyramids of each built the same way (Pyramid.c0, c1)."""
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
     antialias = len(shapes) if min(cfg.finest_level, len(shapes) - 1) > 0 or compares_signatures(cfg.photometric) else 0
-    return Pyramid(shapes, *(build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1)))
+    grey = (build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1))
+    if channels is None:
+        return Pyramid(shapes, *grey)
+    c0, c1 = (channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels)
+    return Pyramid(shapes, *grey, c0, c1)
+
+
+def channel_pyramid(frame: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0
+                    ) -> list[np.ndarray]:
+    """:func:`build_pyramid` of every channel of frame (C, H, W): (C, h, w) per level. OpenCV filters the
+    channels interleaved, one call per step for all of them (the same filter on each)."""
+    levels = build_pyramid(np.ascontiguousarray(np.moveaxis(frame, 0, -1)), shapes, scale, antialias_levels)
+    return [np.ascontiguousarray(np.moveaxis(level.reshape(level.shape[:2] + (-1,)), -1, 0)) for level in levels]

@@ -18,6 +18,7 @@ import numpy as np
 from .backends import Backend
 from .bregman import bregman
 from .census import CENSUS
+from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
@@ -82,11 +83,16 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     place. The data term (``cfg.photometric``): grey values (the backend's fused
     warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked; the level's warp source and
     frame 0's gradient are scratch arrays reused from call to call, workspace.py) or census signatures
-    (:func:`census_problem`). Returns (iterations, Bregman iterations)."""
+    (:func:`census_problem`; with the pyramid's colour channels :func:`colour_problem`). Returns (iterations,
+    Bregman iterations)."""
     warps, per_warp = level_schedule(cfg, on_finest)
     params = level_params(cfg, level, per_warp)
-    linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
-        pyr.i0[level], pyr.i1[level], cfg, backend, params.spec.data == "l1")
+    robust = params.spec.data == "l1"
+    if pyr.c0 is not None and pyr.c1 is not None and compares_signatures(cfg.photometric):
+        linearised = colour_problem(pyr.c0[level], pyr.c1[level], cfg, backend, robust)
+    else:
+        linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
+            pyr.i0[level], pyr.i1[level], cfg, backend, robust)
     iterations = 0
     for _ in range(warps):
         problem = linearised(state.v)
@@ -126,6 +132,23 @@ def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Bac
     def around(v0: np.ndarray) -> Problem:
         lin = grey(v0)
         return Problem(lin.a, lin.c, q=backend.census_form(i0, i1, f0, g0, lin.a, lin.c, v0, robust, CENSUS))
+
+    return around
+
+
+def colour_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool
+                   ) -> Linearisation:
+    """The census data term on colour channels c0, c1 (C, h, w) (colour.py): frame 0's stacked signatures and
+    frame 1's interpolation coefficients once per level; per warp frame 1's channels sampled at x + v0 and the
+    colour form around v0. The form replaces (a, c) in the solve: they are zeros."""
+    coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
+    f0, g0 = channel_signature(c0, backend.signature, CENSUS)
+    h, w = c0.shape[1:]
+    a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
+
+    def around(v0: np.ndarray) -> Problem:
+        warped, outside = warped_channels(coefs, c1, v0, cfg.warp_kernel, backend.warper.sample)
+        return Problem(a, c, q=backend.colour_form(f0, g0, warped, outside, v0, robust, CENSUS))
 
     return around
 

@@ -30,11 +30,12 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-from ..core.api import FlowEstimator, to_grey
+from ..core.api import FlowEstimator, to_grey, to_planes
 from ..core.confidence import Confidence, confidence
 from ..core.config import FlowConfig
 from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
+from ..core.photometric import compares_signatures
 from ..core.refine import SolveStats
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
@@ -198,6 +199,7 @@ class FlowStream:
         self._reset_requested: str | None = None  # the reason of a reset asked for
         self._lock = threading.Lock()
         self._prev: np.ndarray | None = None
+        self._prev_planes: np.ndarray | None = None  # _prev's colour planes (3, h, w) with config.colour channels
         self._prev_key: tuple[tuple[int, ...], str] | None = None
         self._prev_stamp: int = 0
         self._prev_flow: np.ndarray | None = None  # flow of the pair that ended with _prev (temporal_init)
@@ -248,17 +250,25 @@ class FlowStream:
         return reason
 
     # -------------------------------------------------------------------------------------------- frames
-    def _prepare(self, frame: np.ndarray, channel_order: str) -> np.ndarray:
-        """Grey float32 [0, 1] at processing resolution."""
-        grey = to_grey(frame, "frame", channel_order)
+    def _prepare(self, frame: np.ndarray, channel_order: str) -> tuple[np.ndarray, np.ndarray | None]:
+        """Grey float32 [0, 1] at processing resolution, and with ``config.colour`` ``channels`` (census data
+        term) and a colour frame its R, G, B planes (3, h, w) there (else None)."""
+        cfg = self._settings.config
+        if cfg.colour == "channels" and compares_signatures(cfg.photometric):
+            grey, planes = to_planes(frame, "frame", channel_order)
+        else:
+            grey, planes = to_grey(frame, "frame", channel_order), None
         scale = self._settings.input_scale
         if scale == 1.0:
-            return grey
+            return grey, planes
         h, w = scaled_shape(grey.shape, scale)
-        return cv2.resize(grey, (w, h), interpolation=cv2.INTER_AREA)
+        small = [cv2.resize(p, (w, h), interpolation=cv2.INTER_AREA) for p in ([grey] if planes is None else
+                                                                                 [grey, *planes])]
+        return small[0], None if planes is None else np.stack(small[1:])
 
-    def _start(self, grey: np.ndarray, key: tuple[tuple[int, ...], str], stamp_ns: int, reason: str) -> None:
-        self._prev, self._prev_key, self._prev_stamp = grey, key, stamp_ns
+    def _start(self, grey: np.ndarray, planes: np.ndarray | None, key: tuple[tuple[int, ...], str], stamp_ns: int,
+               reason: str) -> None:
+        self._prev, self._prev_planes, self._prev_key, self._prev_stamp = grey, planes, key, stamp_ns
         self._prev_flow = None
         self.last_reset_reason = reason
 
@@ -270,7 +280,7 @@ class FlowStream:
         validated in ``update``). ``self.last_reset_reason`` says why the last None was returned.
         """
         reason = self._apply_pending()
-        grey = self._prepare(frame, channel_order)
+        grey, planes = self._prepare(frame, channel_order)
         key = (tuple(frame.shape), encoding)
         if self._prev is None:  # whatever was asked for before
             reason = "first frame"
@@ -280,13 +290,15 @@ class FlowStream:
         elif reason is None and stamp_ns < self._prev_stamp:
             reason = f"stamp went back {(self._prev_stamp - stamp_ns) / 1e9:.3f} s"
         if reason is not None:
-            self._start(grey, key, stamp_ns, reason)
+            self._start(grey, planes, key, stamp_ns, reason)
             return None
         prev, prev_stamp = self._prev, self._prev_stamp
         s = self._settings
         previous = self._prev_flow if s.config.temporal_init else None
-        result = self._estimator.estimate_grey(prev, grey, previous_flow=previous)  # both from _prepare
-        self._prev, self._prev_stamp = grey, stamp_ns
+        channels = None if planes is None or self._prev_planes is None else (self._prev_planes, planes)
+        result = self._estimator.estimate_grey(prev, grey, previous_flow=previous,  # both from _prepare
+                                               channels=channels)
+        self._prev, self._prev_planes, self._prev_stamp = grey, planes, stamp_ns
         self._prev_flow = result.flow if s.config.temporal_init else None
         out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,

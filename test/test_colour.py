@@ -1,0 +1,190 @@
+"""Colour input for the census data term (core/colour.py; numba: numba_census.colour_form_numba): the colour
+form against the grey one, the numba kernels against the numpy oracle, and the engine, the stream and the
+CLI with ``colour = channels`` -- invariant to white balance, and seeing edges that luma does not."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import small_frames
+from synth import constant_flow, interior, isoluminant_pair, pair_from_flow, texture
+
+from flow_node.cli.estimate import read_planes
+from flow_node.core.api import FlowEstimator, to_grey, to_planes
+from flow_node.core.census import CENSUS, census_form, level_signature
+from flow_node.core.colour import channel_signature, colour_form, normalise_channels, warped_channels
+from flow_node.core.errors import InputError
+from flow_node.core.metrics import aee
+from flow_node.core.numba_backend import WARPER
+from flow_node.core.numba_census import colour_form_numba, level_signature_numba
+from flow_node.core.operators import linearise, warp_source
+from flow_node.core.pyramid import build_pyramid, channel_pyramid, pyramid_shapes
+from flow_node.core.warping import NUMPY_WARPER, Sample
+from flow_node.pipeline.stream import FlowStream, StreamSettings
+
+H, W = 36, 48
+AGREE = 1e-5
+CENSUS_CFG = small_frames.CONFIG.with_overrides(["photometric=census"])
+COLOUR_CFG = CENSUS_CFG.with_overrides(["colour=channels"])
+
+
+def channels(seed: int, n: int = 3, h: int = H, w: int = W) -> np.ndarray:
+    return np.stack([texture(h, w, seed=seed + k, cell=2).image for k in range(n)]).astype(np.float32)
+
+
+def warp_of(c1: np.ndarray, seed: int, sample: Sample = NUMPY_WARPER.sample) -> tuple[np.ndarray, ...]:
+    """A flow v0 that takes a corner of the frame outside, and c1 (C, H, W) warped by it (warped_channels)."""
+    v0 = (0.5 * np.random.default_rng(seed).standard_normal((2, H, W))).astype(np.float32)
+    v0[0, :4, :5] = -20.0
+    coefs = NUMPY_WARPER.coefficients(c1, "bspline")
+    return (v0, *warped_channels(coefs, c1, v0, "bspline", sample))
+
+
+def test_three_equal_channels_give_the_grey_census_form() -> None:
+    grey, i1 = channels(1, n=1)[0], channels(7, n=1)[0]
+    v0, warped, outside = warp_of(np.stack([i1] * 3), 2)
+    a, c = linearise(grey, warp_source(i1, "central", "bspline"), None, v0, "central", "bspline")
+    assert outside[:4, :5].all() and not outside[4:-4, 6:-4].any()
+    f0, g0 = level_signature(grey, CENSUS)
+    cf0, cg0 = channel_signature(np.stack([grey] * 3), level_signature, CENSUS)
+    for robust in (False, True):
+        want = census_form(grey, i1, f0, g0, a, c, v0, robust, CENSUS)
+        got = colour_form(cf0, cg0, warped, outside, v0, robust, CENSUS)
+        np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-5)
+
+
+def test_a_channel_with_different_texture_changes_the_form() -> None:
+    i0, i1 = channels(1), channels(11)
+    v0, warped, outside = warp_of(i1, 3)
+    base = colour_form(*channel_signature(i0, level_signature, CENSUS), warped, outside, v0, False, CENSUS)
+    i0b = i0.copy()
+    i0b[2] = channels(21, n=1)[0]
+    other = colour_form(*channel_signature(i0b, level_signature, CENSUS), warped, outside, v0, False, CENSUS)
+    assert np.abs(other - base).max() > 1e-2
+
+
+@pytest.mark.parametrize("robust", [False, True])
+def test_numba_colour_form_matches_numpy(robust: bool) -> None:
+    i0, i1 = channels(4), channels(14)
+    v0, warped, outside = warp_of(i1, 5)
+    f0, g0 = channel_signature(i0, level_signature, CENSUS)
+    want = colour_form(f0, g0, warped, outside, v0, robust, CENSUS)
+    _, warped_n, outside_n = warp_of(i1, 5, WARPER.sample)
+    np.testing.assert_allclose(warped_n, warped, atol=AGREE)
+    np.testing.assert_array_equal(outside_n, outside)
+    f0n, g0n = channel_signature(i0, level_signature_numba, CENSUS)
+    assert g0n is None
+    np.testing.assert_allclose(f0n, f0, atol=AGREE)
+    got = colour_form_numba(f0n, None, warped_n, outside_n, v0, robust, CENSUS)
+    np.testing.assert_allclose(got, want, atol=AGREE, rtol=AGREE)
+    assert np.all(got[:, :4, :5] == 0.0) and np.all(got[2, 4:-4, 6:-4] > 0.0)  # no data term only outside
+
+
+def test_colour_form_needs_frame_0s_gradients() -> None:
+    i0 = channels(4)
+    v0, warped, outside = warp_of(i0, 5)
+    with pytest.raises(ValueError, match="gradients"):
+        colour_form(channel_signature(i0, level_signature_numba, CENSUS)[0], None, warped, outside, v0, False,
+                    CENSUS)
+
+
+def test_normalise_channels_undoes_a_gain_per_channel() -> None:
+    frame = channels(6)
+    balanced = frame * np.array([1.15, 1.0, 0.8], np.float32)[:, None, None]
+    np.testing.assert_allclose(normalise_channels(balanced), normalise_channels(frame), atol=1e-5)
+
+
+def rgb_pair(seed: int, u: float = 1.5, v: float = -0.75, h: int = 60, w: int = 80
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An RGB pair (H, W, 3) float32 of three independent textures moving by (u, v), and its flow."""
+    gt = constant_flow(h, w, u, v)
+    planes = [pair_from_flow(texture(h, w, seed=seed + k), gt) for k in range(3)]
+    return (np.stack([p[0] for p in planes], -1).astype(np.float32),
+            np.stack([p[1] for p in planes], -1).astype(np.float32), gt)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_colour_flow_is_invariant_to_white_balance(backend: str) -> None:
+    c0, c1, gt = rgb_pair(30)
+    cfg = COLOUR_CFG.with_overrides([f"backend={backend}"])
+    est = FlowEstimator(cfg)
+    plain = est.estimate(c0, c1).flow
+    balanced = est.estimate(c0, c1 * np.array([1.2, 1.0, 0.8], np.float32)).flow
+    assert aee(interior(plain), interior(gt)) < 0.1
+    np.testing.assert_allclose(balanced, plain, atol=1e-3)
+
+
+def test_colour_sees_motion_that_luma_does_not() -> None:
+    c0, c1, gt = isoluminant_pair(40)
+    assert np.ptp(to_grey(c0)) < 1e-5
+    grey = FlowEstimator(CENSUS_CFG).estimate(c0, c1).flow
+    colour = FlowEstimator(COLOUR_CFG).estimate(c0, c1).flow
+    assert aee(interior(grey), interior(gt)) > 1.0  # luma is flat: no motion to see
+    assert aee(interior(colour), interior(gt)) < 0.15
+
+
+def test_grey_input_and_grey_value_terms_ignore_the_colour_setting() -> None:
+    c0, c1, _ = rgb_pair(50)
+    grey0, grey1 = to_grey(c0), to_grey(c1)
+    np.testing.assert_array_equal(FlowEstimator(COLOUR_CFG).estimate(grey0, grey1).flow,
+                                  FlowEstimator(CENSUS_CFG).estimate(grey0, grey1).flow)
+    normalise = small_frames.CONFIG
+    np.testing.assert_array_equal(FlowEstimator(normalise.with_overrides(["colour=channels"])).estimate(c0, c1).flow,
+                                  FlowEstimator(normalise).estimate(c0, c1).flow)
+
+
+def test_to_planes_orders_channels_and_keeps_grey_grey() -> None:
+    rgb = (np.arange(4 * 5 * 3).reshape(4, 5, 3) % 256).astype(np.uint8)
+    grey, planes = to_planes(rgb)
+    np.testing.assert_array_equal(grey, to_grey(rgb))
+    np.testing.assert_allclose(planes, np.moveaxis(rgb, -1, 0) / np.float32(255.0), rtol=1e-6)
+    _, bgr = to_planes(rgb[..., ::-1], channel_order="bgr")
+    np.testing.assert_array_equal(bgr, planes)
+    _, rgba = to_planes(np.dstack([rgb, rgb[..., :1]]))
+    np.testing.assert_array_equal(rgba, planes)
+    assert to_planes(rgb[..., 0])[1] is None
+    with pytest.raises(InputError, match="dtype"):
+        to_planes(rgb.astype(np.int32))
+
+
+def test_mismatched_planes_are_rejected() -> None:
+    c0, c1, _ = rgb_pair(60)
+    (i0, p0), (i1, p1) = to_planes(c0), to_planes(c1)
+    with pytest.raises(InputError, match="colour planes"):
+        FlowEstimator(COLOUR_CFG).estimate_grey(i0, i1, channels=(p0, p1[:, :-1]))
+
+
+@pytest.mark.parametrize("scale", [1.0, 0.5])
+def test_stream_uses_colour_planes(scale: float) -> None:
+    c0, c1, gt = isoluminant_pair(70)
+    u8 = [(c * 255).round().astype(np.uint8) for c in (c0, c1)]
+    for cfg, good in ((COLOUR_CFG, True), (CENSUS_CFG, False)):
+        s = FlowStream(StreamSettings(config=cfg, input_scale=scale))
+        s.process(u8[0], 0, "rgb8")
+        out = s.process(u8[1], 1, "rgb8")
+        h, w = out.flow.shape[:2]
+        err = aee(interior(out.flow, 4), interior(constant_flow(h, w, gt[0, 0, 0] * scale, gt[0, 0, 1] * scale), 4))
+        assert (err < 0.3 * scale) == good, err
+
+
+def test_cli_reads_colour_planes(tmp_path: pytest.TempPathFactory) -> None:
+    import cv2
+
+    c0 = np.clip(rgb_pair(80)[0], 0.0, 1.0)
+    path = tmp_path / "f.png"
+    cv2.imwrite(str(path), (c0[..., ::-1] * 255).round().astype(np.uint8))  # OpenCV writes BGR
+    grey, planes = read_planes(str(path))
+    assert planes is not None and planes.shape == (3, 60, 80)
+    np.testing.assert_allclose(planes, np.moveaxis(c0, -1, 0), atol=0.6 / 255)
+    assert read_planes(str(path), colour=False)[1] is None and grey.shape == (60, 80)
+
+
+@pytest.mark.parametrize("antialias", [0, 6])
+def test_channel_pyramid_is_each_channels_pyramid(antialias: int) -> None:
+    frame = channels(9, h=97, w=131)
+    shapes = pyramid_shapes((97, 131), 6, 0.5, 8)
+    levels = channel_pyramid(frame, shapes, 0.5, antialias)
+    assert [lv.shape for lv in levels] == [(3,) + s for s in shapes]
+    for k in range(3):
+        for got, want in zip(levels, build_pyramid(frame[k], shapes, 0.5, antialias), strict=True):
+            np.testing.assert_allclose(got[k], want, atol=1e-6)
