@@ -1,0 +1,294 @@
+"""numba kernels of the 3-D engine (core/volume.py): the primal-dual iteration on volumes and the trilinear
+linearisation of one warp.
+
+The same arithmetic as solver.solve_numpy (the oracle) on (Z, Y, X) grids, for all five models (integer
+flags as in numba_kernels.py: ``reg`` from REG_CODES, ``data_l1``, ``iso``) and the incompressibility
+penalty (``inc``). One dual pass and one primal pass per iteration, each streaming every array once with
+grad/div fused into the voxel loop; slices (z) run in parallel (prange). Boundaries as in operators.py:
+forward differences are zero across the far border (clamped neighbour index times a 0/1 mask), the
+divergence is their exact negative adjoint.
+
+Layout (models.py): v (3, Z, Y, X) with v[0] = x, v[1] = y, v[2] = z; y (3, 3, Z, Y, X) [dir, comp]; w like
+y; z (3, 3, 3, Z, Y, X) [dir2, dir, comp]; s (Z, Y, X); a (3, Z, Y, X); c (Z, Y, X). Arrays a model does not
+use are passed as small dummies of the same rank (never read). All float32 C-contiguous.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .models import step_sizes
+from .numba_backend import PARALLEL_MIN_PIXELS
+from .numba_kernels import REG_CODES
+from .solver import CHECK_EVERY, PDState, Problem, SolveParams
+
+_JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
+_ONE = np.float32(1.0)
+_ZERO = np.float32(0.0)
+
+
+@njit(**_JIT)
+def _fwd(f, c, k, i, j, kn, i_n, jn, mk, mi, mj):  # noqa: ANN001, ANN201
+    """Forward differences of f[c] at voxel (k, i, j) in directions x, y, z (0 across the far border)."""
+    f0 = f[c, k, i, j]
+    return (f[c, k, i, jn] - f0) * mj, (f[c, k, i_n, j] - f0) * mi, (f[c, kn, i, j] - f0) * mk
+
+
+@njit(**_JIT)
+def _bwd(p, d, c, k, i, j, kp, ip, jp, ok, oi, oj, pk, pi, pj):  # noqa: ANN001, ANN201
+    """Backward difference of p[d, c] along direction d at (k, i, j): p[x] * own - p[x - 1] * prev, the masks
+    own (not the last entry) and prev (not the first) of that direction (operators.div)."""
+    if d == 0:
+        return p[d, c, k, i, j] * oj - p[d, c, k, i, jp] * pj
+    if d == 1:
+        return p[d, c, k, i, j] * oi - p[d, c, k, ip, j] * pi
+    return p[d, c, k, i, j] * ok - p[d, c, kp, i, j] * pk
+
+
+def _make_kernels(parallel: bool):  # noqa: ANN202
+    """Compile the dual pass, the primal pass and the linearisation, parallel over slices or serial."""
+
+    def dual_pass(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc):  # noqa: ANN001, ANN202
+        """y <- prox(y + sigma (grad v_bar - w_bar)); z <- proj(z + sigma grad w_bar); s <- prox(s + sigma
+        div v_bar). In place."""
+        nz, ny, nx = v_bar.shape[1], v_bar.shape[2], v_bar.shape[3]
+        l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
+        s_scale = _ONE / (_ONE + sigma / rel_inc) if inc else _ONE
+        for k in prange(nz):
+            kn, mk = min(k + 1, nz - 1), _ONE if k < nz - 1 else _ZERO
+            for i in range(ny):
+                i_n, mi = min(i + 1, ny - 1), _ONE if i < ny - 1 else _ZERO
+                for j in range(nx):
+                    jn, mj = min(j + 1, nx - 1), _ONE if j < nx - 1 else _ZERO
+                    n2 = _ZERO
+                    dv = _ZERO
+                    for c in range(3):
+                        gx, gy, gz = _fwd(v_bar, c, k, i, j, kn, i_n, jn, mk, mi, mj)
+                        dv += gx if c == 0 else (gy if c == 1 else gz)
+                        if reg >= 2:
+                            gx -= w_bar[0, c, k, i, j]
+                            gy -= w_bar[1, c, k, i, j]
+                            gz -= w_bar[2, c, k, i, j]
+                        tx = (y[0, c, k, i, j] + sigma * gx) * l2_scale
+                        ty = (y[1, c, k, i, j] + sigma * gy) * l2_scale
+                        tz = (y[2, c, k, i, j] + sigma * gz) * l2_scale
+                        if reg != 0 and not iso:
+                            tx, ty, tz = min(max(tx, -_ONE), _ONE), min(max(ty, -_ONE), _ONE), min(max(tz, -_ONE), _ONE)
+                        y[0, c, k, i, j], y[1, c, k, i, j], y[2, c, k, i, j] = tx, ty, tz
+                        n2 += tx * tx + ty * ty + tz * tz
+                    if reg != 0 and iso and n2 > _ONE:
+                        m = _ONE / np.float32(math.sqrt(n2))
+                        for d in range(3):
+                            for c in range(3):
+                                y[d, c, k, i, j] *= m
+                    if inc:
+                        s[k, i, j] = (s[k, i, j] + sigma * dv) * s_scale
+                    if reg == 3:
+                        _z_voxel(w_bar, z, k, i, j, kn, i_n, jn, mk, mi, mj, sigma, rel1, iso)
+
+    def primal_pass(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc):  # noqa: ANN001, ANN202
+        """v <- prox_data(v + tau div(y + diag s)); w <- w + tau (y + div z) (tv_tv) or shrunk (tv_l2); the
+        extrapolations v_bar, w_bar. In place; returns sum |v_new - v|^2."""
+        nz, ny, nx = v.shape[1], v.shape[2], v.shape[3]
+        per_slice = np.zeros(nz)  # sum |v_new - v|^2 of each slice (a scalar reduction confuses the parfor pass)
+        for k in prange(nz):
+            kp, ok, pk = max(k - 1, 0), _ONE if k < nz - 1 else _ZERO, _ONE if k > 0 else _ZERO
+            acc = 0.0
+            for i in range(ny):
+                ip, oi, pi = max(i - 1, 0), _ONE if i < ny - 1 else _ZERO, _ONE if i > 0 else _ZERO
+                for j in range(nx):
+                    jp, oj, pj = max(j - 1, 0), _ONE if j < nx - 1 else _ZERO, _ONE if j > 0 else _ZERO
+                    vt0, vt1, vt2 = _ZERO, _ZERO, _ZERO
+                    for cc in range(3):
+                        dy = _ZERO
+                        for d in range(3):
+                            dy += _bwd(y, d, cc, k, i, j, kp, ip, jp, ok, oi, oj, pk, pi, pj)
+                        if inc:  # s sits on y's diagonal: the backward difference of s along cc
+                            if cc == 0:
+                                dy += s[k, i, j] * oj - s[k, i, jp] * pj
+                            elif cc == 1:
+                                dy += s[k, i, j] * oi - s[k, ip, j] * pi
+                            else:
+                                dy += s[k, i, j] * ok - s[kp, i, j] * pk
+                        t = v[cc, k, i, j] + tau * dy
+                        if cc == 0:
+                            vt0 = t
+                        elif cc == 1:
+                            vt1 = t
+                        else:
+                            vt2 = t
+                    a0, a1, a2 = a[0, k, i, j], a[1, k, i, j], a[2, k, i, j]
+                    r = a0 * vt0 + a1 * vt1 + a2 * vt2 + c[k, i, j]
+                    aa = a0 * a0 + a1 * a1 + a2 * a2
+                    if data_l1:
+                        step = min(max(-r / max(aa, np.float32(1e-12)), -tau_d), tau_d)
+                    else:
+                        step = -(tau_d * r / (_ONE + tau_d * aa))
+                    n0, n1, n2 = vt0 + step * a0, vt1 + step * a1, vt2 + step * a2
+                    d0, d1, d2 = n0 - v[0, k, i, j], n1 - v[1, k, i, j], n2 - v[2, k, i, j]
+                    v_bar[0, k, i, j], v_bar[1, k, i, j], v_bar[2, k, i, j] = n0 + d0, n1 + d1, n2 + d2
+                    v[0, k, i, j], v[1, k, i, j], v[2, k, i, j] = n0, n1, n2
+                    acc += d0 * d0 + d1 * d1 + d2 * d2
+                    if reg >= 2:
+                        _w_voxel(w, w_bar, y, z, k, i, j, kp, ip, jp, ok, oi, oj, pk, pi, pj, tau, rel1, reg)
+            per_slice[k] = acc
+        return per_slice.sum()
+
+    def linearise(i0, src, v0, gi0, interpolated, a, c):  # noqa: ANN001, ANN202
+        """Trilinear samples of src = [I1, grad I1] (4, Z, Y, X) at x + v0; a = the warped gradient (its mean
+        with gi0 when ``interpolated``), c = I1(x + v0) - I0 - a . v0; both 0 where x + v0 leaves the volume."""
+        nz, ny, nx = i0.shape
+        for k in prange(nz):
+            for i in range(ny):
+                for j in range(nx):
+                    px, py, pz = j + v0[0, k, i, j], i + v0[1, k, i, j], k + v0[2, k, i, j]
+                    if not (0.0 <= px <= nx - 1 and 0.0 <= py <= ny - 1 and 0.0 <= pz <= nz - 1):
+                        a[0, k, i, j], a[1, k, i, j], a[2, k, i, j], c[k, i, j] = _ZERO, _ZERO, _ZERO, _ZERO
+                        continue
+                    x0, y0, z0 = min(int(px), nx - 1), min(int(py), ny - 1), min(int(pz), nz - 1)
+                    x1, y1, z1 = min(x0 + 1, nx - 1), min(y0 + 1, ny - 1), min(z0 + 1, nz - 1)
+                    fx, fy, fz = np.float32(px - x0), np.float32(py - y0), np.float32(pz - z0)
+                    s0 = _trilinear(src, 0, x0, y0, z0, x1, y1, z1, fx, fy, fz)
+                    s1 = _trilinear(src, 1, x0, y0, z0, x1, y1, z1, fx, fy, fz)
+                    s2 = _trilinear(src, 2, x0, y0, z0, x1, y1, z1, fx, fy, fz)
+                    s3 = _trilinear(src, 3, x0, y0, z0, x1, y1, z1, fx, fy, fz)
+                    if interpolated:
+                        s1 = np.float32(0.5) * (gi0[0, k, i, j] + s1)
+                        s2 = np.float32(0.5) * (gi0[1, k, i, j] + s2)
+                        s3 = np.float32(0.5) * (gi0[2, k, i, j] + s3)
+                    a[0, k, i, j], a[1, k, i, j], a[2, k, i, j] = s1, s2, s3
+                    c[k, i, j] = (s0 - i0[k, i, j] - s1 * v0[0, k, i, j] - s2 * v0[1, k, i, j]
+                                  - s3 * v0[2, k, i, j])
+
+    suffix = "par" if parallel else "ser"
+    out = []
+    for fn in (dual_pass, primal_pass, linearise):
+        fn.__name__ = fn.__qualname__ = f"{fn.__name__}3_{suffix}"
+        out.append(njit(parallel=parallel, **_JIT)(fn))
+    return tuple(out)
+
+
+@njit(**_JIT)
+def _trilinear(src, ch, x0, y0, z0, x1, y1, z1, fx, fy, fz):  # noqa: ANN001, ANN201
+    """Trilinear interpolation of src[ch] between the corners (x0..x1, y0..y1, z0..z1) at fractions f."""
+    c00 = src[ch, z0, y0, x0] + fx * (src[ch, z0, y0, x1] - src[ch, z0, y0, x0])
+    c01 = src[ch, z0, y1, x0] + fx * (src[ch, z0, y1, x1] - src[ch, z0, y1, x0])
+    c10 = src[ch, z1, y0, x0] + fx * (src[ch, z1, y0, x1] - src[ch, z1, y0, x0])
+    c11 = src[ch, z1, y1, x0] + fx * (src[ch, z1, y1, x1] - src[ch, z1, y1, x0])
+    c0 = c00 + fy * (c01 - c00)
+    c1 = c10 + fy * (c11 - c10)
+    return c0 + fz * (c1 - c0)
+
+
+@njit(**_JIT)
+def _z_voxel(w_bar, z, k, i, j, kn, i_n, jn, mk, mi, mj, sigma, rel1, iso):  # noqa: ANN001, ANN201
+    """z <- projection of z + sigma grad w_bar onto the ball of radius rel1 (27 components) at one voxel."""
+    n2 = _ZERO
+    for d in range(3):
+        for c in range(3):
+            w0 = w_bar[d, c, k, i, j]
+            gx = (w_bar[d, c, k, i, jn] - w0) * mj
+            gy = (w_bar[d, c, k, i_n, j] - w0) * mi
+            gz = (w_bar[d, c, kn, i, j] - w0) * mk
+            tx, ty, tz = z[0, d, c, k, i, j] + sigma * gx, z[1, d, c, k, i, j] + sigma * gy, z[2, d, c, k, i, j] + sigma * gz
+            if not iso:
+                tx, ty, tz = min(max(tx, -rel1), rel1), min(max(ty, -rel1), rel1), min(max(tz, -rel1), rel1)
+            z[0, d, c, k, i, j], z[1, d, c, k, i, j], z[2, d, c, k, i, j] = tx, ty, tz
+            n2 += tx * tx + ty * ty + tz * tz
+    if iso:
+        m = max(_ONE, np.float32(math.sqrt(n2)) / rel1)
+        for e in range(3):
+            for d in range(3):
+                for c in range(3):
+                    z[e, d, c, k, i, j] /= m
+
+
+@njit(**_JIT)
+def _w_voxel(w, w_bar, y, z, k, i, j, kp, ip, jp, ok, oi, oj, pk, pi, pj, tau, rel1, reg):  # noqa: ANN001, ANN201
+    """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w."""
+    shrink = _ONE + tau * rel1
+    for d in range(3):
+        for c in range(3):
+            wt = w[d, c, k, i, j] + tau * y[d, c, k, i, j]
+            if reg == 3:
+                dz = (z[0, d, c, k, i, j] * oj - z[0, d, c, k, i, jp] * pj
+                      + z[1, d, c, k, i, j] * oi - z[1, d, c, k, ip, j] * pi
+                      + z[2, d, c, k, i, j] * ok - z[2, d, c, kp, i, j] * pk)
+                wt += tau * dz
+            else:
+                wt = wt / shrink
+            w_bar[d, c, k, i, j] = wt + (wt - w[d, c, k, i, j])
+            w[d, c, k, i, j] = wt
+
+
+dual_pass_par, primal_pass_par, linearise_par = _make_kernels(True)
+dual_pass_ser, primal_pass_ser, linearise_ser = _make_kernels(False)
+
+
+@njit(**_JIT)
+def iterate(v, y, w, z, s, v_bar, w_bar, a, c, tau, sigma, tau_d, rel1, rel_inc,  # noqa: ANN001, ANN201
+            data_l1, reg, iso, inc, iterations, tolerance, check_every, parallel):
+    """Up to ``iterations`` primal-dual steps (stopping rule of solver.solve_numpy). Returns the count."""
+    n = 3.0 * v.shape[1] * v.shape[2] * v.shape[3]
+    k = 0
+    for k in range(1, iterations + 1):
+        if parallel:
+            dual_pass_par(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc)
+            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc)
+        else:
+            dual_pass_ser(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc)
+            ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc)
+        if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
+            break
+    return k
+
+
+# ------------------------------------------------------------------------------------- the solver's glue
+_DUMMY = {n: np.zeros((3,) * n + (1, 1, 1), np.float32) for n in (0, 2, 3)}
+
+
+def _c32(x: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=np.float32)
+
+
+def _parallel(shape: tuple[int, ...]) -> bool:
+    return int(np.prod(shape)) >= PARALLEL_MIN_PIXELS
+
+
+def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
+    """solver.solve_numpy on a volume with these kernels (same semantics; the state is updated in place,
+    made float32 C-contiguous first). Returns the iterations run."""
+    spec = p.spec
+    inc = p.incompressibility > 0.0
+    tau, sigma = step_sizes(spec, 3, inc)
+    state.v = _c32(state.v)
+    state.y = _c32(state.y)
+    if spec.extended:
+        state.w = _c32(state.w)
+    if spec.regulariser == "tv_tv":
+        state.z = _c32(state.z)
+    if inc and state.s is None:
+        state.s = np.zeros(state.v.shape[1:], np.float32)
+    w = state.w if spec.extended else _DUMMY[2]
+    z = state.z if spec.regulariser == "tv_tv" else _DUMMY[3]
+    s = _c32(state.s) if inc else _DUMMY[0]
+    state.s = s if inc else state.s
+    f32 = np.float32
+    return iterate(state.v, state.y, w, z, s, state.v.copy(), w.copy(), _c32(problem.a), _c32(problem.c),
+                   f32(tau), f32(sigma), f32(tau / p.alpha), f32(p.alpha1 / p.alpha),
+                   f32(p.incompressibility / p.alpha), spec.data == "l1", REG_CODES[spec.regulariser],
+                   p.tv_norm == "isotropic", inc, p.iterations, p.tolerance, CHECK_EVERY,
+                   _parallel(state.v.shape[1:]))
+
+
+def linearise_numba(i0: np.ndarray, src: np.ndarray, v0: np.ndarray, gi0: np.ndarray | None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """volume.linearise3 with the trilinear kernel: (a (3, Z, Y, X), c (Z, Y, X)) float32."""
+    a = np.empty((3,) + i0.shape, np.float32)
+    c = np.empty(i0.shape, np.float32)
+    kernel = linearise_par if _parallel(i0.shape) else linearise_ser
+    kernel(_c32(i0), _c32(src), _c32(v0), _DUMMY[0][None] if gi0 is None else _c32(gi0), gi0 is not None, a, c)
+    return a, c
