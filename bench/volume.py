@@ -35,7 +35,7 @@ from .common import REPO, machine, write_json
 RESULTS = REPO / "bench" / "results" / "volume"
 # The volume settings measured here (FlowConfig fields; docs/engine.md, "Volumes").
 SETTINGS: dict[str, Any] = dict(model="l1_tv", alpha=0.03, warps=3, iterations=20, levels=5, scale_factor=0.5,
-                                min_size=12, gradient_scheme="central", tolerance=0.0)
+                                min_size=12, gradient_scheme="interpolated", tolerance=0.0, threads=1)
 Motion = Callable[[np.ndarray], np.ndarray]  # points (..., 3) x, y, z -> moved points
 
 

@@ -30,24 +30,6 @@ _ONE = np.float32(1.0)
 _ZERO = np.float32(0.0)
 
 
-@njit(**_JIT)
-def _fwd(f, c, k, i, j, kn, i_n, jn, mk, mi, mj):  # noqa: ANN001, ANN201
-    """Forward differences of f[c] at voxel (k, i, j) in directions x, y, z (0 across the far border)."""
-    f0 = f[c, k, i, j]
-    return (f[c, k, i, jn] - f0) * mj, (f[c, k, i_n, j] - f0) * mi, (f[c, kn, i, j] - f0) * mk
-
-
-@njit(**_JIT)
-def _bwd(p, d, c, k, i, j, kp, ip, jp, ok, oi, oj, pk, pi, pj):  # noqa: ANN001, ANN201
-    """Backward difference of p[d, c] along direction d at (k, i, j): p[x] * own - p[x - 1] * prev, the masks
-    own (not the last entry) and prev (not the first) of that direction (operators.div)."""
-    if d == 0:
-        return p[d, c, k, i, j] * oj - p[d, c, k, i, jp] * pj
-    if d == 1:
-        return p[d, c, k, i, j] * oi - p[d, c, k, ip, j] * pi
-    return p[d, c, k, i, j] * ok - p[d, c, kp, i, j] * pk
-
-
 def _make_kernels(parallel: bool):  # noqa: ANN202
     """Compile the dual pass, the primal pass and the linearisation, parallel over slices or serial."""
 
@@ -58,16 +40,16 @@ def _make_kernels(parallel: bool):  # noqa: ANN202
         l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
         s_scale = _ONE / (_ONE + sigma / rel_inc) if inc else _ONE
         for k in prange(nz):
-            kn, mk = min(k + 1, nz - 1), _ONE if k < nz - 1 else _ZERO
+            n2 = np.empty(nx, np.float32)  # per row: |y|^2 over the 9 components, then the projection's scale
+            kn = min(k + 1, nz - 1)  # clamped neighbours: the difference across the far border is 0
             for i in range(ny):
-                i_n, mi = min(i + 1, ny - 1), _ONE if i < ny - 1 else _ZERO
-                for j in range(nx):
-                    jn, mj = min(j + 1, nx - 1), _ONE if j < nx - 1 else _ZERO
-                    n2 = _ZERO
-                    dv = _ZERO
-                    for c in range(3):
-                        gx, gy, gz = _fwd(v_bar, c, k, i, j, kn, i_n, jn, mk, mi, mj)
-                        dv += gx if c == 0 else (gy if c == 1 else gz)
+                i_n = min(i + 1, ny - 1)
+                n2[:] = _ZERO
+                for c in range(3):
+                    for j in range(nx):
+                        jn = j + 1 if j < nx - 1 else j
+                        f0 = v_bar[c, k, i, j]
+                        gx, gy, gz = v_bar[c, k, i, jn] - f0, v_bar[c, k, i_n, j] - f0, v_bar[c, kn, i, j] - f0
                         if reg >= 2:
                             gx -= w_bar[0, c, k, i, j]
                             gy -= w_bar[1, c, k, i, j]
@@ -77,17 +59,20 @@ def _make_kernels(parallel: bool):  # noqa: ANN202
                         tz = (y[2, c, k, i, j] + sigma * gz) * l2_scale
                         if reg != 0 and not iso:
                             tx, ty, tz = min(max(tx, -_ONE), _ONE), min(max(ty, -_ONE), _ONE), min(max(tz, -_ONE), _ONE)
-                        y[0, c, k, i, j], y[1, c, k, i, j], y[2, c, k, i, j] = tx, ty, tz
-                        n2 += tx * tx + ty * ty + tz * tz
-                    if reg != 0 and iso and n2 > _ONE:
-                        m = _ONE / np.float32(math.sqrt(n2))
-                        for d in range(3):
-                            for c in range(3):
-                                y[d, c, k, i, j] *= m
-                    if inc:
+                        y[0, c, k, i, j] = tx
+                        y[1, c, k, i, j] = ty
+                        y[2, c, k, i, j] = tz
+                        n2[j] += tx * tx + ty * ty + tz * tz
+                if reg != 0 and iso:
+                    _project_rows(y, n2, k, i, _ONE)
+                if inc:
+                    for j in range(nx):
+                        jn = j + 1 if j < nx - 1 else j
+                        dv = (v_bar[0, k, i, jn] - v_bar[0, k, i, j] + v_bar[1, k, i_n, j] - v_bar[1, k, i, j]
+                              + v_bar[2, kn, i, j] - v_bar[2, k, i, j])
                         s[k, i, j] = (s[k, i, j] + sigma * dv) * s_scale
-                    if reg == 3:
-                        _z_voxel(w_bar, z, k, i, j, kn, i_n, jn, mk, mi, mj, sigma, rel1, iso)
+                if reg == 3:
+                    _z_row(w_bar, z, n2, k, i, kn, i_n, sigma, rel1, iso)
 
     def primal_pass(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc):  # noqa: ANN001, ANN202
         """v <- prox_data(v + tau div(y + diag s)); w <- w + tau (y + div z) (tv_tv) or shrunk (tv_l2); the
@@ -95,45 +80,46 @@ def _make_kernels(parallel: bool):  # noqa: ANN202
         nz, ny, nx = v.shape[1], v.shape[2], v.shape[3]
         per_slice = np.zeros(nz)  # sum |v_new - v|^2 of each slice (a scalar reduction confuses the parfor pass)
         for k in prange(nz):
+            vt = np.empty((3, nx), np.float32)
             kp, ok, pk = max(k - 1, 0), _ONE if k < nz - 1 else _ZERO, _ONE if k > 0 else _ZERO
             acc = 0.0
             for i in range(ny):
                 ip, oi, pi = max(i - 1, 0), _ONE if i < ny - 1 else _ZERO, _ONE if i > 0 else _ZERO
+                for cc in range(3):
+                    for j in range(nx):
+                        jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
+                        if j == nx - 1:
+                            oj = _ZERO
+                        dy = (y[0, cc, k, i, j] * oj - y[0, cc, k, i, jp] * pj
+                              + y[1, cc, k, i, j] * oi - y[1, cc, k, ip, j] * pi
+                              + y[2, cc, k, i, j] * ok - y[2, cc, kp, i, j] * pk)
+                        vt[cc, j] = v[cc, k, i, j] + tau * dy
+                if inc:  # s sits on y's diagonal: component cc gets the backward difference of s along cc
+                    for j in range(nx):
+                        jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
+                        if j == nx - 1:
+                            oj = _ZERO
+                        vt[0, j] += tau * (s[k, i, j] * oj - s[k, i, jp] * pj)
+                        vt[1, j] += tau * (s[k, i, j] * oi - s[k, ip, j] * pi)
+                        vt[2, j] += tau * (s[k, i, j] * ok - s[kp, i, j] * pk)
                 for j in range(nx):
-                    jp, oj, pj = max(j - 1, 0), _ONE if j < nx - 1 else _ZERO, _ONE if j > 0 else _ZERO
-                    vt0, vt1, vt2 = _ZERO, _ZERO, _ZERO
-                    for cc in range(3):
-                        dy = _ZERO
-                        for d in range(3):
-                            dy += _bwd(y, d, cc, k, i, j, kp, ip, jp, ok, oi, oj, pk, pi, pj)
-                        if inc:  # s sits on y's diagonal: the backward difference of s along cc
-                            if cc == 0:
-                                dy += s[k, i, j] * oj - s[k, i, jp] * pj
-                            elif cc == 1:
-                                dy += s[k, i, j] * oi - s[k, ip, j] * pi
-                            else:
-                                dy += s[k, i, j] * ok - s[kp, i, j] * pk
-                        t = v[cc, k, i, j] + tau * dy
-                        if cc == 0:
-                            vt0 = t
-                        elif cc == 1:
-                            vt1 = t
-                        else:
-                            vt2 = t
                     a0, a1, a2 = a[0, k, i, j], a[1, k, i, j], a[2, k, i, j]
-                    r = a0 * vt0 + a1 * vt1 + a2 * vt2 + c[k, i, j]
+                    r = a0 * vt[0, j] + a1 * vt[1, j] + a2 * vt[2, j] + c[k, i, j]
                     aa = a0 * a0 + a1 * a1 + a2 * a2
-                    if data_l1:
-                        step = min(max(-r / max(aa, np.float32(1e-12)), -tau_d), tau_d)
-                    else:
-                        step = -(tau_d * r / (_ONE + tau_d * aa))
-                    n0, n1, n2 = vt0 + step * a0, vt1 + step * a1, vt2 + step * a2
+                    step_l1 = min(max(-r / max(aa, np.float32(1e-12)), -tau_d), tau_d)
+                    step_l2 = -(tau_d * r / (_ONE + tau_d * aa))
+                    step = step_l1 if data_l1 else step_l2
+                    n0, n1, n2 = vt[0, j] + step * a0, vt[1, j] + step * a1, vt[2, j] + step * a2
                     d0, d1, d2 = n0 - v[0, k, i, j], n1 - v[1, k, i, j], n2 - v[2, k, i, j]
-                    v_bar[0, k, i, j], v_bar[1, k, i, j], v_bar[2, k, i, j] = n0 + d0, n1 + d1, n2 + d2
-                    v[0, k, i, j], v[1, k, i, j], v[2, k, i, j] = n0, n1, n2
+                    v_bar[0, k, i, j] = n0 + d0
+                    v_bar[1, k, i, j] = n1 + d1
+                    v_bar[2, k, i, j] = n2 + d2
+                    v[0, k, i, j] = n0
+                    v[1, k, i, j] = n1
+                    v[2, k, i, j] = n2
                     acc += d0 * d0 + d1 * d1 + d2 * d2
-                    if reg >= 2:
-                        _w_voxel(w, w_bar, y, z, k, i, j, kp, ip, jp, ok, oi, oj, pk, pi, pj, tau, rel1, reg)
+                if reg >= 2:
+                    _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg)
             per_slice[k] = acc
         return per_slice.sum()
 
@@ -184,44 +170,61 @@ def _trilinear(src, ch, x0, y0, z0, x1, y1, z1, fx, fy, fz):  # noqa: ANN001, AN
 
 
 @njit(**_JIT)
-def _z_voxel(w_bar, z, k, i, j, kn, i_n, jn, mk, mi, mj, sigma, rel1, iso):  # noqa: ANN001, ANN201
-    """z <- projection of z + sigma grad w_bar onto the ball of radius rel1 (27 components) at one voxel."""
-    n2 = _ZERO
-    for d in range(3):
-        for c in range(3):
-            w0 = w_bar[d, c, k, i, j]
-            gx = (w_bar[d, c, k, i, jn] - w0) * mj
-            gy = (w_bar[d, c, k, i_n, j] - w0) * mi
-            gz = (w_bar[d, c, kn, i, j] - w0) * mk
-            tx, ty, tz = z[0, d, c, k, i, j] + sigma * gx, z[1, d, c, k, i, j] + sigma * gy, z[2, d, c, k, i, j] + sigma * gz
-            if not iso:
-                tx, ty, tz = min(max(tx, -rel1), rel1), min(max(ty, -rel1), rel1), min(max(tz, -rel1), rel1)
-            z[0, d, c, k, i, j], z[1, d, c, k, i, j], z[2, d, c, k, i, j] = tx, ty, tz
-            n2 += tx * tx + ty * ty + tz * tz
-    if iso:
-        m = max(_ONE, np.float32(math.sqrt(n2)) / rel1)
-        for e in range(3):
-            for d in range(3):
-                for c in range(3):
-                    z[e, d, c, k, i, j] /= m
+def _project_rows(q, n2, k, i, radius):  # noqa: ANN001, ANN201
+    """Scale every component q[..., k, i, :] by 1 / max(1, sqrt(n2) / radius) (the isotropic ball); n2 (X,)
+    holds |q|^2 per voxel of the row and is overwritten with the scale."""
+    for j in range(n2.shape[0]):
+        n2[j] = _ONE / max(_ONE, np.float32(math.sqrt(n2[j])) / radius)
+    flat = q.reshape((-1,) + q.shape[-3:])
+    for m in range(flat.shape[0]):
+        for j in range(n2.shape[0]):
+            flat[m, k, i, j] *= n2[j]
 
 
 @njit(**_JIT)
-def _w_voxel(w, w_bar, y, z, k, i, j, kp, ip, jp, ok, oi, oj, pk, pi, pj, tau, rel1, reg):  # noqa: ANN001, ANN201
-    """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w."""
+def _z_row(w_bar, z, n2, k, i, kn, i_n, sigma, rel1, iso):  # noqa: ANN001, ANN201
+    """z <- projection of z + sigma grad w_bar onto the ball of radius rel1 (27 components), row (k, i)."""
+    nx = w_bar.shape[4]
+    n2[:] = _ZERO
+    for d in range(3):
+        for c in range(3):
+            for j in range(nx):
+                jn = j + 1 if j < nx - 1 else j
+                w0 = w_bar[d, c, k, i, j]
+                tx = z[0, d, c, k, i, j] + sigma * (w_bar[d, c, k, i, jn] - w0)
+                ty = z[1, d, c, k, i, j] + sigma * (w_bar[d, c, k, i_n, j] - w0)
+                tz = z[2, d, c, k, i, j] + sigma * (w_bar[d, c, kn, i, j] - w0)
+                if not iso:
+                    tx, ty, tz = min(max(tx, -rel1), rel1), min(max(ty, -rel1), rel1), min(max(tz, -rel1), rel1)
+                z[0, d, c, k, i, j] = tx
+                z[1, d, c, k, i, j] = ty
+                z[2, d, c, k, i, j] = tz
+                n2[j] += tx * tx + ty * ty + tz * tz
+    if iso:
+        _project_rows(z, n2, k, i, rel1)
+
+
+@njit(**_JIT)
+def _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg):  # noqa: ANN001, ANN201
+    """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w. Row (k, i)."""
+    nx = w.shape[4]
     shrink = _ONE + tau * rel1
     for d in range(3):
         for c in range(3):
-            wt = w[d, c, k, i, j] + tau * y[d, c, k, i, j]
-            if reg == 3:
-                dz = (z[0, d, c, k, i, j] * oj - z[0, d, c, k, i, jp] * pj
-                      + z[1, d, c, k, i, j] * oi - z[1, d, c, k, ip, j] * pi
-                      + z[2, d, c, k, i, j] * ok - z[2, d, c, kp, i, j] * pk)
-                wt += tau * dz
-            else:
-                wt = wt / shrink
-            w_bar[d, c, k, i, j] = wt + (wt - w[d, c, k, i, j])
-            w[d, c, k, i, j] = wt
+            for j in range(nx):
+                wt = w[d, c, k, i, j] + tau * y[d, c, k, i, j]
+                if reg == 3:
+                    jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
+                    if j == nx - 1:
+                        oj = _ZERO
+                    dz = (z[0, d, c, k, i, j] * oj - z[0, d, c, k, i, jp] * pj
+                          + z[1, d, c, k, i, j] * oi - z[1, d, c, k, ip, j] * pi
+                          + z[2, d, c, k, i, j] * ok - z[2, d, c, kp, i, j] * pk)
+                    wt += tau * dz
+                else:
+                    wt = wt / shrink
+                w_bar[d, c, k, i, j] = wt + (wt - w[d, c, k, i, j])
+                w[d, c, k, i, j] = wt
 
 
 dual_pass_par, primal_pass_par, linearise_par = _make_kernels(True)

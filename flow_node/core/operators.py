@@ -2,8 +2,9 @@
 
 Arrays are channel-first: a scalar field is (H, W), a vector field (2, H, W) with index 0 = x (columns,
 rightwards) and 1 = y (rows, downwards); on a volume (Z, Y, X) and (3, Z, Y, X) with index 2 = z (slices).
-``grad`` is the forward difference with Neumann boundary (zero in the last column/row/slice) and ``div`` the backward difference chosen so that ``<grad f, p> = -<f, div p>`` holds
-exactly: these are the blocks of the paper's K and K*.
+``grad`` is the forward difference with Neumann boundary (zero in the last column/row/slice) and ``div``
+the backward difference chosen so that ``<grad f, p> = -<f, div p>`` holds exactly: these are the blocks
+of the paper's K and K*.
 
 Image derivatives (the paper's Table 2 schemes) are separate from ``grad``: they feed the data term only.
 """

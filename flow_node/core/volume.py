@@ -118,6 +118,15 @@ def resize_flow3(v: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray:
     return out
 
 
+def resize_state3(state: PDState, shape: tuple[int, int, int]) -> PDState:
+    """A level's solver state on the next finer grid: the flow by :func:`resize_flow3`, the duals (and w)
+    linearly resampled with their values kept, so the finer level starts from the coarser one's solution."""
+    def field(f: np.ndarray | None) -> np.ndarray | None:
+        return None if f is None else resample(f, shape, linear_matrix)
+
+    return PDState(resize_flow3(state.v, shape), field(state.y), field(state.w), field(state.z), field(state.s))
+
+
 # ----------------------------------------------------------------------------- linearisation (numpy reference)
 def warp_source3(i1: np.ndarray, scheme: str) -> np.ndarray:
     """What each warp of a level samples: (4, Z, Y, X) float32 = [I1, its image gradient (x, y, z)]."""
@@ -221,7 +230,7 @@ def solve_level3(i0: np.ndarray, i1: np.ndarray, state: PDState, cfg: FlowConfig
 
 def estimate_volume(v0: np.ndarray, v1: np.ndarray, config: FlowConfig | None = None) -> VolumeResult:
     """Flow from volume v0 to v1 (same (Z, Y, X) shape; uint8, uint16 or float): coarse to fine from zero
-    flow, each level starting from the coarser one's flow (duals restart at zero)."""
+    flow, each level starting from the coarser one's state (:func:`resize_state3`)."""
     cfg = config if config is not None else FlowConfig()
     i0, i1 = normalise_pair(*check_pair(v0, v1))
     backend = select_volume_backend(cfg.backend)
@@ -233,9 +242,7 @@ def estimate_volume(v0: np.ndarray, v1: np.ndarray, config: FlowConfig | None = 
         for level in range(len(shapes) - 1, -1, -1):
             shape = shapes[level]
             if state.v.shape[1:] != shape:
-                flow = resize_flow3(state.v, shape)
-                state = PDState.zeros(spec, shape, incompressible)
-                state.v = flow
+                state = resize_state3(state, shape)
             l0 = i0 if level == 0 else resample(i0, shape, area_matrix)
             l1 = i1 if level == 0 else resample(i1, shape, area_matrix)
             total += solve_level3(l0, l1, state, cfg, level, backend)
