@@ -191,8 +191,8 @@ def estimate_flow(frame0: np.ndarray, frame1: np.ndarray, config: FlowConfig | N
 
     Colour input is taken as RGB. ``config`` defaults to ``FlowConfig()``; see FlowConfig.preset.
     Two volumes (Z, Y, X) give (Z, Y, X, 3) with components x, y, z in voxels per frame
-    (:func:`flow_node.core.volume.estimate_volume`; a volume only 1, 3 or 4 voxels wide is read as an
-    image: call that function directly).
+    (:func:`flow_node.core.volume.estimate_volume`; a 3-D array at most 4 wide in x is taken as an image:
+    call that function directly for so thin a volume).
     """
     if is_volume(frame0) or is_volume(frame1):
         if initial_flow is not None:

@@ -37,9 +37,9 @@ MIN_SIDE = 2  # voxels per axis
 
 
 def is_volume(a: object) -> bool:
-    """True for a 3-D array that is not an (H, W, 1|3|4) image (a volume that thin must use
-    :func:`estimate_volume` directly)."""
-    return isinstance(a, np.ndarray) and a.ndim == 3 and a.shape[2] not in (1, 3, 4)
+    """True for a 3-D array at least 5 wide in x: what :func:`~flow_node.core.api.estimate_flow` treats as a
+    volume rather than an (H, W, 1..4) image (a thinner volume must use :func:`estimate_volume` directly)."""
+    return isinstance(a, np.ndarray) and a.ndim == 3 and a.shape[2] > 4
 
 
 def to_volume(vol: np.ndarray, name: str = "volume") -> np.ndarray:
