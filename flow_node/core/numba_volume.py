@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -30,97 +31,128 @@ _ONE = np.float32(1.0)
 _ZERO = np.float32(0.0)
 
 
+@njit(**_JIT)
+def dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2):  # noqa: ANN001, ANN201
+    """The dual step on slice k: y <- prox(y + sigma (grad v_bar - w_bar)); z <- proj(z + sigma grad w_bar);
+    s <- prox(s + sigma div v_bar). In place; n2: (X,) float32 scratch. Reads v_bar, w_bar on slices k, k + 1."""
+    nz, ny, nx = v_bar.shape[1], v_bar.shape[2], v_bar.shape[3]
+    l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
+    s_scale = _ONE / (_ONE + sigma / rel_inc) if inc else _ONE
+    kn = min(k + 1, nz - 1)  # clamped neighbours: the difference across the far border is 0
+    for i in range(ny):
+        i_n = min(i + 1, ny - 1)
+        n2[:] = _ZERO
+        for c in range(3):
+            for j in range(nx):
+                jn = j + 1 if j < nx - 1 else j
+                f0 = v_bar[c, k, i, j]
+                gx, gy, gz = v_bar[c, k, i, jn] - f0, v_bar[c, k, i_n, j] - f0, v_bar[c, kn, i, j] - f0
+                if reg >= 2:
+                    gx -= w_bar[0, c, k, i, j]
+                    gy -= w_bar[1, c, k, i, j]
+                    gz -= w_bar[2, c, k, i, j]
+                tx = (y[0, c, k, i, j] + sigma * gx) * l2_scale
+                ty = (y[1, c, k, i, j] + sigma * gy) * l2_scale
+                tz = (y[2, c, k, i, j] + sigma * gz) * l2_scale
+                if reg != 0 and not iso:
+                    tx, ty, tz = min(max(tx, -_ONE), _ONE), min(max(ty, -_ONE), _ONE), min(max(tz, -_ONE), _ONE)
+                y[0, c, k, i, j] = tx
+                y[1, c, k, i, j] = ty
+                y[2, c, k, i, j] = tz
+                n2[j] += tx * tx + ty * ty + tz * tz
+        if reg != 0 and iso:
+            _project_rows(y, n2, k, i, _ONE)
+        if inc:
+            for j in range(nx):
+                jn = j + 1 if j < nx - 1 else j
+                dv = (v_bar[0, k, i, jn] - v_bar[0, k, i, j] + v_bar[1, k, i_n, j] - v_bar[1, k, i, j]
+                      + v_bar[2, kn, i, j] - v_bar[2, k, i, j])
+                s[k, i, j] = (s[k, i, j] + sigma * dv) * s_scale
+        if reg == 3:
+            _z_row(w_bar, z, n2, k, i, kn, i_n, sigma, rel1, iso)
+
+
+@njit(**_JIT)
+def primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, vt):  # noqa: ANN001, ANN201
+    """The primal step on slice k: v <- prox_data(v + tau div(y + diag s)); w <- w + tau (y + div z) (tv_tv)
+    or shrunk (tv_l2); the extrapolations v_bar, w_bar. In place; vt: (3, X) float32 scratch. Reads y, z, s
+    on slices k - 1, k. Returns sum |v_new - v|^2 over the slice."""
+    nz, ny, nx = v.shape[1], v.shape[2], v.shape[3]
+    kp, ok, pk = max(k - 1, 0), _ONE if k < nz - 1 else _ZERO, _ONE if k > 0 else _ZERO
+    acc = 0.0
+    for i in range(ny):
+        ip, oi, pi = max(i - 1, 0), _ONE if i < ny - 1 else _ZERO, _ONE if i > 0 else _ZERO
+        for cc in range(3):
+            for j in range(nx):
+                jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
+                if j == nx - 1:
+                    oj = _ZERO
+                dy = (y[0, cc, k, i, j] * oj - y[0, cc, k, i, jp] * pj
+                      + y[1, cc, k, i, j] * oi - y[1, cc, k, ip, j] * pi
+                      + y[2, cc, k, i, j] * ok - y[2, cc, kp, i, j] * pk)
+                vt[cc, j] = v[cc, k, i, j] + tau * dy
+        if inc:  # s sits on y's diagonal: component cc gets the backward difference of s along cc
+            for j in range(nx):
+                jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
+                if j == nx - 1:
+                    oj = _ZERO
+                vt[0, j] += tau * (s[k, i, j] * oj - s[k, i, jp] * pj)
+                vt[1, j] += tau * (s[k, i, j] * oi - s[k, ip, j] * pi)
+                vt[2, j] += tau * (s[k, i, j] * ok - s[kp, i, j] * pk)
+        for j in range(nx):
+            a0, a1, a2 = a[0, k, i, j], a[1, k, i, j], a[2, k, i, j]
+            r = a0 * vt[0, j] + a1 * vt[1, j] + a2 * vt[2, j] + c[k, i, j]
+            aa = a0 * a0 + a1 * a1 + a2 * a2
+            step_l1 = min(max(-r / max(aa, np.float32(1e-12)), -tau_d), tau_d)
+            step_l2 = -(tau_d * r / (_ONE + tau_d * aa))
+            step = step_l1 if data_l1 else step_l2
+            n0, n1, n2 = vt[0, j] + step * a0, vt[1, j] + step * a1, vt[2, j] + step * a2
+            d0, d1, d2 = n0 - v[0, k, i, j], n1 - v[1, k, i, j], n2 - v[2, k, i, j]
+            v_bar[0, k, i, j] = n0 + d0
+            v_bar[1, k, i, j] = n1 + d1
+            v_bar[2, k, i, j] = n2 + d2
+            v[0, k, i, j] = n0
+            v[1, k, i, j] = n1
+            v[2, k, i, j] = n2
+            acc += d0 * d0 + d1 * d1 + d2 * d2
+        if reg >= 2:
+            _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg)
+    return acc
+
+
+@njit(**_JIT)
+def step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_inc, data_l1, reg, iso, inc):  # noqa: ANN001, ANN201
+    """One whole iteration on one thread as a wavefront: the dual step of slice k, then the primal step of
+    slice k - 1, which needs y, z, s only on k - 2 .. k - 1 (already updated) while the dual step of k needs
+    v_bar, w_bar on k, k + 1 (not yet). Same result as the two passes, each slice's arrays read while still
+    in cache. Returns sum |v_new - v|^2."""
+    nz, nx = v.shape[1], v.shape[3]
+    n2, vt = np.empty(nx, np.float32), np.empty((3, nx), np.float32)
+    total = 0.0
+    for k in range(nz + 1):
+        if k < nz:
+            dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2)
+        if k > 0:
+            total += primal_slice(k - 1, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, vt)
+    return total
+
+
 def _make_kernels(parallel: bool):  # noqa: ANN202
-    """Compile the dual pass, the primal pass and the linearisation, parallel over slices or serial."""
+    """Compile the dual pass, the primal pass (slices in parallel) and the linearisation, parallel or serial."""
 
     def dual_pass(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc):  # noqa: ANN001, ANN202
-        """y <- prox(y + sigma (grad v_bar - w_bar)); z <- proj(z + sigma grad w_bar); s <- prox(s + sigma
-        div v_bar). In place."""
-        nz, ny, nx = v_bar.shape[1], v_bar.shape[2], v_bar.shape[3]
-        l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
-        s_scale = _ONE / (_ONE + sigma / rel_inc) if inc else _ONE
-        for k in prange(nz):
-            n2 = np.empty(nx, np.float32)  # per row: |y|^2 over the 9 components, then the projection's scale
-            kn = min(k + 1, nz - 1)  # clamped neighbours: the difference across the far border is 0
-            for i in range(ny):
-                i_n = min(i + 1, ny - 1)
-                n2[:] = _ZERO
-                for c in range(3):
-                    for j in range(nx):
-                        jn = j + 1 if j < nx - 1 else j
-                        f0 = v_bar[c, k, i, j]
-                        gx, gy, gz = v_bar[c, k, i, jn] - f0, v_bar[c, k, i_n, j] - f0, v_bar[c, kn, i, j] - f0
-                        if reg >= 2:
-                            gx -= w_bar[0, c, k, i, j]
-                            gy -= w_bar[1, c, k, i, j]
-                            gz -= w_bar[2, c, k, i, j]
-                        tx = (y[0, c, k, i, j] + sigma * gx) * l2_scale
-                        ty = (y[1, c, k, i, j] + sigma * gy) * l2_scale
-                        tz = (y[2, c, k, i, j] + sigma * gz) * l2_scale
-                        if reg != 0 and not iso:
-                            tx, ty, tz = min(max(tx, -_ONE), _ONE), min(max(ty, -_ONE), _ONE), min(max(tz, -_ONE), _ONE)
-                        y[0, c, k, i, j] = tx
-                        y[1, c, k, i, j] = ty
-                        y[2, c, k, i, j] = tz
-                        n2[j] += tx * tx + ty * ty + tz * tz
-                if reg != 0 and iso:
-                    _project_rows(y, n2, k, i, _ONE)
-                if inc:
-                    for j in range(nx):
-                        jn = j + 1 if j < nx - 1 else j
-                        dv = (v_bar[0, k, i, jn] - v_bar[0, k, i, j] + v_bar[1, k, i_n, j] - v_bar[1, k, i, j]
-                              + v_bar[2, kn, i, j] - v_bar[2, k, i, j])
-                        s[k, i, j] = (s[k, i, j] + sigma * dv) * s_scale
-                if reg == 3:
-                    _z_row(w_bar, z, n2, k, i, kn, i_n, sigma, rel1, iso)
+        """:func:`dual_slice` on every slice."""
+        for k in prange(v_bar.shape[1]):
+            dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc,
+                       np.empty(v_bar.shape[3], np.float32))
 
     def primal_pass(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc):  # noqa: ANN001, ANN202
-        """v <- prox_data(v + tau div(y + diag s)); w <- w + tau (y + div z) (tv_tv) or shrunk (tv_l2); the
-        extrapolations v_bar, w_bar. In place; returns sum |v_new - v|^2."""
-        nz, ny, nx = v.shape[1], v.shape[2], v.shape[3]
-        per_slice = np.zeros(nz)  # sum |v_new - v|^2 of each slice (a scalar reduction confuses the parfor pass)
+        """:func:`primal_slice` on every slice; returns sum |v_new - v|^2."""
+        nz = v.shape[1]
+        per_slice = np.zeros(nz)  # a scalar reduction confuses the parfor pass
         for k in prange(nz):
-            vt = np.empty((3, nx), np.float32)
-            kp, ok, pk = max(k - 1, 0), _ONE if k < nz - 1 else _ZERO, _ONE if k > 0 else _ZERO
-            acc = 0.0
-            for i in range(ny):
-                ip, oi, pi = max(i - 1, 0), _ONE if i < ny - 1 else _ZERO, _ONE if i > 0 else _ZERO
-                for cc in range(3):
-                    for j in range(nx):
-                        jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
-                        if j == nx - 1:
-                            oj = _ZERO
-                        dy = (y[0, cc, k, i, j] * oj - y[0, cc, k, i, jp] * pj
-                              + y[1, cc, k, i, j] * oi - y[1, cc, k, ip, j] * pi
-                              + y[2, cc, k, i, j] * ok - y[2, cc, kp, i, j] * pk)
-                        vt[cc, j] = v[cc, k, i, j] + tau * dy
-                if inc:  # s sits on y's diagonal: component cc gets the backward difference of s along cc
-                    for j in range(nx):
-                        jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
-                        if j == nx - 1:
-                            oj = _ZERO
-                        vt[0, j] += tau * (s[k, i, j] * oj - s[k, i, jp] * pj)
-                        vt[1, j] += tau * (s[k, i, j] * oi - s[k, ip, j] * pi)
-                        vt[2, j] += tau * (s[k, i, j] * ok - s[kp, i, j] * pk)
-                for j in range(nx):
-                    a0, a1, a2 = a[0, k, i, j], a[1, k, i, j], a[2, k, i, j]
-                    r = a0 * vt[0, j] + a1 * vt[1, j] + a2 * vt[2, j] + c[k, i, j]
-                    aa = a0 * a0 + a1 * a1 + a2 * a2
-                    step_l1 = min(max(-r / max(aa, np.float32(1e-12)), -tau_d), tau_d)
-                    step_l2 = -(tau_d * r / (_ONE + tau_d * aa))
-                    step = step_l1 if data_l1 else step_l2
-                    n0, n1, n2 = vt[0, j] + step * a0, vt[1, j] + step * a1, vt[2, j] + step * a2
-                    d0, d1, d2 = n0 - v[0, k, i, j], n1 - v[1, k, i, j], n2 - v[2, k, i, j]
-                    v_bar[0, k, i, j] = n0 + d0
-                    v_bar[1, k, i, j] = n1 + d1
-                    v_bar[2, k, i, j] = n2 + d2
-                    v[0, k, i, j] = n0
-                    v[1, k, i, j] = n1
-                    v[2, k, i, j] = n2
-                    acc += d0 * d0 + d1 * d1 + d2 * d2
-                if reg >= 2:
-                    _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg)
-            per_slice[k] = acc
+            per_slice[k] = primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc,
+                                        np.empty((3, v.shape[3]), np.float32))
         return per_slice.sum()
 
     def linearise(i0, src, v0, gi0, interpolated, a, c):  # noqa: ANN001, ANN202
@@ -228,7 +260,7 @@ def _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg):  # noq
 
 
 dual_pass_par, primal_pass_par, linearise_par = _make_kernels(True)
-dual_pass_ser, primal_pass_ser, linearise_ser = _make_kernels(False)
+_, _, linearise_ser = _make_kernels(False)
 
 
 @njit(**_JIT)
@@ -242,8 +274,7 @@ def iterate(v, y, w, z, s, v_bar, w_bar, a, c, tau, sigma, tau_d, rel1, rel_inc,
             dual_pass_par(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc)
             ss = primal_pass_par(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc)
         else:
-            dual_pass_ser(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc)
-            ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc)
+            ss = step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_inc, data_l1, reg, iso, inc)
         if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
             break
     return k
@@ -258,7 +289,8 @@ def _c32(x: np.ndarray) -> np.ndarray:
 
 
 def _parallel(shape: tuple[int, ...]) -> bool:
-    return int(np.prod(shape)) >= PARALLEL_MIN_PIXELS
+    """Parallel kernels for a large grid on more than one thread; else the fused single-thread iteration."""
+    return int(np.prod(shape)) >= PARALLEL_MIN_PIXELS and numba.get_num_threads() > 1
 
 
 def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
