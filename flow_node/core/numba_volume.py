@@ -34,69 +34,82 @@ _ZERO = np.float32(0.0)
 @njit(**_JIT)
 def dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2):  # noqa: ANN001, ANN201
     """The dual step on slice k: y <- prox(y + sigma (grad v_bar - w_bar)); z <- proj(z + sigma grad w_bar);
-    s <- prox(s + sigma div v_bar). In place; n2: (X,) float32 scratch. Reads v_bar, w_bar on slices k, k + 1."""
+    s <- prox(s + sigma div v_bar). In place; n2: (X,) float32 scratch. Reads v_bar, w_bar on slices k, k + 1.
+
+    Neighbours are clamped (the difference across the far border is then 0); along x the row runs in two
+    segments, interior columns (step 1) and the last one (step 0), so the inner loop has no branch."""
     nz, ny, nx = v_bar.shape[1], v_bar.shape[2], v_bar.shape[3]
     l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
     s_scale = _ONE / (_ONE + sigma / rel_inc) if inc else _ONE
-    kn = min(k + 1, nz - 1)  # clamped neighbours: the difference across the far border is 0
+    kn = min(k + 1, nz - 1)
     for i in range(ny):
         i_n = min(i + 1, ny - 1)
         n2[:] = _ZERO
         for c in range(3):
-            for j in range(nx):
-                jn = j + 1 if j < nx - 1 else j
-                f0 = v_bar[c, k, i, j]
-                gx, gy, gz = v_bar[c, k, i, jn] - f0, v_bar[c, k, i_n, j] - f0, v_bar[c, kn, i, j] - f0
-                if reg >= 2:
-                    gx -= w_bar[0, c, k, i, j]
-                    gy -= w_bar[1, c, k, i, j]
-                    gz -= w_bar[2, c, k, i, j]
-                tx = (y[0, c, k, i, j] + sigma * gx) * l2_scale
-                ty = (y[1, c, k, i, j] + sigma * gy) * l2_scale
-                tz = (y[2, c, k, i, j] + sigma * gz) * l2_scale
-                if reg != 0 and not iso:
-                    tx, ty, tz = min(max(tx, -_ONE), _ONE), min(max(ty, -_ONE), _ONE), min(max(tz, -_ONE), _ONE)
-                y[0, c, k, i, j] = tx
-                y[1, c, k, i, j] = ty
-                y[2, c, k, i, j] = tz
-                n2[j] += tx * tx + ty * ty + tz * tz
+            for seg in range(2):
+                j0, j1, rr = (0, nx - 1, 1) if seg == 0 else (nx - 1, nx, 0)
+                for j in range(j0, j1):
+                    f0 = v_bar[c, k, i, j]
+                    gx, gy, gz = v_bar[c, k, i, j + rr] - f0, v_bar[c, k, i_n, j] - f0, v_bar[c, kn, i, j] - f0
+                    if reg >= 2:
+                        gx -= w_bar[0, c, k, i, j]
+                        gy -= w_bar[1, c, k, i, j]
+                        gz -= w_bar[2, c, k, i, j]
+                    tx = (y[0, c, k, i, j] + sigma * gx) * l2_scale
+                    ty = (y[1, c, k, i, j] + sigma * gy) * l2_scale
+                    tz = (y[2, c, k, i, j] + sigma * gz) * l2_scale
+                    if reg != 0 and not iso:
+                        tx, ty, tz = min(max(tx, -_ONE), _ONE), min(max(ty, -_ONE), _ONE), min(max(tz, -_ONE), _ONE)
+                    y[0, c, k, i, j] = tx
+                    y[1, c, k, i, j] = ty
+                    y[2, c, k, i, j] = tz
+                    n2[j] += tx * tx + ty * ty + tz * tz
         if reg != 0 and iso:
             _project_rows(y, n2, k, i, _ONE)
         if inc:
-            for j in range(nx):
-                jn = j + 1 if j < nx - 1 else j
-                dv = (v_bar[0, k, i, jn] - v_bar[0, k, i, j] + v_bar[1, k, i_n, j] - v_bar[1, k, i, j]
-                      + v_bar[2, kn, i, j] - v_bar[2, k, i, j])
-                s[k, i, j] = (s[k, i, j] + sigma * dv) * s_scale
+            for seg in range(2):
+                j0, j1, rr = (0, nx - 1, 1) if seg == 0 else (nx - 1, nx, 0)
+                for j in range(j0, j1):
+                    dv = (v_bar[0, k, i, j + rr] - v_bar[0, k, i, j] + v_bar[1, k, i_n, j] - v_bar[1, k, i, j]
+                          + v_bar[2, kn, i, j] - v_bar[2, k, i, j])
+                    s[k, i, j] = (s[k, i, j] + sigma * dv) * s_scale
         if reg == 3:
             _z_row(w_bar, z, n2, k, i, kn, i_n, sigma, rel1, iso)
 
 
 @njit(**_JIT)
+def _x_div(q, p, m, k, i):  # noqa: ANN001, ANN201
+    """Pad row (k, i) of p[m] (a (M, Z, Y, X) view) for the x part of the backward divergence: q (X + 1,) =
+    (0, p[:-1], 0), so div_x p[j] = q[j + 1] - q[j] with no branch (operators.div's border)."""
+    nx = p.shape[3]
+    q[0] = _ZERO
+    for j in range(nx - 1):
+        q[j + 1] = p[m, k, i, j]
+    q[nx] = _ZERO
+
+
+@njit(**_JIT)
 def primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, vt):  # noqa: ANN001, ANN201
     """The primal step on slice k: v <- prox_data(v + tau div(y + diag s)); w <- w + tau (y + div z) (tv_tv)
-    or shrunk (tv_l2); the extrapolations v_bar, w_bar. In place; vt: (3, X) float32 scratch. Reads y, z, s
-    on slices k - 1, k. Returns sum |v_new - v|^2 over the slice."""
+    or shrunk (tv_l2); the extrapolations v_bar, w_bar. In place; vt: (4, X + 1) float32 scratch. Reads y, z,
+    s on slices k - 1, k. Returns sum |v_new - v|^2 over the slice."""
     nz, ny, nx = v.shape[1], v.shape[2], v.shape[3]
     kp, ok, pk = max(k - 1, 0), _ONE if k < nz - 1 else _ZERO, _ONE if k > 0 else _ZERO
+    yx = y[0]  # (3, Z, Y, X): the x direction of y, by component
+    q = vt[3]
     acc = 0.0
     for i in range(ny):
         ip, oi, pi = max(i - 1, 0), _ONE if i < ny - 1 else _ZERO, _ONE if i > 0 else _ZERO
         for cc in range(3):
+            _x_div(q, yx, cc, k, i)
             for j in range(nx):
-                jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
-                if j == nx - 1:
-                    oj = _ZERO
-                dy = (y[0, cc, k, i, j] * oj - y[0, cc, k, i, jp] * pj
-                      + y[1, cc, k, i, j] * oi - y[1, cc, k, ip, j] * pi
+                dy = (q[j + 1] - q[j] + y[1, cc, k, i, j] * oi - y[1, cc, k, ip, j] * pi
                       + y[2, cc, k, i, j] * ok - y[2, cc, kp, i, j] * pk)
                 vt[cc, j] = v[cc, k, i, j] + tau * dy
         if inc:  # s sits on y's diagonal: component cc gets the backward difference of s along cc
+            _x_div(q, s.reshape((1,) + s.shape), 0, k, i)
             for j in range(nx):
-                jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
-                if j == nx - 1:
-                    oj = _ZERO
-                vt[0, j] += tau * (s[k, i, j] * oj - s[k, i, jp] * pj)
+                vt[0, j] += tau * (q[j + 1] - q[j])
                 vt[1, j] += tau * (s[k, i, j] * oi - s[k, ip, j] * pi)
                 vt[2, j] += tau * (s[k, i, j] * ok - s[kp, i, j] * pk)
         for j in range(nx):
@@ -116,7 +129,7 @@ def primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1
             v[2, k, i, j] = n2
             acc += d0 * d0 + d1 * d1 + d2 * d2
         if reg >= 2:
-            _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg)
+            _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg, q)
     return acc
 
 
@@ -127,7 +140,7 @@ def step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_i
     v_bar, w_bar on k, k + 1 (not yet). Same result as the two passes, each slice's arrays read while still
     in cache. Returns sum |v_new - v|^2."""
     nz, nx = v.shape[1], v.shape[3]
-    n2, vt = np.empty(nx, np.float32), np.empty((3, nx), np.float32)
+    n2, vt = np.empty(nx, np.float32), np.empty((4, nx + 1), np.float32)
     total = 0.0
     for k in range(nz + 1):
         if k < nz:
@@ -152,7 +165,7 @@ def _make_kernels(parallel: bool):  # noqa: ANN202
         per_slice = np.zeros(nz)  # a scalar reduction confuses the parfor pass
         for k in prange(nz):
             per_slice[k] = primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc,
-                                        np.empty((3, v.shape[3]), np.float32))
+                                        np.empty((4, v.shape[3] + 1), np.float32))
         return per_slice.sum()
 
     def linearise(i0, src, v0, gi0, interpolated, a, c):  # noqa: ANN001, ANN202
@@ -220,37 +233,38 @@ def _z_row(w_bar, z, n2, k, i, kn, i_n, sigma, rel1, iso):  # noqa: ANN001, ANN2
     n2[:] = _ZERO
     for d in range(3):
         for c in range(3):
-            for j in range(nx):
-                jn = j + 1 if j < nx - 1 else j
-                w0 = w_bar[d, c, k, i, j]
-                tx = z[0, d, c, k, i, j] + sigma * (w_bar[d, c, k, i, jn] - w0)
-                ty = z[1, d, c, k, i, j] + sigma * (w_bar[d, c, k, i_n, j] - w0)
-                tz = z[2, d, c, k, i, j] + sigma * (w_bar[d, c, kn, i, j] - w0)
-                if not iso:
-                    tx, ty, tz = min(max(tx, -rel1), rel1), min(max(ty, -rel1), rel1), min(max(tz, -rel1), rel1)
-                z[0, d, c, k, i, j] = tx
-                z[1, d, c, k, i, j] = ty
-                z[2, d, c, k, i, j] = tz
-                n2[j] += tx * tx + ty * ty + tz * tz
+            for seg in range(2):  # interior columns, then the last (see dual_slice)
+                j0, j1, rr = (0, nx - 1, 1) if seg == 0 else (nx - 1, nx, 0)
+                for j in range(j0, j1):
+                    w0 = w_bar[d, c, k, i, j]
+                    tx = z[0, d, c, k, i, j] + sigma * (w_bar[d, c, k, i, j + rr] - w0)
+                    ty = z[1, d, c, k, i, j] + sigma * (w_bar[d, c, k, i_n, j] - w0)
+                    tz = z[2, d, c, k, i, j] + sigma * (w_bar[d, c, kn, i, j] - w0)
+                    if not iso:
+                        tx, ty, tz = min(max(tx, -rel1), rel1), min(max(ty, -rel1), rel1), min(max(tz, -rel1), rel1)
+                    z[0, d, c, k, i, j] = tx
+                    z[1, d, c, k, i, j] = ty
+                    z[2, d, c, k, i, j] = tz
+                    n2[j] += tx * tx + ty * ty + tz * tz
     if iso:
         _project_rows(z, n2, k, i, rel1)
 
 
 @njit(**_JIT)
-def _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg):  # noqa: ANN001, ANN201
-    """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w. Row (k, i)."""
+def _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg, q):  # noqa: ANN001, ANN201
+    """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w. Row
+    (k, i); q: (X + 1,) scratch for :func:`_x_div`."""
     nx = w.shape[4]
     shrink = _ONE + tau * rel1
+    zx = z[0].reshape((9,) + z.shape[3:])  # the x direction of z, (dir, comp) flattened
     for d in range(3):
         for c in range(3):
+            if reg == 3:
+                _x_div(q, zx, 3 * d + c, k, i)
             for j in range(nx):
                 wt = w[d, c, k, i, j] + tau * y[d, c, k, i, j]
                 if reg == 3:
-                    jp, oj, pj = (j - 1, _ONE, _ONE) if j > 0 else (0, _ONE, _ZERO)
-                    if j == nx - 1:
-                        oj = _ZERO
-                    dz = (z[0, d, c, k, i, j] * oj - z[0, d, c, k, i, jp] * pj
-                          + z[1, d, c, k, i, j] * oi - z[1, d, c, k, ip, j] * pi
+                    dz = (q[j + 1] - q[j] + z[1, d, c, k, i, j] * oi - z[1, d, c, k, ip, j] * pi
                           + z[2, d, c, k, i, j] * ok - z[2, d, c, kp, i, j] * pk)
                     wt += tau * dz
                 else:
