@@ -13,7 +13,7 @@ the mean 3-D endpoint error over the voxels whose motion stays inside the volume
 float32 volumes in [0, 1]; scikit-image's flow (z, y, x order) is reordered to x, y, z (its convention is
 ours: moving_image(p + flow) ~ reference_image(p), checked on a shift). Times are wall-clock of one call
 each, interleaved per scene, after a warm-up of flow_node's kernels (numba compiles once per process);
-flow_node runs numba on all cores, scikit-image on numpy.
+both run on one thread (``threads=1``; scikit-image's numpy is single-threaded).
 """
 
 from __future__ import annotations
@@ -34,8 +34,11 @@ from .common import REPO, machine, write_json
 
 RESULTS = REPO / "bench" / "results" / "volume"
 # The volume settings measured here (FlowConfig fields; docs/engine.md, "Volumes").
-SETTINGS: dict[str, Any] = dict(model="l1_tv", alpha=0.03, warps=3, iterations=20, levels=5, scale_factor=0.5,
+# Both methods on one thread: the shared 2-core machine made numba's parallel kernels slower than its
+# single-thread ones while other jobs ran (docs/engine.md, "Volumes").
+SETTINGS: dict[str, Any] = dict(model="l1_tv", alpha=0.06, warps=5, iterations=40, levels=5, scale_factor=0.5,
                                 min_size=12, gradient_scheme="interpolated", tolerance=0.0, threads=1)
+INCOMPRESSIBILITY = 0.2  # beta of the "+incompressible" column
 Motion = Callable[[np.ndarray], np.ndarray]  # points (..., 3) x, y, z -> moved points
 
 
@@ -130,7 +133,7 @@ def flow_node_flow(v0: np.ndarray, v1: np.ndarray, cfg: FlowConfig) -> np.ndarra
 
 def run(sizes: list[int], big_scenes: tuple[str, ...], seed: int) -> dict[str, Any]:
     cfg = FlowConfig(**SETTINGS)
-    cfg_inc = cfg.replace(incompressibility=0.5)
+    cfg_inc = cfg.replace(incompressibility=INCOMPRESSIBILITY)
     estimate_volume(*scene("shift", (24, 24, 24), seed)[:2], cfg_inc)  # compile / load the kernels
     rows = []
     for size in sizes:
