@@ -36,8 +36,9 @@ RESULTS = REPO / "bench" / "results" / "volume"
 # The volume settings measured here (FlowConfig fields; docs/engine.md, "Volumes").
 # Both methods on one thread: the shared 2-core machine made numba's parallel kernels slower than its
 # single-thread ones while other jobs ran (docs/engine.md, "Volumes").
-SETTINGS: dict[str, Any] = dict(model="l1_tv", alpha=0.06, warps=5, iterations=40, levels=5, scale_factor=0.5,
-                                min_size=12, gradient_scheme="interpolated", tolerance=0.0, threads=1)
+SETTINGS: dict[str, Any] = dict(model="l1_tv", alpha=0.06, warps=5, iterations=20, finest_warps=3,
+                                finest_iterations=15, levels=5, scale_factor=0.5, min_size=12,
+                                gradient_scheme="interpolated", tolerance=0.0, threads=1)
 INCOMPRESSIBILITY = 0.2  # beta of the "+incompressible" column
 Motion = Callable[[np.ndarray], np.ndarray]  # points (..., 3) x, y, z -> moved points
 

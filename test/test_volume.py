@@ -170,3 +170,14 @@ def test_cli_volume_round_trip_npy_and_tiff(tmp_path: Path, capsys: pytest.Captu
     assert estimate_main([str(tmp_path / "bad.npy"), str(tmp_path / "b.npy"), "-o", str(tmp_path / "z.npy")]) == 1
     assert "not a .npy array" in capsys.readouterr().err
     assert math.isfinite(float(np.load(tmp_path / "a.npy.flow.npy").sum()))
+
+
+def test_numba_resampling_matches_numpy() -> None:
+    from flow_node.core.volume import linear_matrix, resample
+
+    f = np.random.default_rng(4).random((2, 3, 9, 10, 11), dtype=np.float32)
+    for shape, matrix in (((5, 4, 6), area_matrix), ((17, 20, 13), linear_matrix), ((9, 5, 11), area_matrix)):
+        ref = resample(f, shape, matrix)
+        fast = nv.resample_numba(f, shape, matrix)
+        assert fast.shape == ref.shape == (2, 3) + shape
+        assert np.abs(fast - ref).max() < 1e-5

@@ -160,12 +160,21 @@ def norm_bound(spec: ModelSpec, dims: int, incompressible: bool) -> float:
     return (1.0 + e) * lv
 
 
+# On volumes tau is multiplied by this and sigma divided by it (tau * sigma unchanged): a smaller primal step
+# reached a given AEE in about half the iterations (bench.volume scenes at 48^3, 5 warps x 20 iterations: shift
+# 0.041 -> 0.019 voxels, zoom and shear unchanged at 0.057 and 0.128; 0.25 was as good there but slower on
+# a single level, test_volume's CLI case; 0.125 lost on shear). docs/engine.md, "Volumes".
+VOLUME_STEP_BALANCE = 0.5
+
+
 def step_sizes(spec: ModelSpec, dims: int = 2, incompressible: bool = False) -> tuple[float, float]:
     """(tau, sigma) of the primal-dual iteration: the paper's (spec.tau, spec.sigma) on images; on a volume, or
     with the incompressibility block, sigma shrinks by the ratio of :func:`norm_bound` to the paper's case,
-    so tau * sigma * ||K||^2 stays what the paper chose."""
+    so tau * sigma * ||K||^2 stays what the paper chose; on a volume, then, VOLUME_STEP_BALANCE moves step
+    length from the primal to the dual side."""
     ratio = norm_bound(spec, 2, False) / norm_bound(spec, dims, incompressible)
-    return spec.tau, spec.sigma * ratio
+    balance = VOLUME_STEP_BALANCE if dims == 3 else 1.0
+    return spec.tau * balance, spec.sigma * ratio / balance
 
 
 # ------------------------------------------------------------------------------------------ K and K*

@@ -98,33 +98,41 @@ def linear_matrix(n_in: int, n_out: int) -> np.ndarray:
     return m
 
 
-def resample(f: np.ndarray, shape: tuple[int, ...], matrix: Callable[[int, int], np.ndarray]) -> np.ndarray:
+def resample(f: np.ndarray, shape: tuple[int, int, int], matrix: Callable[[int, int], np.ndarray]) -> np.ndarray:
     """f (..., Z, Y, X) resampled to (..., *shape) by ``matrix`` (area_matrix or linear_matrix) along each of
-    the last three axes. float32."""
+    the last three axes, as matrix products on views (no transposed copies). float32 C-contiguous."""
     out = f.astype(np.float32, copy=False)
-    for k, n_out in enumerate(shape):
-        axis = f.ndim - len(shape) + k
-        if out.shape[axis] != n_out:
-            out = np.moveaxis(np.tensordot(matrix(out.shape[axis], n_out), out, axes=([1], [axis])), 0, axis)
+    lead = f.shape[:-3]
+    nz, ny, nx = f.shape[-3:]
+    if nx != shape[2]:
+        out = (out.reshape(-1, nx) @ matrix(nx, shape[2]).T).reshape(out.shape[:-1] + (shape[2],))
+    if ny != shape[1]:
+        out = matrix(ny, shape[1]) @ out
+    if nz != shape[0]:
+        plane = out.shape[-2:]
+        out = (matrix(nz, shape[0]) @ out.reshape(lead + (nz, -1))).reshape(lead + (shape[0],) + plane)
     return np.ascontiguousarray(out)
 
 
-def resize_flow3(v: np.ndarray, shape: tuple[int, int, int]) -> np.ndarray:
-    """Flow (3, z, y, x) in voxels of its grid -> (3, *shape): linear resampling, each component scaled by
-    its own axis's ratio (component 0 = x = the last axis)."""
-    out = resample(v, shape, linear_matrix)
+def resize_flow3(v: np.ndarray, shape: tuple[int, int, int], how: Callable[..., np.ndarray] = resample
+                 ) -> np.ndarray:
+    """Flow (3, z, y, x) in voxels of its grid -> (3, *shape): linear resampling (by ``how``: :func:`resample`
+    or a backend's), each component scaled by its own axis's ratio (component 0 = x = the last axis)."""
+    out = how(v, shape, linear_matrix)
     for comp in range(3):
         out[comp] *= np.float32(shape[2 - comp] / v.shape[3 - comp])
     return out
 
 
-def resize_state3(state: PDState, shape: tuple[int, int, int]) -> PDState:
+def resize_state3(state: PDState, shape: tuple[int, int, int], how: Callable[..., np.ndarray] = resample
+                  ) -> PDState:
     """A level's solver state on the next finer grid: the flow by :func:`resize_flow3`, the duals (and w)
     linearly resampled with their values kept, so the finer level starts from the coarser one's solution."""
     def field(f: np.ndarray | None) -> np.ndarray | None:
-        return None if f is None else resample(f, shape, linear_matrix)
+        return None if f is None else how(f, shape, linear_matrix)
 
-    return PDState(resize_flow3(state.v, shape), field(state.y), field(state.w), field(state.z), field(state.s))
+    return PDState(resize_flow3(state.v, shape, how), field(state.y), field(state.w), field(state.z),
+                   field(state.s))
 
 
 # ----------------------------------------------------------------------------- linearisation (numpy reference)
@@ -171,10 +179,11 @@ class VolumeBackend:
     name: str
     linearise: Callable[..., tuple[np.ndarray, np.ndarray]]
     solve: Callable[[Problem, PDState, SolveParams], int]
+    resample: Callable[..., np.ndarray]
     on_threads: Callable[[int], AbstractContextManager[object]] = lambda n: nullcontext()
 
 
-NUMPY_VOLUME = VolumeBackend("numpy", linearise3, solve_numpy)
+NUMPY_VOLUME = VolumeBackend("numpy", linearise3, solve_numpy, resample)
 
 
 def select_volume_backend(name: str) -> VolumeBackend:
@@ -186,7 +195,7 @@ def select_volume_backend(name: str) -> VolumeBackend:
     from . import numba_backend, numba_volume  # optional dependency: imported only when selected
 
     return VolumeBackend("numba", numba_volume.linearise_numba, numba_volume.solve_numba,
-                         numba_backend.thread_count)
+                         numba_volume.resample_numba, numba_backend.thread_count)
 
 
 # ------------------------------------------------------------------------------------------- driver
@@ -242,9 +251,9 @@ def estimate_volume(v0: np.ndarray, v1: np.ndarray, config: FlowConfig | None = 
         for level in range(len(shapes) - 1, -1, -1):
             shape = shapes[level]
             if state.v.shape[1:] != shape:
-                state = resize_state3(state, shape)
-            l0 = i0 if level == 0 else resample(i0, shape, area_matrix)
-            l1 = i1 if level == 0 else resample(i1, shape, area_matrix)
+                state = resize_state3(state, shape, backend.resample)
+            l0 = i0 if level == 0 else backend.resample(i0, shape, area_matrix)
+            l1 = i1 if level == 0 else backend.resample(i1, shape, area_matrix)
             total += solve_level3(l0, l1, state, cfg, level, backend)
     flow = np.ascontiguousarray(np.moveaxis(state.v, 0, -1), dtype=np.float32)
     if not np.isfinite(flow).all():
