@@ -151,13 +151,16 @@ def run(sizes: list[int], big_scenes: tuple[str, ...], seed: int) -> dict[str, A
             row["time_ratio"] = round(row["flow_node"]["seconds"] / row["skimage"]["seconds"], 3)
             print(row, flush=True)
             rows.append(row)
-    return {"command": "python -m bench.volume " + " ".join(f"--sizes {s}" for s in sizes),
+    sized = " ".join(f"--sizes {s}" for s in sizes)
+    return {"command": f"python -m bench.volume {sized} --big {','.join(big_scenes)}",
             "settings": SETTINGS, "incompressibility": cfg_inc.incompressibility, "seed": seed,
             "machine": machine(), "rows": rows}
 
 
 def markdown(result: dict[str, Any]) -> str:
-    lines = [f"`{result['command']}` (seed {result['seed']}); AEE in voxels, time in s.", "",
+    lines = [f"`{result['command']}` (seed {result['seed']}); AEE in voxels, time in s (wall clock, both on one "
+             f"thread; a shared machine: compare the ratio, measured interleaved). flow_node settings: "
+             f"{result['settings']}; +incompressible: incompressibility={result['incompressibility']}.", "",
              "| scene | size | flow_node AEE | +incompressible AEE | skimage AEE | flow_node s | skimage s | "
              "time ratio |", "|---|---|---|---|---|---|---|---|"]
     for r in result["rows"]:
