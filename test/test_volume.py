@@ -181,3 +181,33 @@ def test_numba_resampling_matches_numpy() -> None:
         fast = nv.resample_numba(f, shape, matrix)
         assert fast.shape == ref.shape == (2, 3) + shape
         assert np.abs(fast - ref).max() < 1e-5
+
+
+@pytest.mark.parametrize("model", ["l2_l2", "l1_tv", "l1_tv_tv"])
+def test_numpy_solver_decreases_the_3d_energy_with_incompressibility(model: str) -> None:
+    """The reference itself (not only numba = numpy): on a volume, with the div v block, the primal energy
+    (models.energy, penalty included) falls below its value at zero and keeps falling, and the end point is
+    a minimum: no small random change of v lowers the (convex) energy."""
+    from flow_node.core.models import energy
+
+    rng = np.random.default_rng(5)
+    shape = (6, 7, 8)
+    a = rng.normal(size=(3,) + shape).astype(np.float32)
+    c = rng.normal(size=shape).astype(np.float32)
+    spec, alpha, beta = MODEL_SPECS[model], 0.5, 2.0
+    state = PDState.zeros(spec, shape, True)
+
+    def e(st: PDState) -> float:
+        return energy(spec, st.v, st.w, a, c, alpha, 0.3, "isotropic", incompressibility=beta)
+
+    e0 = e(state)
+    solve_numpy(Problem(a, c), state, SolveParams(spec, alpha, 0.3, "isotropic", 50, 0.0, beta))
+    e50 = e(state)
+    solve_numpy(Problem(a, c), state, SolveParams(spec, alpha, 0.3, "isotropic", 1000, 0.0, beta))
+    e_end = e(state)
+    assert e_end < 0.9 * e0
+    assert e_end <= e50 + 1e-3 * abs(e50)
+    for _ in range(5):
+        moved = PDState(state.v + rng.normal(scale=0.02, size=state.v.shape).astype(np.float32), state.y,
+                        state.w, state.z, state.s)
+        assert e(moved) > e_end - 1e-3 * abs(e_end)
