@@ -28,17 +28,17 @@ from typing import Any
 import numpy as np
 
 from flow_node.core.config import FlowConfig
-from flow_node.core.volume import estimate_volume
+from flow_node.core.volume import VOLUME_CONFIG, estimate_volume
 
 from .common import REPO, machine, write_json
 
 RESULTS = REPO / "bench" / "results" / "volume"
-# The volume settings measured here (FlowConfig fields; docs/engine.md, "Volumes").
-# Both methods on one thread: the shared 2-core machine made numba's parallel kernels slower than its
-# single-thread ones while other jobs ran (docs/engine.md, "Volumes").
-SETTINGS: dict[str, Any] = dict(model="l1_tv", alpha=0.06, warps=5, iterations=20, finest_warps=3,
-                                finest_iterations=15, levels=5, scale_factor=0.5, min_size=12,
-                                gradient_scheme="interpolated", tolerance=0.0, threads=1)
+# flow_node's volume defaults (core/volume.py VOLUME_CONFIG), both methods on one thread: the shared 2-core
+# machine made numba's parallel kernels slower than its single-thread ones while other jobs ran.
+CONFIG = VOLUME_CONFIG.replace(threads=1)
+SETTINGS: dict[str, Any] = {k: getattr(CONFIG, k) for k in (  # the fields a volume uses, for the JSON
+    "model", "alpha", "warps", "iterations", "finest_warps", "finest_iterations", "levels", "scale_factor",
+    "min_size", "gradient_scheme", "tolerance", "threads")}
 INCOMPRESSIBILITY = 0.2  # beta of the "+incompressible" column
 Motion = Callable[[np.ndarray], np.ndarray]  # points (..., 3) x, y, z -> moved points
 
@@ -133,7 +133,7 @@ def flow_node_flow(v0: np.ndarray, v1: np.ndarray, cfg: FlowConfig) -> np.ndarra
 
 
 def run(sizes: list[int], big_scenes: tuple[str, ...], seed: int) -> dict[str, Any]:
-    cfg = FlowConfig(**SETTINGS)
+    cfg = CONFIG
     cfg_inc = cfg.replace(incompressibility=INCOMPRESSIBILITY)
     estimate_volume(*scene("shift", (24, 24, 24), seed)[:2], cfg_inc)  # compile / load the kernels
     rows = []

@@ -22,7 +22,8 @@ from flow_node.core.volume import area_matrix, estimate_volume, linearise3, warp
 nv = pytest.importorskip("flow_node.core.numba_volume")
 
 SHIFT = (1.5, -0.75, 0.5)  # x, y, z voxels
-FAST = dict(levels=3, warps=3, iterations=30, min_size=8, alpha=0.06, gradient_scheme="interpolated")
+FAST = dict(levels=3, warps=3, iterations=30, finest_warps=3, finest_iterations=30, min_size=4, alpha=0.06,
+            gradient_scheme="interpolated")
 
 
 def texture(shape: tuple[int, int, int], shift: tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -108,6 +109,12 @@ def test_pure_shift_shape_order_convention(backend: str) -> None:
     inner = flow[4:-4, 4:-4, 4:-4].reshape(-1, 3)
     assert np.abs(np.median(inner, axis=0) - np.array(SHIFT)).max() < 0.05
     assert np.mean(np.linalg.norm(inner - np.array(SHIFT), axis=1)) < 0.1
+
+
+def test_default_volume_config_on_a_thin_volume() -> None:
+    shape = (12, 24, 28)  # a few slices: the default pyramid still has levels
+    flow = estimate_flow(texture(shape), texture(shape, SHIFT))
+    assert np.abs(np.median(flow[3:-3, 4:-4, 4:-4].reshape(-1, 3), axis=0) - np.array(SHIFT)).max() < 0.05
 
 
 def test_uint8_and_uint16_volumes_give_the_same_flow() -> None:

@@ -28,7 +28,7 @@ from ..core.api import to_grey
 from ..core.config import MODELS
 from ..core.errors import FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
-from ..core.volume import estimate_volume, is_volume
+from ..core.volume import VOLUME_CONFIG, estimate_volume, is_volume
 from ..pipeline.codec import decode_bytes
 from ..process import keep_freed_memory, passive_thread_waits
 from .common import (
@@ -210,6 +210,7 @@ def _run(args: argparse.Namespace) -> int:
         if i0.ndim == 3 or i1.ndim == 3:
             if args.color:
                 raise FileFormatError("--color is for images; a volume's flow has no colour coding")
+            cfg = config_from_args(args, VOLUME_CONFIG)  # a volume's defaults (docs/engine.md, "Volumes")
             volume = estimate_volume(i0, i1, cfg)
             write_outputs(volume.flow, args.output, None, args.max_flow)
             if args.verbose:

@@ -34,6 +34,11 @@ from .solver import PDState, Problem, SolveParams, solve_numpy
 
 FLOAT_INPUT_LIMIT = 1e6  # as api.FLOAT_INPUT_LIMIT: larger float values are garbage, not intensities
 MIN_SIDE = 2  # voxels per axis
+# What a volume is solved with when no config is given (API and flow_estimate without --preset): the settings
+# bench.volume measures (docs/engine.md, "Volumes"); a stronger alpha than 2-D's and fewer iterations, and a
+# pyramid also on volumes of a few dozen slices (min_size 12 left a 20-slice volume a single level).
+VOLUME_CONFIG = FlowConfig(model="l1_tv", alpha=0.06, warps=5, iterations=20, finest_warps=3, finest_iterations=15,
+                           min_size=6, gradient_scheme="interpolated", median_filter=0)
 
 
 def is_volume(a: object) -> bool:
@@ -239,8 +244,9 @@ def solve_level3(i0: np.ndarray, i1: np.ndarray, state: PDState, cfg: FlowConfig
 
 def estimate_volume(v0: np.ndarray, v1: np.ndarray, config: FlowConfig | None = None) -> VolumeResult:
     """Flow from volume v0 to v1 (same (Z, Y, X) shape; uint8, uint16 or float): coarse to fine from zero
-    flow, each level starting from the coarser one's state (:func:`resize_state3`)."""
-    cfg = config if config is not None else FlowConfig()
+    flow, each level starting from the coarser one's state (:func:`resize_state3`). ``config`` defaults to
+    :data:`VOLUME_CONFIG`."""
+    cfg = config if config is not None else VOLUME_CONFIG
     i0, i1 = normalise_pair(*check_pair(v0, v1))
     backend = select_volume_backend(cfg.backend)
     start = time.perf_counter()
