@@ -48,9 +48,10 @@ def add_config_options(p: argparse.ArgumentParser) -> None:
                    help="override one parameter; repeatable")
 
 
-def config_from_args(args: argparse.Namespace) -> FlowConfig:
-    """preset, then --params file, then --model, then --set overrides (later wins)."""
-    cfg = FlowConfig.preset(args.preset) if args.preset else FlowConfig()
+def config_from_args(args: argparse.Namespace, base: FlowConfig | None = None) -> FlowConfig:
+    """preset (else ``base``, else FlowConfig()), then --params file, then --model, then --set overrides
+    (later wins)."""
+    cfg = FlowConfig.preset(args.preset) if args.preset else (base if base is not None else FlowConfig())
     if args.params:
         cfg = FlowConfig.from_yaml(args.params, base=cfg)
     if args.model:

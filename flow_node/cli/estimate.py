@@ -1,4 +1,8 @@
-"""``flow_estimate FRAME0 FRAME1 --output OUT.flo``: flow between two image files.
+"""``flow_estimate FRAME0 FRAME1 --output OUT.flo``: flow between two image files (or two volumes).
+
+Volumes (3-D flow, docs/engine.md "Volumes"): two ``.npy`` arrays (Z, Y, X) or multi-page TIFFs (one page per
+slice); the flow (Z, Y, X, 3), components x, y, z in voxels, is written as ``.npy``. Any flow can be written
+as ``.npy`` (an image's is (H, W, 2)).
 
 Prints nothing but errors unless ``--verbose``; exits 1 with a one-line reason on bad input, 2 on bad usage
 (also one line). Outputs are all or nothing: the .flo (and the colour image) are written to temporary files
@@ -9,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import io
 import os
 import stat
 import sys
@@ -23,6 +28,7 @@ from ..core.api import to_grey, to_planes
 from ..core.config import MODELS
 from ..core.errors import FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
+from ..core.volume import VOLUME_CONFIG, estimate_volume, is_volume
 from ..pipeline.codec import decode_bytes
 from ..process import keep_freed_memory, passive_thread_waits
 from .common import (
@@ -37,9 +43,11 @@ from .common import (
 
 def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog="flow_estimate", description=__doc__.splitlines()[0])
-    p.add_argument("frame0", help="first frame (8- or 16-bit PNG, grey or colour)")
+    p.add_argument("frame0", help="first frame (8- or 16-bit PNG, grey or colour), or a volume (.npy (Z, Y, X) "
+                   "or a multi-page TIFF)")
     p.add_argument("frame1", help="second frame, same size")
-    p.add_argument("--output", "-o", required=True, help="output .flo file (Middlebury format)")
+    p.add_argument("--output", "-o", required=True, help="output .flo file (Middlebury format), or .npy (the flow "
+                   "array; required for volumes)")
     p.add_argument("--model", choices=MODELS, help="variational model (overrides preset/params)")
     add_config_options(p)
     p.add_argument("--color", metavar="OUT.png", help="also write the Middlebury colour coding")
@@ -65,6 +73,43 @@ def _not_regular(mode: int) -> str | None:
         return None
     kind = next((why for test, why in _KINDS if test(mode)), "is not a regular file")
     return f"{kind}, not an image file"
+
+
+def read_input(path: str, colour: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+    """An input file -> (a grey image (H, W) float32 in [0, 1] with its colour planes as :func:`read_planes`
+    gives them, or a volume (Z, Y, X) as stored with None): a ``.npy`` array (2-D: an image) or a multi-page
+    TIFF (one slice per page) is read as an array, anything else as an image. FlowError naming the file for
+    anything unusable."""
+    shown = short_path(path)
+    suffix = Path(path).suffix.lower()
+    if suffix == ".npy":
+        _check_regular(path)
+        try:
+            arr = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as exc:
+            raise FileFormatError(f"cannot read {shown}: not a .npy array ({one_line(exc, 120)})") from None
+        return (arr if is_volume(arr) or arr.ndim != 2 else to_grey(arr, shown)), None
+    if suffix in (".tif", ".tiff"):
+        _check_regular(path)
+        if cv2.imcount(path) > 1:
+            ok, pages = cv2.imreadmulti(path, flags=cv2.IMREAD_ANYDEPTH)
+            if not ok or not pages or len({pg.shape for pg in pages}) != 1 or pages[0].ndim != 2:
+                raise FileFormatError(f"cannot read {shown}: a multi-page TIFF needs grey pages of one size")
+            return np.stack(pages), None
+    return read_planes(path, colour)
+
+
+def _check_regular(path: str) -> None:
+    """FileFormatError unless ``path`` is an existing, non-empty regular file."""
+    shown = short_path(path)
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        why = "no such file" if exc.errno == errno.ENOENT else os_reason(exc)
+        raise FileFormatError(f"cannot read {shown}: {why}") from None
+    why = _not_regular(st.st_mode) or ("the file is empty" if st.st_size == 0 else None)
+    if why is not None:
+        raise FileFormatError(f"cannot read {shown}: {why}")
 
 
 def read_frame(path: str) -> np.ndarray:
@@ -117,10 +162,21 @@ def _encode_color(path: str, bgr: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
+def flow_bytes(flow: np.ndarray, path: str) -> bytes:
+    """The flow encoded for ``path``: a ``.npy`` array (any flow), else a ``.flo`` (images only)."""
+    if Path(path).suffix.lower() == ".npy":
+        buf = io.BytesIO()
+        np.save(buf, np.ascontiguousarray(flow, dtype=np.float32), allow_pickle=False)
+        return buf.getvalue()
+    if flow.ndim != 3 or flow.shape[2] != 2:
+        raise FileFormatError(f"cannot write {short_path(path)}: a volume's flow is written as .npy")
+    return flo_bytes(flow)
+
+
 def write_outputs(flow: np.ndarray, output: str, color: str | None, max_flow: float) -> None:
     """Write the .flo and (if asked) the colour image, all or nothing: both are encoded in memory, written
     to temporary siblings, and renamed onto their targets only once every write succeeded."""
-    files = [(output, flo_bytes(flow))]
+    files = [(output, flow_bytes(flow, output))]
     if color:
         files.append((color, _encode_color(color, flow_to_color(flow, max_flow, bgr=True))))
     staged: list[tuple[Path, str, str]] = []
@@ -159,7 +215,18 @@ def _run(args: argparse.Namespace) -> int:
     try:
         cfg = config_from_args(args)
         colour = cfg.colour == "channels"
-        (i0, c0), (i1, c1) = read_planes(args.frame0, colour), read_planes(args.frame1, colour)
+        (i0, c0), (i1, c1) = read_input(args.frame0, colour), read_input(args.frame1, colour)
+        if i0.ndim == 3 or i1.ndim == 3:
+            if args.color:
+                raise FileFormatError("--color is for images; a volume's flow has no colour coding")
+            cfg = config_from_args(args, VOLUME_CONFIG)  # a volume's defaults (docs/engine.md, "Volumes")
+            volume = estimate_volume(i0, i1, cfg)
+            write_outputs(volume.flow, args.output, None, args.max_flow)
+            if args.verbose:
+                z, y, x = volume.flow.shape[:3]
+                print(f"{x}x{y}x{z} model={cfg.model} backend={volume.backend} time={volume.seconds:.3f}s "
+                      f"iterations={volume.iterations}")
+            return 0
         result = FlowEstimator(cfg).estimate_grey(i0, i1, channels=None if c0 is None or c1 is None else (c0, c1))
         write_outputs(result.flow, args.output, args.color, args.max_flow)
     except FlowError as exc:

@@ -14,6 +14,7 @@ from .config import FlowConfig
 from .engine import estimate_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
 from .refine import SolveStats
+from .volume import estimate_volume, is_volume
 
 log = logging.getLogger("flow_node")
 
@@ -212,5 +213,12 @@ def estimate_flow(frame0: np.ndarray, frame1: np.ndarray, config: FlowConfig | N
     """Dense optical flow from frame0 to frame1: float32 (H, W, 2), channel 0 = u (x), 1 = v (y), px/frame.
 
     Colour input is taken as RGB. ``config`` defaults to ``FlowConfig()``; see FlowConfig.preset.
+    Two volumes (Z, Y, X) give (Z, Y, X, 3) with components x, y, z in voxels per frame
+    (:func:`flow_node.core.volume.estimate_volume`; a 3-D array at most 4 wide in x is taken as an image:
+    call that function directly for so thin a volume).
     """
+    if is_volume(frame0) or is_volume(frame1):
+        if initial_flow is not None:
+            raise InputError("initial_flow is not supported for volumes")
+        return estimate_volume(frame0, frame1, config).flow
     return FlowEstimator(config).estimate(frame0, frame1, initial_flow).flow

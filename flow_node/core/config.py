@@ -126,6 +126,9 @@ class FlowConfig:
                             choices=(0, 3, 5))
     level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
                                    "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
+    incompressibility: float = _f(0.0, "volumes only (3-D flow): weight beta of the penalty (beta/2)|div v|^2 "
+                                  "that makes the flow divergence-free (0 = off; the 2-D engine does not use it)",
+                                  lo=0.0, hi=1000.0)
     warp_kernel: str = _f("bspline", "cubic kernel of the warp: bspline (prefiltered cubic B-spline) or keys "
                           "(Keys a = -1/2, Catmull-Rom); both reproduce linear ramps", choices=WARP_KERNELS)
     initialisation: str = _f("none", "flow the refinement starts from, fused per pixel with the pyramid's own: "

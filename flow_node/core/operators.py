@@ -1,9 +1,10 @@
 """Discrete operators of the paper ("Discretization and Parameters"), numpy reference versions.
 
 Arrays are channel-first: a scalar field is (H, W), a vector field (2, H, W) with index 0 = x (columns,
-rightwards) and 1 = y (rows, downwards). ``grad`` is the forward difference with Neumann boundary (zero in
-the last column/row) and ``div`` the backward difference chosen so that ``<grad f, p> = -<f, div p>`` holds
-exactly: these are the blocks of the paper's K and K*.
+rightwards) and 1 = y (rows, downwards); on a volume (Z, Y, X) and (3, Z, Y, X) with index 2 = z (slices).
+``grad`` is the forward difference with Neumann boundary (zero in the last column/row/slice) and ``div``
+the backward difference chosen so that ``<grad f, p> = -<f, div p>`` holds exactly: these are the blocks
+of the paper's K and K*.
 
 Image derivatives (the paper's Table 2 schemes) are separate from ``grad``: they feed the data term only.
 """
@@ -17,54 +18,66 @@ import numpy as np
 from .warping import NUMPY_WARPER, Warper
 
 
-def grad(f: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Forward-difference gradient with Neumann boundary. f: (..., H, W) -> (2, ..., H, W)."""
+def _axis(k: int, ndim: int, sl: slice) -> tuple[slice, ...]:
+    """Index of ``sl`` along spatial direction k of an array with ``ndim`` axes (direction 0 = the last axis,
+    x; 1 = the one before, y; 2 = z), all other axes whole."""
+    index = [slice(None)] * ndim
+    index[ndim - 1 - k] = sl
+    return tuple(index)
+
+
+_HEAD, _TAIL, _LAST = slice(None, -1), slice(1, None), slice(-1, None)
+
+
+def grad(f: np.ndarray, out: np.ndarray | None = None, dims: int = 2) -> np.ndarray:
+    """Forward-difference gradient with Neumann boundary over the last ``dims`` axes (2: an image, 3: a
+    volume). f: (..., [Z,] Y, X) -> (dims, ..., [Z,] Y, X), direction k along axis -(k+1): 0 = x, 1 = y,
+    2 = z. Zero in the last entry of each direction."""
     if out is None:
-        out = np.zeros((2,) + f.shape, dtype=f.dtype)
-    out[0, ..., :-1] = f[..., 1:] - f[..., :-1]
-    out[0, ..., -1] = 0.0
-    out[1, ..., :-1, :] = f[..., 1:, :] - f[..., :-1, :]
-    out[1, ..., -1, :] = 0.0
+        out = np.zeros((dims,) + f.shape, dtype=f.dtype)
+    for k in range(dims):
+        np.subtract(f[_axis(k, f.ndim, _TAIL)], f[_axis(k, f.ndim, _HEAD)], out=out[k][_axis(k, f.ndim, _HEAD)])
+        out[k][_axis(k, f.ndim, _LAST)] = 0.0
     return out
 
 
 def div(p: np.ndarray) -> np.ndarray:
-    """Backward-difference divergence, the negative adjoint of :func:`grad`. p: (2, ..., H, W) -> (..., H, W)."""
-    px, py = p[0], p[1]
-    d = np.zeros(px.shape, dtype=p.dtype)
-    # div_x p[j] = p[j] (j < W-1) - p[j-1] (j > 0); the last column of p is never produced by grad
-    d[..., :-1] += px[..., :-1]
-    d[..., 1:] -= px[..., :-1]
-    d[..., :-1, :] += py[..., :-1, :]
-    d[..., 1:, :] -= py[..., :-1, :]
+    """Backward-difference divergence, the negative adjoint of :func:`grad`; the number of spatial axes is
+    p.shape[0]. p: (dims, ..., [Z,] Y, X) -> (..., [Z,] Y, X)."""
+    d = np.zeros(p.shape[1:], dtype=p.dtype)
+    for k in range(p.shape[0]):
+        # div_k p[j] = p[j] (j < N-1) - p[j-1] (j > 0); the last entry of p is never produced by grad
+        head = p[k][_axis(k, d.ndim, _HEAD)]
+        d[_axis(k, d.ndim, _HEAD)] += head
+        d[_axis(k, d.ndim, _TAIL)] -= head
     return d
 
 
 def image_gradient(img: np.ndarray, scheme: str, out: np.ndarray | None = None) -> np.ndarray:
-    """Spatial derivative of an image for the data term. img: (H, W) -> (2, H, W), intensity per pixel.
+    """Spatial derivative of an image or volume for the data term. img: (H, W) or (Z, Y, X) -> (img.ndim,
+    *img.shape) float32 in direction order x, y[, z], intensity per pixel.
 
-    ``forward``: I(x+1) - I(x), zero in the last column/row. ``central`` (and ``interpolated``, which
-    applies it to a temporally interpolated image): (I(x+1) - I(x-1)) / 2, zero on the border as in the
+    ``forward``: I(x+1) - I(x), zero in the last entry of each direction. ``central`` (and ``interpolated``,
+    which applies it to a temporally interpolated image): (I(x+1) - I(x-1)) / 2, zero on the border as in the
     paper. Note the paper writes the central difference without the 1/2; we keep the true derivative so
     that flow is in pixels, and the paper's weights map onto ours by alpha_ours = alpha_paper / 2.
-    ``out``: a float32 (2, H, W) array to write into (returned), else a new one; it must not overlap img
-    (the second component would read what the first wrote).
+    ``out``: a float32 array of the result's shape to write into (returned), else a new one; it must not
+    overlap img (a later component would read what an earlier one wrote).
     """
     if out is not None and np.may_share_memory(img, out):
         raise ValueError("image_gradient: out overlaps the image")
-    g = np.empty((2,) + img.shape, dtype=np.float32) if out is None else out
-    if scheme == "forward":
-        np.subtract(img[:, 1:], img[:, :-1], out=g[0, :, :-1])
-        np.subtract(img[1:, :], img[:-1, :], out=g[1, :-1, :])
-        g[0, :, -1] = 0.0
-        g[1, -1, :] = 0.0
-    else:
-        np.subtract(img[:, 2:], img[:, :-2], out=g[0, :, 1:-1])
-        np.subtract(img[2:, :], img[:-2, :], out=g[1, 1:-1, :])
-        g[0, :, 1:-1] *= 0.5
-        g[1, 1:-1, :] *= 0.5
-        g[0, :, 0] = g[0, :, -1] = 0.0
-        g[1, 0, :] = g[1, -1, :] = 0.0
+    n = img.ndim
+    g = np.empty((n,) + img.shape, dtype=np.float32) if out is None else out
+    for k in range(n):
+        if scheme == "forward":
+            np.subtract(img[_axis(k, n, _TAIL)], img[_axis(k, n, _HEAD)], out=g[k][_axis(k, n, _HEAD)])
+            g[k][_axis(k, n, _LAST)] = 0.0
+        else:
+            inner = _axis(k, n, slice(1, -1))
+            np.subtract(img[_axis(k, n, slice(2, None))], img[_axis(k, n, slice(None, -2))], out=g[k][inner])
+            g[k][inner] *= 0.5
+            g[k][_axis(k, n, slice(0, 1))] = 0.0
+            g[k][_axis(k, n, _LAST)] = 0.0
     return g
 
 

@@ -21,15 +21,15 @@ from .solver import PDState
 ANTIALIAS = 0.7  # blur (px of the finer level, times 1/scale) of every step when the finest solved level is coarser
 
 
-def pyramid_shapes(shape: tuple[int, int], levels: int, scale: float, min_size: int) -> list[tuple[int, int]]:
-    """Level shapes, finest first: shape * scale**l, stopping before a side would drop below min_size."""
-    h, w = shape
-    shapes = [(h, w)]
+def pyramid_shapes(shape: tuple[int, ...], levels: int, scale: float, min_size: int) -> list[tuple[int, ...]]:
+    """Level shapes, finest first: shape * scale**l, stopping before a side would drop below min_size (an
+    image's (H, W) or a volume's (Z, Y, X))."""
+    shapes = [tuple(shape)]
     for lvl in range(1, levels):
-        nh, nw = round(h * scale**lvl), round(w * scale**lvl)
-        if min(nh, nw) < min_size or (nh, nw) == shapes[-1]:
+        level = tuple(round(n * scale**lvl) for n in shape)
+        if min(level) < min_size or level == shapes[-1]:
             break
-        shapes.append((nh, nw))
+        shapes.append(level)
     return shapes
 
 

@@ -13,6 +13,10 @@ E / alpha = (1/alpha) D(v) + R(v) + (alpha1/alpha) S(w), which has the same mini
 and L2 data terms need thousands of iterations; weighting the data by 1/alpha instead puts the
 regulariser at unit scale, where the paper's step sizes (tau, sigma) are well matched. The dual variables
 are then y / alpha (the TV ball has radius 1).
+
+The same code runs on images (v (2, H, W)) and volumes (v (3, Z, Y, X)): the operators take the number of
+spatial axes from v. On volumes an optional incompressibility penalty (beta/2)|div v|^2 adds a dual block s
+(models.flow_divergence; docs/engine.md, "Volumes").
 """
 
 from __future__ import annotations
@@ -22,7 +26,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models import PROX_DATA, ModelSpec, project_dual_tv, prox_data_quadratic, prox_dual_l2
+from .models import (
+    PROX_DATA,
+    ModelSpec,
+    flow_divergence,
+    project_dual_tv,
+    prox_data_quadratic,
+    prox_dual_incompressibility,
+    prox_dual_l2,
+    step_sizes,
+)
 from .operators import div, grad
 
 CHECK_EVERY = 10  # iterations between evaluations of the stopping rule
@@ -36,16 +49,18 @@ class PDState:
     y: np.ndarray
     w: np.ndarray | None = None
     z: np.ndarray | None = None
+    s: np.ndarray | None = None
 
     @classmethod
-    def zeros(cls, spec: ModelSpec, shape: tuple[int, int]) -> PDState:
-        h, w = shape
-        f = np.float32
+    def zeros(cls, spec: ModelSpec, shape: tuple[int, ...], incompressible: bool = False) -> PDState:
+        """Zero state on a grid of ``shape`` ((H, W) or (Z, Y, X)); ``s`` only with ``incompressible``."""
+        n, f = len(shape), np.float32
         return cls(
-            v=np.zeros((2, h, w), f),
-            y=np.zeros((2, 2, h, w), f),
-            w=np.zeros((2, 2, h, w), f) if spec.extended else None,
-            z=np.zeros((2, 2, 2, h, w), f) if spec.regulariser == "tv_tv" else None,
+            v=np.zeros((n,) + shape, f),
+            y=np.zeros((n, n) + shape, f),
+            w=np.zeros((n, n) + shape, f) if spec.extended else None,
+            z=np.zeros((n, n, n) + shape, f) if spec.regulariser == "tv_tv" else None,
+            s=np.zeros(shape, f) if incompressible else None,
         )
 
 
@@ -70,6 +85,7 @@ class SolveParams:
     tv_norm: str
     iterations: int
     tolerance: float
+    incompressibility: float = 0.0  # beta of (beta/2)|div v|^2, absolute like alpha (volumes only)
 
 
 # A level solver updates the state in place and returns the number of iterations it ran.
@@ -83,25 +99,37 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
     p.tolerance (px); returns the number of iterations run.
     """
     spec = p.spec
-    tau, sigma = spec.tau, spec.sigma
+    dims, incompressible = state.v.ndim - 1, p.incompressibility > 0.0
+    tau, sigma = step_sizes(spec, dims, incompressible)
     tau_data = tau / p.alpha  # prox of tau * (1/alpha) D
     rel1 = p.alpha1 / p.alpha  # weight of S(w) relative to the first TV term
+    rel_inc = p.incompressibility / p.alpha  # weight of the div v penalty relative to the first TV term
     prox_data = PROX_DATA[spec.data]
     a, c, q = problem.a, problem.c, problem.q
     shift = None if problem.b is None else tau * problem.b  # linear term -<b, v> of E / alpha
-    v, y, w, z = state.v, state.y, state.w, state.z
+    v, y, w, z, s = state.v, state.y, state.w, state.z, state.s
+    if incompressible and s is None:
+        s = np.zeros(v.shape[1:], np.float32)
     v_bar, w_bar = v.copy(), (None if w is None else w.copy())
     for k in range(1, p.iterations + 1):
         # dual ascent: y <- prox_{sigma F*}(y + sigma K xbar)
-        ky = grad(v_bar) if w_bar is None else grad(v_bar) - w_bar
+        gv = grad(v_bar, dims=dims)
+        ky = gv if w_bar is None else gv - w_bar
         if spec.regulariser == "l2":
             y = prox_dual_l2(y + sigma * ky, sigma, 1.0)
         else:
-            y = project_dual_tv(y + sigma * ky, 1.0, p.tv_norm)
+            y = project_dual_tv(y + sigma * ky, 1.0, p.tv_norm, dims)
         if z is not None:
-            z = project_dual_tv(z + sigma * grad(w_bar), rel1, p.tv_norm)
-        # primal descent: x <- prox_{tau G}(x - tau K* y)
-        vt = v + tau * div(y)
+            z = project_dual_tv(z + sigma * grad(w_bar, dims=dims), rel1, p.tv_norm, dims)
+        if incompressible:
+            s = prox_dual_incompressibility(s + sigma * flow_divergence(v_bar), sigma, rel_inc)
+        # primal descent: x <- prox_{tau G}(x - tau K* y); K* of the div v block: -div of s on y's diagonal
+        ys = y
+        if incompressible:
+            ys = y.copy()
+            for d in range(dims):
+                ys[d, d] += s
+        vt = v + tau * div(ys)
         if shift is not None:
             vt += shift
         v_new = prox_data(vt, a, c, tau_data) if q is None else prox_data_quadratic(vt, q, tau_data)
@@ -115,7 +143,7 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
         v = v_new
         if done:
             break
-    state.v, state.y, state.w, state.z = v, y, w, z
+    state.v, state.y, state.w, state.z, state.s = v, y, w, z, s
     return k
 
 
