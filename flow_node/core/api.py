@@ -16,6 +16,7 @@ from .engine import estimate_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
 from .photometric import compares_signatures
 from .refine import SolveStats
+from .validity import MaskInput, as_masks
 
 log = logging.getLogger("flow_node")
 
@@ -143,13 +144,15 @@ class FlowEstimator:
             return self._backend.confidence(i0, i1, flow)
 
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
-                 channel_order: str = "rgb") -> FlowResult:
-        """Flow from frame0 to frame1 (both images of the same size), I1(x + flow) ~ I0(x)."""
+                 channel_order: str = "rgb", mask: MaskInput = None) -> FlowResult:
+        """Flow from frame0 to frame1 (both images of the same size), I1(x + flow) ~ I0(x). ``mask``: the
+        validity mask (validity.py; nonzero = valid): one (H, W) array for both frames or a pair (mask0,
+        mask1); invalid pixels carry no data term and get their flow from their neighbours."""
         return self.estimate_grey(to_grey(frame0, "frame0", channel_order), to_grey(frame1, "frame1", channel_order),
-                                  initial_flow)
+                                  initial_flow, mask=mask)
 
     def estimate_grey(self, i0: np.ndarray, i1: np.ndarray, initial_flow: np.ndarray | None = None,
-                      previous_flow: np.ndarray | None = None) -> FlowResult:
+                      previous_flow: np.ndarray | None = None, mask: MaskInput = None) -> FlowResult:
         """:meth:`estimate` for frames that already went through :func:`to_grey` (float32 (H, W) in [0, 1],
         finite): a stream that converts each frame once on arrival need not validate it again per pair.
 
@@ -159,11 +162,12 @@ class FlowEstimator:
         if i0.shape != i1.shape:
             raise InputError(f"frames differ in size: frame0 is {i0.shape[1]}x{i0.shape[0]}, "
                              f"frame1 is {i1.shape[1]}x{i1.shape[0]}")
+        valid = as_masks(mask, i0.shape)
         init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
         with self._backend.running():
-            flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
+            flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev, valid)
             ensure_finite(flow)
             if compares_signatures(self._config.photometric):
                 unexplained = census_reliability(*normalised, flow, self._backend.warper.sample)
@@ -185,9 +189,11 @@ def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -
 
 
 def estimate_flow(frame0: np.ndarray, frame1: np.ndarray, config: FlowConfig | None = None, *,
-                  initial_flow: np.ndarray | None = None) -> np.ndarray:
+                  initial_flow: np.ndarray | None = None, mask: MaskInput = None) -> np.ndarray:
     """Dense optical flow from frame0 to frame1: float32 (H, W, 2), channel 0 = u (x), 1 = v (y), px/frame.
 
-    Colour input is taken as RGB. ``config`` defaults to ``FlowConfig()``; see FlowConfig.preset.
+    Colour input is taken as RGB. ``config`` defaults to ``FlowConfig()``; see FlowConfig.preset. ``mask``:
+    the validity mask, one (H, W) bool/integer array for both frames or a pair (mask0, mask1), nonzero =
+    valid (validity.py).
     """
-    return FlowEstimator(config).estimate(frame0, frame1, initial_flow).flow
+    return FlowEstimator(config).estimate(frame0, frame1, initial_flow, mask=mask).flow

@@ -39,6 +39,7 @@ from .photometric import stage
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
+from .validity import fill_invalid
 
 
 def start_level(pyr: Pyramid, cfg: FlowConfig, finest: int | None = None) -> int:
@@ -126,7 +127,8 @@ def on_grid(flow: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 
 def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
-                  initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None
+                  initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None,
+                  valid: tuple[np.ndarray, np.ndarray] | None = None
                   ) -> tuple[np.ndarray, SolveStats, tuple[np.ndarray, np.ndarray]]:
     """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px;
     the stats; and the normalised pair of the photometric stage (what the flow's reliability and
@@ -135,11 +137,14 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     ``initial_flow`` (2, H, W) is a caller's warm start; ``previous_flow`` (2, H, W) the previous pair's
     flow in a stream (used when ``cfg.temporal_init``). Both only enter through the fusion, so a wrong one
     costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
-    upsampled to (H, W) by the output layout stage.
+    upsampled to (H, W) by the output layout stage. ``valid``: the frames' validity masks (H, W) bool
+    (validity.py): invalid pixels are filled before every stage and carry no data term in the refinement.
     """
+    if valid is not None:
+        i0, i1 = fill_invalid(i0, valid[0]), fill_invalid(i1, valid[1])
     (i0, i1), normalised = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
-    pyr = make_pyramid(i0, i1, cfg)
+    pyr = make_pyramid(i0, i1, cfg, valid)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     state = refine_from(pyr, cfg, backend, candidates, stats)
     return interleaved_flow(state.v, pyr.shapes[0]), stats, normalised

@@ -20,11 +20,12 @@ from .bregman import bregman
 from .census import CENSUS
 from .config import FlowConfig
 from .layout import interleaved_flow
-from .models import MODEL_SPECS
+from .models import MODEL_SPECS, weight_data, weight_quadratic
 from .operators import image_gradient, warp_source
 from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
+from .validity import data_weight, fill_flow
 from .workspace import scratch
 
 
@@ -87,8 +88,13 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     params = level_params(cfg, level, per_warp)
     linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
         pyr.i0[level], pyr.i1[level], cfg, backend, params.spec.data == "l1")
+    if pyr.valid(level) is not None:
+        linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
+    valid = pyr.valid(level)
     for _ in range(warps):
+        if valid is not None:
+            state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
         iterations += backend.solve(problem, state, params)
         if cfg.median_filter:
@@ -126,6 +132,21 @@ def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Bac
     def around(v0: np.ndarray) -> Problem:
         lin = grey(v0)
         return Problem(lin.a, lin.c, q=backend.census_form(i0, i1, f0, g0, lin.a, lin.c, v0, robust, CENSUS))
+
+    return around
+
+
+def masked_problem(linearised: Linearisation, valid0: np.ndarray, valid1: np.ndarray, data: str) -> Linearisation:
+    """A level's linearisation with the validity mask (validity.py): per warp the data term weighted by
+    :func:`~flow_node.core.validity.data_weight` around v0 (models.weight_data / weight_quadratic; ``data``
+    the model's data term, "l1" or "l2"). Masked pixels keep the regulariser only."""
+
+    def around(v0: np.ndarray) -> Problem:
+        p = linearised(v0)
+        m = data_weight(valid0, valid1, v0)
+        if p.q is not None:
+            return Problem(p.a, p.c, p.b, weight_quadratic(p.q, m))
+        return Problem(*weight_data(p.a, p.c, m, data), p.b, None)
 
     return around
 
