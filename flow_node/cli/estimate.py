@@ -21,7 +21,7 @@ import numpy as np
 from ..core import FlowError, FlowEstimator, flow_to_color
 from ..core.api import to_grey
 from ..core.config import MODELS
-from ..core.errors import FileFormatError, one_line, short_path
+from ..core.errors import ConfigError, FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
 from ..pipeline.codec import decode_bytes
 from ..process import keep_freed_memory, passive_thread_waits
@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output", "-o", required=True, help="output .flo file (Middlebury format)")
     p.add_argument("--model", choices=MODELS, help="variational model (overrides preset/params)")
     add_config_options(p)
+    p.add_argument("--mask", nargs="+", metavar="MASK.png",
+                   help="validity mask image(s), nonzero = valid, the frames' size: one for both frames, or "
+                        "two (frame 0's, frame 1's); masked pixels carry no data term")
     p.add_argument("--color", metavar="OUT.png", help="also write the Middlebury colour coding")
     p.add_argument("--max-flow", type=finite_scale, default=0.0,
                    help="colour scale in px (0 = the frame's maximum)")
@@ -81,6 +84,17 @@ def read_frame(path: str) -> np.ndarray:
     if not data:
         raise FileFormatError(f"cannot read {shown}: the file is empty")
     return to_grey(decode_bytes(np.frombuffer(data, np.uint8), shown), shown)
+
+
+def read_masks(paths: list[str] | None) -> np.ndarray | tuple[np.ndarray, np.ndarray] | None:
+    """``--mask`` files as the API's mask argument: one (H, W) bool mask for both frames, or a pair; a
+    mask image's pixels are valid where nonzero (any channel's grey). FlowError naming the file or count."""
+    if not paths:
+        return None
+    if len(paths) > 2:
+        raise ConfigError(f"--mask takes one file (both frames) or two (frame 0's, frame 1's), got {len(paths)}")
+    masks = [read_frame(path) > 0 for path in paths]
+    return masks[0] if len(masks) == 1 else (masks[0], masks[1])
 
 
 def _temp_for(path: str, k: int) -> Path | None:
@@ -152,7 +166,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         cfg = config_from_args(args)
         i0, i1 = read_frame(args.frame0), read_frame(args.frame1)
-        result = FlowEstimator(cfg).estimate_grey(i0, i1)
+        result = FlowEstimator(cfg).estimate_grey(i0, i1, mask=read_masks(args.mask))
         write_outputs(result.flow, args.output, args.color, args.max_flow)
     except FlowError as exc:
         print(f"flow_estimate: error: {one_line(exc)}", file=sys.stderr)
