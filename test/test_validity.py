@@ -156,3 +156,20 @@ def test_mask_backends_agree() -> None:
     flows = [estimate_flow(i0, i1, FlowConfig.preset("realtime").replace(backend=b), mask=(valid[0], valid[1]))
              for b in ("numpy", "numba")]
     assert np.abs(flows[0] - flows[1]).max() < 1e-3
+
+
+def test_fill_reaches_far_pixels_and_scattered_masks_keep_coarse_data() -> None:
+    """One valid pixel fills a whole level (the fill stops at the image's size); 2 % dead pixels leave the
+    coarse levels most of their data (a level pixel's weight follows the valid fraction of its input)."""
+    valid = np.zeros((30, 40), bool)
+    valid[3, 5] = True
+    np.testing.assert_allclose(fill_invalid(np.full((30, 40), 0.25, np.float32), valid), 0.25, atol=1e-6)
+    from flow_node.core.pyramid import make_pyramid
+
+    dead = np.random.default_rng(0).random((H, W)) > 0.02
+    img = np.zeros((H, W), np.float32)
+    pyr = make_pyramid(img, img, FlowConfig.preset("realtime"), (dead, dead))
+    coarse = pyr.valid(pyr.coarsest)
+    assert coarse is not None
+    zero = np.zeros((2,) + coarse[0].shape, np.float32)
+    assert data_weight(*coarse, zero)[2:-2, 2:-2].mean() > 0.8

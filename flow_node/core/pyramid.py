@@ -84,7 +84,7 @@ def resize_state(state: PDState, shape: tuple[int, int]) -> PDState:
 @dataclass(frozen=True)
 class Pyramid:
     """Both frames on every level, finest first: ``shapes[l]`` (h, w), ``i0[l]`` and ``i1[l]`` float32; with a
-    validity mask (validity.py) ``valid0[l]`` and ``valid1[l]`` float32 0/1 (None: every pixel valid)."""
+    validity mask (validity.py) ``valid0[l]`` and ``valid1[l]`` float32 in [0, 1] (None: every pixel valid)."""
 
     shapes: list[tuple[int, int]]
     i0: list[np.ndarray]
@@ -93,7 +93,7 @@ class Pyramid:
     valid1: list[np.ndarray] | None = None
 
     def valid(self, level: int) -> tuple[np.ndarray, np.ndarray] | None:
-        """Both frames' masks on ``level`` (float32 0/1), or None without a mask."""
+        """Both frames' masks on ``level`` (float32 in [0, 1], validity.mask_levels), or None without a mask."""
         if self.valid0 is None or self.valid1 is None:
             return None
         return self.valid0[level], self.valid1[level]

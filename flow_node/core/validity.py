@@ -7,11 +7,13 @@ one per frame (a moving one: a wiper). What the engine does with it:
 * before the photometric stage, invalid pixels are filled from their valid neighbours (:func:`fill_invalid`):
   their values are garbage, and the pyramid's blur, the warp's B-spline and the initialisation would
   otherwise spread them into the valid pixels around;
-* every pyramid level gets both masks (:func:`mask_levels`: the level's blur and resampling of the mask,
-  a pixel valid only where it is at least VALID_LEVEL, so a level's pixel is valid only when all the input
-  pixels it is made of are);
-* on every warp the data term is weighted per pixel (:func:`data_weight`): 0 where frame 0 is invalid at x
-  or frame 1 is invalid at x + v0 (the bilinear sample of its level mask below VALID_LEVEL), 1 elsewhere.
+* every pyramid level gets both masks (:func:`mask_levels`: the level's blur and resampling of the mask, the
+  fraction m in [0, 1] of a level pixel that comes from valid input pixels);
+* on every warp the data term is weighted per pixel (:func:`data_weight`): trust(m0(x)) * trust(m1(x + v0))
+  with frame 1's mask sampled bilinearly and trust(m) = clip(2 m - 1, 0, 1) (:func:`trust`): 0 where frame 0
+  is invalid at x or frame 1 at x + v0 (or where half of what a level pixel or a sample is made of is), 1
+  where all of it is valid. A binary cut at m = 1 instead leaves no data at all on the coarse levels of a
+  frame with scattered dead pixels (2 % of the pixels: every coarse pixel has one).
   The weight enters the data term of every model (:func:`flow_node.core.models.weight_data`), so masked
   pixels get their flow from the regulariser alone; each warp starts them from their neighbours' flow
   (:func:`fill_flow`), since the regulariser alone propagates it only slowly.
@@ -28,7 +30,7 @@ import numpy as np
 
 from .errors import InputError
 
-VALID_LEVEL = 0.999  # a level's (or a sampled) mask value below this is invalid
+VALID_LEVEL = 0.999  # a shrunk binary mask (the stream's input_scale) is valid where its area mean reaches this
 FILL_SIGMA0 = 1.0  # px: first blur of the fill; doubled until every invalid pixel has valid neighbours
 
 # one mask for both frames, or one per frame
@@ -75,6 +77,9 @@ def fill_invalid(img: np.ndarray, valid: np.ndarray) -> np.ndarray:
     masked = out * weight
     sigma = FILL_SIGMA0
     while not done.all():
+        if sigma > max(out.shape):  # beyond the image's size: what is still unreached gets the valid mean
+            out[~done] = float(out[valid].mean()) if valid.any() else 0.0
+            break
         num = cv2.GaussianBlur(masked, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
         den = cv2.GaussianBlur(weight, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
         take = ~done & (den > 1e-3)
@@ -85,21 +90,26 @@ def fill_invalid(img: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
 
 def mask_levels(valid: np.ndarray, levels: list[np.ndarray]) -> list[np.ndarray]:
-    """A mask (H, W) bool on every level of a pyramid whose images are ``levels`` (finest first), given as
-    float32 0/1: the level's resampling of the mask (``levels`` are that mask's pyramid, built by the caller
-    with the images' blur) thresholded at VALID_LEVEL. The finest level is the mask itself."""
-    return [valid.astype(np.float32)] + [(m >= VALID_LEVEL).astype(np.float32) for m in levels[1:]]
+    """A mask (H, W) bool on every level of a pyramid, finest first, float32 in [0, 1]: ``levels`` is the
+    mask's pyramid built by the caller with the images' blur (the finest level replaced by the mask itself,
+    exactly 0/1)."""
+    return [valid.astype(np.float32)] + [np.clip(m, 0.0, 1.0).astype(np.float32) for m in levels[1:]]
+
+
+def trust(m: np.ndarray) -> np.ndarray:
+    """The data weight of a pixel a fraction m (float32 array in [0, 1]) of which is valid: clip(2 m - 1, 0, 1)."""
+    return np.clip(2.0 * m - 1.0, 0.0, 1.0).astype(np.float32)
 
 
 def data_weight(valid0: np.ndarray, valid1: np.ndarray, flow0: np.ndarray) -> np.ndarray:
     """The data term's per-pixel weight of one warp around flow0 (2, h, w) px on a level whose masks are
-    valid0, valid1 (h, w) float32 0/1: valid0(x) * [valid1 sampled bilinearly at x + flow0(x) >= VALID_LEVEL]
-    (outside the image frame 1 counts as invalid). -> (h, w) float32 0/1."""
+    valid0, valid1 (h, w) float32 in [0, 1] (:func:`mask_levels`): trust(valid0(x)) * trust(valid1 sampled
+    bilinearly at x + flow0(x)) (outside the image frame 1 counts as invalid). -> (h, w) float32 in [0, 1]."""
     h, w = valid0.shape
     map_x = (np.arange(w, dtype=np.float32)[None, :] + flow0[0]).astype(np.float32)
     map_y = (np.arange(h, dtype=np.float32)[:, None] + flow0[1]).astype(np.float32)
     sampled = cv2.remap(valid1, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
-    return valid0 * (sampled >= VALID_LEVEL).astype(np.float32)
+    return trust(valid0) * trust(sampled)
 
 
 def fill_flow(flow: np.ndarray, weight: np.ndarray) -> np.ndarray:
