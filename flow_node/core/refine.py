@@ -92,8 +92,8 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
     valid = pyr.valid(level)
-    for _ in range(warps):
-        if valid is not None:
+    for warp in range(warps):
+        if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
             state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
         iterations += backend.solve(problem, state, params)
