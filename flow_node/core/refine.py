@@ -71,8 +71,9 @@ def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
 def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
     """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``, ``iterations`` per
     warp (:func:`level_schedule`)."""
+    gamma = cfg.image_gamma if cfg.reconstruction == "joint" else 0.0  # the joint model's data term (joint.py)
     return SolveParams(MODEL_SPECS[cfg.model], cfg.alpha * cfg.level_alpha_factor**level, cfg.alpha1,
-                       cfg.tv_norm, iterations, cfg.tolerance)
+                       cfg.tv_norm, iterations, cfg.tolerance, gamma)
 
 
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState, on_finest: bool,

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models import PROX_DATA, ModelSpec, project_dual_tv, prox_data_quadratic, prox_dual_l2
+from .models import PROX_DATA, ModelSpec, project_dual_tv, prox_data_joint, prox_data_quadratic, prox_dual_l2
 from .operators import div, grad
 
 CHECK_EVERY = 10  # iterations between evaluations of the stopping rule
@@ -70,6 +70,7 @@ class SolveParams:
     tv_norm: str
     iterations: int
     tolerance: float
+    gamma: float = 0.0  # > 0: the joint model's data term J_gamma instead of the L1 one (models.prox_data_joint)
 
 
 # A level solver updates the state in place and returns the number of iterations it ran.
@@ -87,6 +88,9 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
     tau_data = tau / p.alpha  # prox of tau * (1/alpha) D
     rel1 = p.alpha1 / p.alpha  # weight of S(w) relative to the first TV term
     prox_data = PROX_DATA[spec.data]
+    if p.gamma > 0.0:
+        def prox_data(vt: np.ndarray, a: np.ndarray, c: np.ndarray, t: float) -> np.ndarray:
+            return prox_data_joint(vt, a, c, t, p.gamma)
     a, c, q = problem.a, problem.c, problem.q
     shift = None if problem.b is None else tau * problem.b  # linear term -<b, v> of E / alpha
     v, y, w, z = state.v, state.y, state.w, state.z
