@@ -15,7 +15,7 @@ one per frame (a moving one: a wiper). What the engine does with it:
   where all of it is valid. A binary cut at m = 1 instead leaves no data at all on the coarse levels of a
   frame with scattered dead pixels (2 % of the pixels: every coarse pixel has one).
   The weight enters the data term of every model (:func:`flow_node.core.models.weight_data`), so masked
-  pixels get their flow from the regulariser alone; each warp starts them from their neighbours' flow
+  pixels get their flow from the regulariser alone; each level starts them from their neighbours' flow
   (:func:`fill_flow`), since the regulariser alone propagates it only slowly.
 
 Masks are (H, W) bool here; :func:`as_masks` validates what a caller passes.
