@@ -51,7 +51,7 @@ def test_default_policy_lists_the_node_interfaces() -> None:
     (profile,) = enclave.findall("profiles/profile")
     assert (enclave.get("path"), profile.get("ns"), profile.get("node")) == ("/flow_node", "/", "flow_node")
     got = rules(SHIPPED.read_text())
-    assert got["subscribe"] == {"image", "camera_info"}
+    assert got["subscribe"] == {"image", "camera_info", "~/mask"}
     assert got["publish"] == {"~/flow", "~/magnitude", "~/flow_color", "~/confidence", "~/flow_pair",
                               "~/camera_info", "/diagnostics", "/rosout", "/parameter_events", "~/transition_event"} | {
         f"~/{name}" for name in MOTION_TOPICS}  # the derived outputs ~/motion/*
@@ -81,9 +81,10 @@ def test_options_adapt_the_profile_and_the_input() -> None:
     assert root.find("enclaves/enclave").get("path") == "/robot/cam_flow"
     profile = root.find("enclaves/enclave/profiles/profile")
     assert (profile.get("ns"), profile.get("node")) == ("/robot", "cam_flow")
-    assert rules(xml)["subscribe"] == {"/camera/image_raw", "/camera/camera_info"}
-    assert rules(sp.render(["--compressed", "--enclave", "/e"]))["subscribe"] == {"image/compressed", "camera_info"}
-    assert rules(sp.render(["--sim-time"]))["subscribe"] == {"image", "camera_info", "/clock"}
+    assert rules(xml)["subscribe"] == {"/camera/image_raw", "/camera/camera_info", "~/mask"}
+    assert rules(sp.render(["--compressed", "--enclave", "/e"]))["subscribe"] == {"image/compressed", "camera_info",
+                                                                                  "~/mask"}
+    assert rules(sp.render(["--sim-time"]))["subscribe"] == {"image", "camera_info", "/clock", "~/mask"}
     assert "with image=/camera/image_raw, namespace=/robot, name=cam_flow" in xml  # the header says how
 
 
@@ -131,4 +132,5 @@ def test_policy_names_are_what_the_node_creates(compressed: bool) -> None:
         assert not missing, f"{access}: the policy misses {missing} (add a row to INTERFACES)"
         assert not extra, f"{access}: the policy allows {extra}, which the node does not create"
     assert f"{ns}/{name}/reset" in created["reply"]
-    assert created["subscribe"] == {image + ("/compressed" if compressed else ""), camera_info_topic(image)}
+    assert created["subscribe"] == {image + ("/compressed" if compressed else ""), camera_info_topic(image),
+                                    f"{ns}/{name}/mask"}

@@ -31,7 +31,9 @@ class Sample:
     (H, W, 2) float32 px (>= 1e9 or non-finite = unknown), content bit depth, a variant label that the
     report groups by (e.g. '10 bit', 'gain 1.25 -0.02'; '' = none), and optionally the occluded pixels of
     frame 0 ((H, W) bool, True = not visible in frame 1 or leaving the image; their ground truth stays
-    known, and the scores add ``aee_noc`` over the known pixels that are not occluded)."""
+    known, and the scores add ``aee_noc`` over the known pixels that are not occluded); and optionally the
+    frames' validity masks ((H, W) bool each, False = the pixel's value is garbage; the scores then add
+    ``aee_masked`` and ``aee_elsewhere``, :func:`bench.suite.metrics.score_pair`)."""
 
     name: str
     f0: np.ndarray
@@ -40,6 +42,7 @@ class Sample:
     bits: int = 8
     variant: str = ""
     occluded: np.ndarray | None = None
+    valid: tuple[np.ndarray, np.ndarray] | None = None  # frames' validity masks (regime 'missing'), True = data
 
     @property
     def size(self) -> tuple[int, int]:

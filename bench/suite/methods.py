@@ -31,6 +31,7 @@ PRESET_NAMES = tuple(PRESETS)  # quality, balanced, realtime, fastest
 DEFAULT_NAME = "default"  # the plain FlowConfig()
 DIS_MEDIUM, DIS_ULTRAFAST = "dis_medium", "dis_ultrafast"
 PEER_NAMES = (DIS_ULTRAFAST, DIS_MEDIUM, "skimage_tvl1", "dualtvl1")
+MASKED_SUFFIX = "+mask"  # a flow_node method so named is given the samples' validity masks (FlowNode.use_mask)
 SLOW_PEERS = ("skimage_tvl1", "dualtvl1")
 
 
@@ -50,18 +51,20 @@ def unit_grey(frame: np.ndarray, bits: int) -> np.ndarray:
 
 class FlowNode:
     """flow_node with one config; JIT warm-up at construction. Returns (flow, confidence or None): a
-    FlowResult with a ``confidence`` attribute (H, W) is reported as such."""
+    FlowResult with a ``confidence`` attribute (H, W) is reported as such. ``use_mask``: given the sample's
+    validity masks (``Sample.valid``, the regime ``missing``), else not told which pixels are garbage."""
 
-    def __init__(self, config: FlowConfig) -> None:
+    def __init__(self, config: FlowConfig, use_mask: bool = False) -> None:
         self.config = config
+        self.use_mask = use_mask
         self.estimator = FlowEstimator(config)
         self.estimator.warmup()
 
-    def prepare(self, sample: Sample) -> tuple[np.ndarray, np.ndarray]:
-        return sample.f0, sample.f1
+    def prepare(self, sample: Sample) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]:
+        return sample.f0, sample.f1, (sample.valid if self.use_mask else None)
 
-    def run(self, prepared: tuple[np.ndarray, np.ndarray]) -> Output:
-        res = self.estimator.estimate(*prepared)
+    def run(self, prepared: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]) -> Output:
+        res = self.estimator.estimate(prepared[0], prepared[1], mask=prepared[2])
         return res.flow, getattr(res, "confidence", None)
 
 
@@ -122,13 +125,15 @@ def default_configs() -> dict[str, FlowConfig]:
 
 
 def build(methods: Mapping[str, FlowConfig | Method] | None, peers: tuple[str, ...]) -> dict[str, Method]:
-    """Instantiate the compared methods: ``methods`` (FlowConfigs are wrapped in :class:`FlowNode`; None =
-    :func:`default_configs`) followed by the named peers."""
+    """Instantiate the compared methods: ``methods`` (FlowConfigs are wrapped in :class:`FlowNode`, given the
+    samples' validity masks when the name ends in MASKED_SUFFIX; None = :func:`default_configs`) followed by
+    the named peers."""
     chosen: dict[str, FlowConfig | Method] = dict(default_configs() if methods is None else methods)
     unknown = [p for p in peers if p not in PEERS]
     if unknown:
         raise ValueError(f"unknown peer(s) {', '.join(unknown)}; choose from {', '.join(PEERS)}")
-    out: dict[str, Method] = {name: FlowNode(m) if isinstance(m, FlowConfig) else m for name, m in chosen.items()}
+    out: dict[str, Method] = {name: FlowNode(m, name.endswith(MASKED_SUFFIX)) if isinstance(m, FlowConfig) else m
+                              for name, m in chosen.items()}
     for p in peers:
         out.setdefault(p, PEERS[p]())
     return out
@@ -137,5 +142,6 @@ def build(methods: Mapping[str, FlowConfig | Method] | None, peers: tuple[str, .
 def describe(method: Method) -> dict[str, Any]:
     """What the JSON records about a method: the config of a flow_node method, else its class."""
     if isinstance(method, FlowNode):
-        return {"kind": "flow_node", "backend": method.estimator.backend, "config": method.config.to_dict()}
+        return {"kind": "flow_node", "backend": method.estimator.backend, "config": method.config.to_dict(),
+                "use_mask": method.use_mask}
     return {"kind": type(method).__name__}

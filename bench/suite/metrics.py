@@ -40,14 +40,31 @@ def ause(flow: np.ndarray, gt: np.ndarray, confidence: np.ndarray) -> float:
     return float(np.mean(_curve(err, by_conf) - _curve(err, oracle)))
 
 
-def score_pair(out: Any, gt: np.ndarray, occluded: np.ndarray | None = None) -> dict[str, float]:
+def missing_data(gt: np.ndarray, valid: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """The pixels of frame 0 whose data term is garbage: invalid in frame 0, or whose true position in frame
+    1 (x + gt, rounded, clipped to the image) is invalid there. (H, W) bool."""
+    h, w = gt.shape[:2]
+    ys, xs = np.mgrid[0:h, 0:w]
+    x1 = np.clip(np.rint(xs + np.nan_to_num(gt[..., 0])), 0, w - 1).astype(int)
+    y1 = np.clip(np.rint(ys + np.nan_to_num(gt[..., 1])), 0, h - 1).astype(int)
+    return ~valid[0] | ~valid[1][y1, x1]
+
+
+def score_pair(out: Any, gt: np.ndarray, occluded: np.ndarray | None = None,
+               valid: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, float]:
     """AEE (px), AE (deg), AUSE if ``out`` = (flow, confidence) has a confidence, and with ``occluded``
-    ((H, W) bool) ``aee_noc``, the AEE over the known pixels that are not occluded."""
+    ((H, W) bool) ``aee_noc``, the AEE over the known pixels that are not occluded; with the frames'
+    validity masks ``valid`` the AEE over the pixels with missing data (:func:`missing_data`),
+    ``aee_masked``, and over the rest, ``aee_elsewhere``."""
     flow, conf = (out if isinstance(out, tuple) else (out, None))
     flow = np.asarray(flow, np.float32)
     res = {"aee": aee(flow, gt), "ae": angular_error(flow, gt)}
     if occluded is not None:
         res["aee_noc"] = aee(flow, np.where(occluded[..., None], np.inf, gt))
+    if valid is not None:
+        missing = missing_data(gt, valid)[..., None]
+        res["aee_masked"] = aee(flow, np.where(missing, gt, np.inf))
+        res["aee_elsewhere"] = aee(flow, np.where(missing, np.inf, gt))
     if conf is not None:
         res["ause"] = ause(flow, gt, conf)
     return res
@@ -62,7 +79,8 @@ def summarise(per_pair: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """Means over the pairs (and per variant) of aee, ae, seconds (the per-pair medians), ause, aee_noc
     (the last two over the pairs that have them)."""
     rows = list(per_pair.values())
-    out: dict[str, Any] = {k: _mean(rows, k) for k in ("aee", "ae", "seconds", "ause", "aee_noc")}
+    out: dict[str, Any] = {k: _mean(rows, k) for k in ("aee", "ae", "seconds", "ause", "aee_noc", "aee_masked",
+                                                       "aee_elsewhere")}
     if out["ause"] is not None and out["aee"]:
         out["ause_rel"] = out["ause"] / out["aee"]
     variants = list(dict.fromkeys(r["variant"] for r in rows if r["variant"]))  # in order of appearance

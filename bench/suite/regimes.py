@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from . import data, photometric, realexact, synthetic
+from . import data, missing, photometric, realexact, synthetic
 from .data import Sample
 
 
@@ -40,6 +40,9 @@ REGIMES: dict[str, Regime] = {r.name: r for r in (
     Regime("bit_depth", "Fine textures 320x240 delivered at 8, 10, 12, 16 bit (mono16 up to 2^bits - 1)",
            synthetic.bit_depth),
     Regime("noise", "Fine textures 320x240 with sensor noise sigma 1-3 grey levels", synthetic.noise),
+    Regime("missing", "Fine textures 320x240 with pixels carrying garbage (the robot's body and lens dirt, a wiper, "
+           "stuck pixels), ground truth everywhere; '<preset>+mask' methods are given the masks",
+           missing.missing),
     Regime("exposure", "Fine textures 320x240, frame 2 with gain 0.75-1.33 and an offset", synthetic.exposure),
     Regime("low_contrast", "Fine textures 320x240 spanning 24 or 10 grey levels", synthetic.low_contrast),
     Regime("flat", "Fine textures 320x240 with ~half the area flat", synthetic.flat_areas),

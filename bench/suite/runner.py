@@ -44,7 +44,7 @@ def run_pair(made: Mapping[str, Method], sample: Any, repeats: int, slow_repeats
     first: dict[str, float] = {}
     for n in names[turn % len(names):] + names[:turn % len(names)]:
         first[n], out = _timed(made[n], prepared[n])
-        scores[n] = metrics.score_pair(out, sample.gt, sample.occluded)
+        scores[n] = metrics.score_pair(out, sample.gt, sample.occluded, sample.valid)
         if n in SLOW_PEERS:
             times[n].append(first[n])
         want[n] = slow_repeats if n in SLOW_PEERS else repeats

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from .methods import DIS_MEDIUM, DIS_ULTRAFAST, PRESET_NAMES
+from .methods import DIS_MEDIUM, DIS_ULTRAFAST, MASKED_SUFFIX, PRESET_NAMES
 
 FINE = ("fine_320", "fine_640")
 EXPOSURE_BOUND = 1.3  # each gain variant's mean AEE / the same seeds' unchanged mean AEE
@@ -97,10 +97,31 @@ def peer_checks(res: dict[str, Any]) -> list[dict[str, Any]]:
     return out
 
 
+MASKED_BOUND, ELSEWHERE_BOUND = 0.5, 1.05  # issue 27: masked pixels' AEE <= 0.5x without the mask; elsewhere +5 %
+
+
+def missing_checks(res: dict[str, Any]) -> list[dict[str, Any]]:
+    """Regime ``missing``: for every method X run with and without the mask (``X+mask``), the masked pixels'
+    mean AEE <= 0.5x X's, and the other pixels' within 5 %."""
+    out = []
+    methods = res.get("regimes", {}).get("missing", {}).get("methods", {})
+    for name in methods:
+        with_mask, plain = methods.get(name + MASKED_SUFFIX), methods[name]
+        if with_mask is None or plain.get("aee_masked") is None:
+            continue
+        a = with_mask["aee_masked"] / plain["aee_masked"]
+        e = with_mask["aee_elsewhere"] / plain["aee_elsewhere"]
+        out.append(_check("missing: masked pixels' AEE <= 0.5x without the mask", "missing", name + MASKED_SUFFIX,
+                          a, MASKED_BOUND, f"{with_mask['aee_masked']:.4f} vs {plain['aee_masked']:.4f} px"))
+        out.append(_check("missing: AEE elsewhere within 5 % of without the mask", "missing", name + MASKED_SUFFIX,
+                          e, ELSEWHERE_BOUND, f"{with_mask['aee_elsewhere']:.4f} vs {plain['aee_elsewhere']:.4f} px"))
+    return out
+
+
 def all_checks(res: dict[str, Any]) -> list[dict[str, Any]]:
     """Every target check the result allows."""
     return (fine_checks(res)
             + variant_checks(res, "exposure", "unchanged", EXPOSURE_BOUND,
                              "exposure: every gain's AEE <= 1.3x the unchanged pair's")
             + variant_checks(res, "bit_depth", "8 bit", DEPTH_BOUND, "10/12/16-bit AEE within 10% of 8-bit")
-            + middlebury_checks(res) + peer_checks(res))
+            + middlebury_checks(res) + peer_checks(res) + missing_checks(res))

@@ -26,7 +26,7 @@ import numpy as np
 from ..core import FlowError, FlowEstimator, flow_to_color
 from ..core.api import to_grey, to_planes
 from ..core.config import MODELS
-from ..core.errors import FileFormatError, one_line, short_path
+from ..core.errors import ConfigError, FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
 from ..core.volume import VOLUME_CONFIG, estimate_volume, is_volume
 from ..pipeline.codec import decode_bytes
@@ -50,6 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "array; required for volumes)")
     p.add_argument("--model", choices=MODELS, help="variational model (overrides preset/params)")
     add_config_options(p)
+    p.add_argument("--mask", nargs="+", metavar="MASK.png",
+                   help="validity mask image(s), nonzero = valid, the frames' size: one for both frames, or "
+                        "two (frame 0's, frame 1's); masked pixels carry no data term")
     p.add_argument("--color", metavar="OUT.png", help="also write the Middlebury colour coding")
     p.add_argument("--max-flow", type=finite_scale, default=0.0,
                    help="colour scale in px (0 = the frame's maximum)")
@@ -135,6 +138,17 @@ def read_planes(path: str, colour: bool = True) -> tuple[np.ndarray, np.ndarray 
     return to_planes(decoded, shown) if colour else (to_grey(decoded, shown), None)
 
 
+def read_masks(paths: list[str] | None) -> np.ndarray | tuple[np.ndarray, np.ndarray] | None:
+    """``--mask`` files as the API's mask argument: one (H, W) bool mask for both frames, or a pair; a
+    mask image's pixels are valid where nonzero (any channel's grey). FlowError naming the file or count."""
+    if not paths:
+        return None
+    if len(paths) > 2:
+        raise ConfigError(f"--mask takes one file (both frames) or two (frame 0's, frame 1's), got {len(paths)}")
+    masks = [read_frame(path) > 0 for path in paths]
+    return masks[0] if len(masks) == 1 else (masks[0], masks[1])
+
+
 def _temp_for(path: str, k: int) -> Path | None:
     """A temporary sibling of ``path`` to write first, or None to write ``path`` in place: an existing file
     that is not a regular file (/dev/stdout, /dev/full, a FIFO) must not be replaced by a rename."""
@@ -217,8 +231,9 @@ def _run(args: argparse.Namespace) -> int:
         colour = cfg.colour == "channels"
         (i0, c0), (i1, c1) = read_input(args.frame0, colour), read_input(args.frame1, colour)
         if i0.ndim == 3 or i1.ndim == 3:
-            if args.color:
-                raise FileFormatError("--color is for images; a volume's flow has no colour coding")
+            if args.color or args.mask:
+                raise FileFormatError("--color and --mask are for images (a volume's flow has no colour coding; "
+                                      "volumes take no mask)")
             cfg = config_from_args(args, VOLUME_CONFIG)  # a volume's defaults (docs/engine.md, "Volumes")
             volume = estimate_volume(i0, i1, cfg)
             write_outputs(volume.flow, args.output, None, args.max_flow)
@@ -227,7 +242,8 @@ def _run(args: argparse.Namespace) -> int:
                 print(f"{x}x{y}x{z} model={cfg.model} backend={volume.backend} time={volume.seconds:.3f}s "
                       f"iterations={volume.iterations}")
             return 0
-        result = FlowEstimator(cfg).estimate_grey(i0, i1, channels=None if c0 is None or c1 is None else (c0, c1))
+        channels = None if c0 is None or c1 is None else (c0, c1)
+        result = FlowEstimator(cfg).estimate_grey(i0, i1, channels=channels, mask=read_masks(args.mask))
         write_outputs(result.flow, args.output, args.color, args.max_flow)
     except FlowError as exc:
         print(f"flow_estimate: error: {one_line(exc)}", file=sys.stderr)

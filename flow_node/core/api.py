@@ -14,6 +14,7 @@ from .config import FlowConfig
 from .engine import estimate_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
 from .refine import SolveStats
+from .validity import MaskInput, as_masks
 from .volume import estimate_volume, is_volume
 
 log = logging.getLogger("flow_node")
@@ -158,19 +159,21 @@ class FlowEstimator:
             return self._backend.confidence(i0, i1, flow)
 
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
-                 channel_order: str = "rgb") -> FlowResult:
+                 channel_order: str = "rgb", mask: MaskInput = None) -> FlowResult:
         """Flow from frame0 to frame1 (both images of the same size), I1(x + flow) ~ I0(x). Colour frames are
         compared by their luma, or with ``config.colour`` ``channels`` (and the census data term) channel by
-        channel."""
+        channel. ``mask``: the validity mask (validity.py; nonzero = valid): one (H, W) array for both frames
+        or a pair (mask0, mask1); invalid pixels carry no data term and get their flow from their neighbours."""
         if self._config.colour != "channels":
             return self.estimate_grey(to_grey(frame0, "frame0", channel_order),
-                                      to_grey(frame1, "frame1", channel_order), initial_flow)
+                                      to_grey(frame1, "frame1", channel_order), initial_flow, mask=mask)
         (i0, c0), (i1, c1) = to_planes(frame0, "frame0", channel_order), to_planes(frame1, "frame1", channel_order)
-        return self.estimate_grey(i0, i1, initial_flow, channels=None if c0 is None or c1 is None else (c0, c1))
+        return self.estimate_grey(i0, i1, initial_flow, channels=None if c0 is None or c1 is None else (c0, c1),
+                                  mask=mask)
 
     def estimate_grey(self, i0: np.ndarray, i1: np.ndarray, initial_flow: np.ndarray | None = None,
                       previous_flow: np.ndarray | None = None,
-                      channels: tuple[np.ndarray, np.ndarray] | None = None) -> FlowResult:
+                      channels: tuple[np.ndarray, np.ndarray] | None = None, mask: MaskInput = None) -> FlowResult:
         """:meth:`estimate` for frames that already went through :func:`to_grey` (float32 (H, W) in [0, 1],
         finite): a stream that converts each frame once on arrival need not validate it again per pair.
 
@@ -185,12 +188,14 @@ class FlowEstimator:
         if channels is not None and (channels[0].shape != channels[1].shape or channels[0].shape[1:] != i0.shape):
             raise InputError(f"colour planes {channels[0].shape} and {channels[1].shape} do not match the "
                              f"frames' size {i0.shape}")
+
+        valid = as_masks(mask, i0.shape)
         init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
         with self._backend.running():
             flow, stats, judged = estimate_pair(i0, i1, self._config, self._backend, init, prev,
-                                                channels if self._config.colour == "channels" else None)
+                                                channels if self._config.colour == "channels" else None, valid)
             ensure_finite(flow)
             unexplained = judged.unexplained(flow)  # the photometric stage's own judge
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
@@ -209,16 +214,17 @@ def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -
 
 
 def estimate_flow(frame0: np.ndarray, frame1: np.ndarray, config: FlowConfig | None = None, *,
-                  initial_flow: np.ndarray | None = None) -> np.ndarray:
+                  initial_flow: np.ndarray | None = None, mask: MaskInput = None) -> np.ndarray:
     """Dense optical flow from frame0 to frame1: float32 (H, W, 2), channel 0 = u (x), 1 = v (y), px/frame.
 
-    Colour input is taken as RGB. ``config`` defaults to ``FlowConfig()``; see FlowConfig.preset.
-    Two volumes (Z, Y, X) give (Z, Y, X, 3) with components x, y, z in voxels per frame
+    Colour input is taken as RGB. ``config`` defaults to ``FlowConfig()``; see FlowConfig.preset. ``mask``:
+    the validity mask, one (H, W) bool/integer array for both frames or a pair (mask0, mask1), nonzero =
+    valid (validity.py). Two volumes (Z, Y, X) give (Z, Y, X, 3) with components x, y, z in voxels per frame
     (:func:`flow_node.core.volume.estimate_volume`; a 3-D array at most 4 wide in x is taken as an image:
     call that function directly for so thin a volume).
     """
     if is_volume(frame0) or is_volume(frame1):
-        if initial_flow is not None:
-            raise InputError("initial_flow is not supported for volumes")
+        if initial_flow is not None or mask is not None:
+            raise InputError("initial_flow and mask are not supported for volumes")
         return estimate_volume(frame0, frame1, config).flow
-    return FlowEstimator(config).estimate(frame0, frame1, initial_flow).flow
+    return FlowEstimator(config).estimate(frame0, frame1, initial_flow, mask=mask).flow

@@ -31,6 +31,7 @@ MODELS: tuple[str, ...] = tuple(MODEL_SPECS)
 TV_NORMS = ("isotropic", "anisotropic")
 GRADIENT_SCHEMES = ("forward", "central", "interpolated")
 BACKENDS = ("auto", "numpy", "numba")
+RECONSTRUCTIONS = ("none", "joint")  # images the flow is solved on: the measured ones, or the joint model's (joint.py)
 
 
 class _Calibrated(float):
@@ -146,6 +147,13 @@ class FlowConfig:
                                 "0 = always)", lo=0.0, hi=10000.0)
     temporal_init: int = _f(0, "in a stream (node, flow_bag eval): 1 = the previous pair's flow, carried "
                             "forward, is an initialisation of the next pair", choices=(0, 1))
+    reconstruction: str = _f("none", "none: the flow from the measured frames; joint: the paper's joint model of "
+                             "motion and images (the images eliminated in closed form: the L1 data term becomes "
+                             "J_gamma, quadratic for residuals below 2 image_gamma; docs/engine.md, 'Joint model'); "
+                             "needs a model with an L1 data term", choices=RECONSTRUCTIONS)
+    image_gamma: float = _f(0.01, "joint: weight gamma of the coupling C(u, v) = |u1(x + v) - u0(x)|_1 against the "
+                            "images' fidelity (grey levels of the normalised frames: frames differing by less than "
+                            "2 gamma along the flow are averaged)", lo=0.0, hi=10.0, lo_open=True)
     backend: str = _f("auto", "solver backend: numba kernels, numpy reference, or auto (numba if importable)",
                       choices=BACKENDS)
     threads: int = _f(0, "threads for the numba backend (0 = all cores)", lo=0, hi=1024)
@@ -159,6 +167,9 @@ class FlowConfig:
             object.__setattr__(self, f.name, _check_field(f, getattr(self, f.name)))
         if self.model in ("l1_tv_l2", "l1_tv_tv") and self.alpha1 <= 0.0:
             raise ConfigError(f"alpha1 must be > 0 for model {self.model!r} (got {self.alpha1})")
+        if self.reconstruction == "joint" and MODEL_SPECS[self.model].data != "l1":
+            raise ConfigError(f"reconstruction 'joint' needs a model with an L1 data term (its coupling C is L1), "
+                              f"got {self.model!r}")
         if self.finest_level >= self.levels:
             raise ConfigError(f"finest_level must be < levels (got finest_level={self.finest_level}, "
                               f"levels={self.levels})")
@@ -166,7 +177,7 @@ class FlowConfig:
     # ----------------------------------------------------------------------------------------- builders
     @classmethod
     def preset(cls, name: str) -> FlowConfig:
-        """The named preset (``quality``, ``balanced``, ``realtime``, ``fastest``)."""
+        """The named preset (``quality``, ``balanced``, ``realtime``, ``fastest``, ``joint``)."""
         if name not in PRESETS:
             raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
         return cls(**PRESETS[name])
@@ -308,6 +319,11 @@ PRESETS: dict[str, dict[str, Any]] = {
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2),
+    # the paper's joint model (issue 27; docs/engine.md, "Joint model"): realtime's schedule with the images
+    # eliminated (J_gamma data term); gamma and alpha chosen on the suite's noise regime, tune seeds
+    "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
+                  levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                  initialisation="dis_ultrafast", init_finest_level=2, reconstruction="joint", image_gamma=0.02),
 }
 
 

@@ -44,6 +44,7 @@ from .photometric import Reliability, compares_signatures, stage
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
+from .validity import fill_invalid
 
 
 @dataclass(frozen=True)
@@ -169,7 +170,8 @@ def on_grid(flow: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
                   initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None,
-                  channels: tuple[np.ndarray, np.ndarray] | None = None
+                  channels: tuple[np.ndarray, np.ndarray] | None = None,
+                  valid: tuple[np.ndarray, np.ndarray] | None = None
                   ) -> tuple[np.ndarray, SolveStats, Judged]:
     """Flow from i0 to i1 (grey float32 (H, W) in [0, 1], same size): float32 (H, W, 2), u then v, px;
     the stats; and the photometric stage's :class:`Judged` pair (what the flow's reliability and
@@ -182,12 +184,15 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
 
     ``channels``: both frames' colour channels (C, H, W) float32 in [0, 1] (i0, i1 being their luma); with the
     census data term they are what it compares (colour.py, each channel normalised on its own), otherwise
-    they are not used.
+    they are not used. ``valid``: the frames' validity masks (H, W) bool (validity.py): invalid pixels are
+    filled before every stage and carry no data term in the refinement.
     """
+    if valid is not None:
+        i0, i1 = fill_invalid(i0, valid[0]), fill_invalid(i1, valid[1])
     channels = colour_stage(i0.shape, channels, cfg)
     (i0, i1), judged = photometric_stage(i0, i1, cfg, backend)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
-    pyr = make_pyramid(i0, i1, cfg, channels)
+    pyr = make_pyramid(i0, i1, cfg, channels, valid)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     state = refine_from(pyr, cfg, backend, candidates, stats)
     return interleaved_flow(state.v, pyr.shapes[0]), stats, judged

@@ -80,6 +80,40 @@ def prox_data_l1(vt: np.ndarray, a: np.ndarray, c: np.ndarray, tau: float) -> np
 PROX_DATA = {"l2": prox_data_l2, "l1": prox_data_l1}
 
 
+def joint_data(rho: np.ndarray, gamma: float) -> np.ndarray:
+    """The joint model's data term of the flow (joint.py): J_gamma(rho) = rho^2 / (4 gamma) for |rho| <= 2 gamma,
+    |rho| - gamma beyond, i.e. (1/gamma) min over the images u of D(u, f) + gamma C(u, v) at one pixel.
+    -> rho's shape."""
+    r = np.abs(rho)
+    return np.where(r <= 2.0 * gamma, r * r / (4.0 * gamma), r - gamma)
+
+
+def prox_data_joint(vt: np.ndarray, a: np.ndarray, c: np.ndarray, tau: float, gamma: float) -> np.ndarray:
+    """argmin_v |v - vt|^2 / 2 + tau J_gamma(rho(v)) (:func:`joint_data`): the step along a is
+    -tau J'(rho) = clip(-rho(vt) / (|a|^2 + 2 gamma / tau), -tau, tau) (quadratic part inside, L1 part outside);
+    gamma -> 0 gives :func:`prox_data_l1`."""
+    r = residual(vt, a, c)
+    a2 = a[0] ** 2 + a[1] ** 2
+    step = np.clip(-r / np.maximum(a2 + 2.0 * gamma / tau, 1e-12), -tau, tau)
+    return vt + step * a
+
+
+def weight_data(a: np.ndarray, c: np.ndarray, weight: np.ndarray, data: str) -> tuple[np.ndarray, np.ndarray]:
+    """The linearised data term with a per-pixel weight m (H, W) in [0, 1] (the validity mask, validity.py):
+    m |rho| = |m a . v + m c| for ``data`` "l1", (m/2) rho^2 = (1/2)(sqrt(m) a . v + sqrt(m) c)^2 for "l2".
+    Folded into (a, c), so every prox above (and the numba kernels') applies it unchanged: prox of tau m D on
+    (a, c) is prox of tau D on the weighted pair (a test checks both). m = 0 removes the pixel's data term.
+    -> (a, c) new float32 arrays."""
+    m = weight if data == "l1" else np.sqrt(weight)
+    return (a * m).astype(np.float32, copy=False), (c * m).astype(np.float32, copy=False)
+
+
+def weight_quadratic(q: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """A quadratic data term (5, H, W) (:func:`prox_data_quadratic`) times the per-pixel weight m (H, W):
+    m (v^T T v / 2 + g . v). -> float32 (5, H, W), a new array."""
+    return (q * weight).astype(np.float32, copy=False)
+
+
 def prox_data_quadratic(vt: np.ndarray, q: np.ndarray, tau: float) -> np.ndarray:
     """argmin_v |v - vt|^2 / 2 + tau (v^T T v / 2 + g . v) for a per-pixel quadratic data term (the census
     data term collapsed over its channels, census.py): q (5, H, W) = (T11, T12, T22, g1, g2), T positive

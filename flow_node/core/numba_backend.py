@@ -118,7 +118,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         v_bar, w_bar, _f32c(problem.a if problem.q is None else problem.q), _f32c(problem.c),
         _f32c(problem.b) if problem.b is not None else zero_b, xbuf,
         _F32(spec.tau), _F32(spec.sigma), _F32(spec.tau / p.alpha), _F32(p.alpha1 / p.alpha),
-        spec.data == "l1", nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
+        spec.data == "l1", _F32(2.0 * p.gamma * p.alpha / spec.tau),  # soft = 2 gamma / tau_d (nk.prox_data)
+        nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
         threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None))
 

@@ -53,15 +53,16 @@ def prox_dual4(t0, t1, t2, t3, reg, iso):  # noqa: ANN001, ANN201
 
 
 @njit(**_JIT)
-def prox_data(vt0, vt1, a0, a1, c, tau_d, data_l1):  # noqa: ANN001, ANN201
+def prox_data(vt0, vt1, a0, a1, c, tau_d, data_l1, soft):  # noqa: ANN001, ANN201
     """prox of tau_d * D at one pixel, D = |rho| (l1) or rho^2 / 2 (l2); rho = a . v + c. -> v_new.
 
     l1: the paper's three cases (step +tau_d a, -tau_d a, or onto rho = 0) are exactly the clip of the
     projection step -rho / |a|^2 to [-tau_d, tau_d]; written as a clip (and both data terms computed and
-    selected) the pixel loop has no branches and vectorises."""
+    selected) the pixel loop has no branches and vectorises. ``soft`` = 2 gamma / tau_d turns the l1 term into
+    the joint model's J_gamma (models.prox_data_joint): the same clip of -rho / (|a|^2 + soft); 0 = l1."""
     r = a0 * vt0 + a1 * vt1 + c
     a2 = a0 * a0 + a1 * a1
-    step_l1 = min(max(-r / max(a2, np.float32(1e-12)), -tau_d), tau_d)
+    step_l1 = min(max(-r / max(a2 + soft, np.float32(1e-12)), -tau_d), tau_d)
     step_l2 = -(tau_d * r / (_ONE + tau_d * a2))
     step = step_l1 if data_l1 else step_l2
     return vt0 + step * a0, vt1 + step * a1
@@ -178,7 +179,8 @@ def _make_passes(parallel: bool):  # noqa: ANN202
             if reg == 3:
                 z_row(i, ir, rm, w_bar, z, sigma, rel1, iso)
 
-    def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad):  # noqa: ANN001, ANN202
+    def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,  # noqa: ANN001, ANN202
+                    soft):
         """One primal step over the whole image, in place on v, v_bar (and w, w_bar); returns
         sum |v_new - v|^2. xbuf: (threads, 2, W + 1) scratch for the x-part of div y (see below). ``quad``:
         ``a`` is a quadratic data term (5, H, W) (:func:`prox_quadratic`; ``c`` unused), else rho = a . v + c."""
@@ -208,7 +210,7 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                     n0, n1 = prox_quadratic(vt0, vt1, a[0, i, j], a[1, i, j], a[2, i, j], a[3, i, j], a[4, i, j],
                                             tau_d)
                 else:
-                    n0, n1 = prox_data(vt0, vt1, a[0, i, j], a[1, i, j], c[i, j], tau_d, data_l1)
+                    n0, n1 = prox_data(vt0, vt1, a[0, i, j], a[1, i, j], c[i, j], tau_d, data_l1, soft)
                 d0, d1 = n0 - v0, n1 - v1
                 v_bar[0, i, j] = n0 + d0
                 v_bar[1, i, j] = n1 + d1
@@ -234,20 +236,22 @@ dual_pass_ser, primal_pass_ser = _make_passes(False)
 
 @njit(**_JIT)
 def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN201
-            data_l1, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad):
+            data_l1, soft, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad):
     """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
     per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
-    cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass). Returns the
-    number of iterations run."""
+    cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass); ``soft``: the joint
+    model's data term (:func:`prox_data`; 0 = the model's own). Returns the number of iterations run."""
     n = 2.0 * v.shape[1] * v.shape[2]
     k = 0
     for k in range(1, iterations + 1):
         if parallel:
             dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso)
-            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad)
+            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
+                                 soft)
         else:
             dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso)
-            ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad)
+            ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
+                                 soft)
         if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
             break
     return k

@@ -17,6 +17,7 @@ import numpy as np
 from .config import FlowConfig
 from .photometric import compares_signatures
 from .solver import PDState
+from .validity import mask_levels
 
 ANTIALIAS = 0.7  # blur (px of the finer level, times 1/scale) of every step when the finest solved level is coarser
 
@@ -83,13 +84,22 @@ def resize_state(state: PDState, shape: tuple[int, int]) -> PDState:
 @dataclass(frozen=True)
 class Pyramid:
     """Both frames on every level, finest first: ``shapes[l]`` (h, w), ``i0[l]`` and ``i1[l]`` float32; with
-    colour input for the data term (colour.py), also their channels ``c0[l]``, ``c1[l]`` (C, h, w) float32."""
+    colour input for the data term (colour.py), also their channels ``c0[l]``, ``c1[l]`` (C, h, w) float32; with
+    a validity mask (validity.py) ``valid0[l]`` and ``valid1[l]`` float32 in [0, 1] (None: every pixel valid)."""
 
     shapes: list[tuple[int, int]]
     i0: list[np.ndarray]
     i1: list[np.ndarray]
     c0: list[np.ndarray] | None = None
     c1: list[np.ndarray] | None = None
+    valid0: list[np.ndarray] | None = None
+    valid1: list[np.ndarray] | None = None
+
+    def valid(self, level: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """Both frames' masks on ``level`` (float32 in [0, 1], validity.mask_levels), or None without a mask."""
+        if self.valid0 is None or self.valid1 is None:
+            return None
+        return self.valid0[level], self.valid1[level]
 
     @property
     def coarsest(self) -> int:
@@ -122,21 +132,24 @@ def noise_gain(shape: tuple[int, int], cfg: FlowConfig) -> float:
 
 
 def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig,
-                 channels: tuple[np.ndarray, np.ndarray] | None = None) -> Pyramid:
+                 channels: tuple[np.ndarray, np.ndarray] | None = None,
+                 valid: tuple[np.ndarray, np.ndarray] | None = None) -> Pyramid:
     """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
     level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
     finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
     flow, which must not have converged to an aliased texture's wrong minimum either. With the census data
     term every step is anti-aliased too: it normalises contrast away, so an aliased remnant of fine texture
     on a coarse level -- faint in grey values -- would weigh as much as real structure there. ``channels``:
-    both frames' colour channels (C, H, W), pyramids of each built the same way (Pyramid.c0, c1)."""
+    both frames' colour channels (C, H, W), pyramids of each built the same way (Pyramid.c0, c1). ``valid``:
+    the frames' validity masks (H, W) bool, carried down with the same blur (validity.mask_levels)."""
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
     antialias = len(shapes) if min(cfg.finest_level, len(shapes) - 1) > 0 or compares_signatures(cfg.photometric) else 0
-    grey = (build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1))
-    if channels is None:
-        return Pyramid(shapes, *grey)
-    c0, c1 = (channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels)
-    return Pyramid(shapes, *grey, c0, c1)
+    grey = [build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1)]
+    colour = [None, None] if channels is None else \
+        [channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels]
+    masks = [None, None] if valid is None else \
+        [mask_levels(m, build_pyramid(m.astype(np.float32), shapes, cfg.scale_factor, antialias)) for m in valid]
+    return Pyramid(shapes, *grey, *colour, *masks)
 
 
 def channel_pyramid(frame: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0

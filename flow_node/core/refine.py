@@ -21,11 +21,12 @@ from .census import CENSUS
 from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
-from .models import MODEL_SPECS
+from .models import MODEL_SPECS, weight_data, weight_quadratic
 from .operators import image_gradient, warp_source
 from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
+from .validity import data_weight, fill_flow
 from .workspace import scratch
 
 
@@ -71,8 +72,9 @@ def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
 def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
     """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``, ``iterations`` per
     warp (:func:`level_schedule`)."""
+    gamma = cfg.image_gamma if cfg.reconstruction == "joint" else 0.0  # the joint model's data term (joint.py)
     return SolveParams(MODEL_SPECS[cfg.model], cfg.alpha * cfg.level_alpha_factor**level, cfg.alpha1,
-                       cfg.tv_norm, iterations, cfg.tolerance)
+                       cfg.tv_norm, iterations, cfg.tolerance, gamma)
 
 
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState, on_finest: bool,
@@ -93,8 +95,13 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     else:
         linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
             pyr.i0[level], pyr.i1[level], cfg, backend, robust)
+    if pyr.valid(level) is not None:
+        linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
-    for _ in range(warps):
+    valid = pyr.valid(level)
+    for warp in range(warps):
+        if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
+            state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
         iterations += backend.solve(problem, state, params)
         if cfg.median_filter:
@@ -149,6 +156,18 @@ def colour_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
     def around(v0: np.ndarray) -> Problem:
         warped, outside = warped_channels(coefs, c1, v0, cfg.warp_kernel, backend.warper.sample)
         return Problem(a, c, q=backend.colour_form(f0, g0, warped, outside, v0, robust, CENSUS))
+
+def masked_problem(linearised: Linearisation, valid0: np.ndarray, valid1: np.ndarray, data: str) -> Linearisation:
+    """A level's linearisation with the validity mask (validity.py): per warp the data term weighted by
+    :func:`~flow_node.core.validity.data_weight` around v0 (models.weight_data / weight_quadratic; ``data``
+    the model's data term, "l1" or "l2"). Masked pixels keep the regulariser only."""
+
+    def around(v0: np.ndarray) -> Problem:
+        p = linearised(v0)
+        m = data_weight(valid0, valid1, v0)
+        if p.q is not None:
+            return Problem(p.a, p.c, p.b, weight_quadratic(p.q, m))
+        return Problem(*weight_data(p.a, p.c, m, data), p.b, None)
 
     return around
 

@@ -31,6 +31,7 @@ from .models import (
     ModelSpec,
     flow_divergence,
     project_dual_tv,
+    prox_data_joint,
     prox_data_quadratic,
     prox_dual_incompressibility,
     prox_dual_l2,
@@ -86,6 +87,7 @@ class SolveParams:
     iterations: int
     tolerance: float
     incompressibility: float = 0.0  # beta of (beta/2)|div v|^2, absolute like alpha (volumes only)
+    gamma: float = 0.0  # > 0: the joint model's data term J_gamma instead of the L1 one (models.prox_data_joint)
 
 
 # A level solver updates the state in place and returns the number of iterations it ran.
@@ -105,6 +107,9 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
     rel1 = p.alpha1 / p.alpha  # weight of S(w) relative to the first TV term
     rel_inc = p.incompressibility / p.alpha  # weight of the div v penalty relative to the first TV term
     prox_data = PROX_DATA[spec.data]
+    if p.gamma > 0.0:
+        def prox_data(vt: np.ndarray, a: np.ndarray, c: np.ndarray, t: float) -> np.ndarray:
+            return prox_data_joint(vt, a, c, t, p.gamma)
     a, c, q = problem.a, problem.c, problem.q
     shift = None if problem.b is None else tau * problem.b  # linear term -<b, v> of E / alpha
     v, y, w, z, s = state.v, state.y, state.w, state.z, state.s

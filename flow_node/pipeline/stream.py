@@ -14,6 +14,10 @@ previous to this frame. Rules, in order:
 * ``flow_units`` px/s divides the flow by the pair's own interval (newer stamp - earlier stamp): with
   latest-wins dropping a pair can span several camera frames, so px/frame alone gives no velocity. A pair
   whose stamps are equal has no velocity: InputError (the frame still becomes the previous one).
+* a validity mask (:meth:`FlowStream.set_mask`: nonzero = valid, at the frames' input size; the node's
+  ``~/mask`` topic or ``mask_file``) applies to every frame processed after it was set, until replaced or
+  removed: each frame keeps the mask in effect when it arrived, so a pair's frames may carry different ones
+  (core/validity.py). A mask of another size than the frame is an InputError for that frame;
 * with ``config.temporal_init`` = 1 the previous pair's flow, carried forward to the new pair's first frame,
   initialises the next solve (fused per pixel with the pyramid's estimate, so a scene cut costs nothing but
   time); a reset or a change of the config forgets it.
@@ -37,6 +41,7 @@ from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
 from ..core.photometric import compares_signatures
 from ..core.refine import SolveStats
+from ..core.validity import VALID_LEVEL, as_mask
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
 COLOR_MAX_FLOW_RANGE = (0.0, 10000.0)
@@ -203,6 +208,8 @@ class FlowStream:
         self._prev_key: tuple[tuple[int, ...], str] | None = None
         self._prev_stamp: int = 0
         self._prev_flow: np.ndarray | None = None  # flow of the pair that ended with _prev (temporal_init)
+        self._mask: np.ndarray | None = None  # the validity mask in effect (input size, bool), set_mask
+        self._prev_mask: np.ndarray | None = None  # _prev's mask at processing resolution
         self.last_reset_reason: str = "first frame"
 
     # ----------------------------------------------------------------------------------------- settings
@@ -230,6 +237,28 @@ class FlowStream:
         """Drop the previous frame before the next one (that frame then starts a new pair, for ``reason``)."""
         with self._lock:
             self._reset_requested = reason
+
+    def set_mask(self, mask: np.ndarray | None) -> None:
+        """The validity mask (H, W) or (H, W, 1), bool or integer, nonzero = valid, at the input frames' size,
+        for every frame from the next one on; None removes it. InputError for a wrong type or no valid pixel
+        (the mask in effect is then unchanged); its size is checked against each frame."""
+        valid = None if mask is None else as_mask(mask, mask.shape[:2])
+        with self._lock:
+            self._mask = valid
+
+    def _frame_mask(self, shape: tuple[int, int], grey_shape: tuple[int, int]) -> np.ndarray | None:
+        """The mask in effect for a frame of input ``shape`` at processing size ``grey_shape`` (a shrunk
+        pixel is valid only when all the pixels it averages are), or None; InputError on a size mismatch."""
+        with self._lock:
+            mask = self._mask
+        if mask is None:
+            return None
+        if mask.shape != shape:
+            raise InputError(f"mask is {mask.shape[1]}x{mask.shape[0]}, the frame {shape[1]}x{shape[0]}")
+        if grey_shape == shape:
+            return mask
+        area = cv2.resize(mask.astype(np.float32), grey_shape[::-1], interpolation=cv2.INTER_AREA)
+        return area >= VALID_LEVEL
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
         """Compile/warm the engine with the current config; returns seconds."""
@@ -267,8 +296,9 @@ class FlowStream:
         return small[0], None if planes is None else np.stack(small[1:])
 
     def _start(self, grey: np.ndarray, planes: np.ndarray | None, key: tuple[tuple[int, ...], str], stamp_ns: int,
-               reason: str) -> None:
+               reason: str, mask: np.ndarray | None = None) -> None:
         self._prev, self._prev_planes, self._prev_key, self._prev_stamp = grey, planes, key, stamp_ns
+        self._prev_mask = mask
         self._prev_flow = None
         self.last_reset_reason = reason
 
@@ -281,6 +311,7 @@ class FlowStream:
         """
         reason = self._apply_pending()
         grey, planes = self._prepare(frame, channel_order)
+        mask = self._frame_mask(frame.shape[:2], grey.shape)
         key = (tuple(frame.shape), encoding)
         if self._prev is None:  # whatever was asked for before
             reason = "first frame"
@@ -290,15 +321,17 @@ class FlowStream:
         elif reason is None and stamp_ns < self._prev_stamp:
             reason = f"stamp went back {(self._prev_stamp - stamp_ns) / 1e9:.3f} s"
         if reason is not None:
-            self._start(grey, planes, key, stamp_ns, reason)
+            self._start(grey, planes, key, stamp_ns, reason, mask)
             return None
-        prev, prev_stamp = self._prev, self._prev_stamp
+        prev, prev_stamp, prev_mask = self._prev, self._prev_stamp, self._prev_mask
         s = self._settings
         previous = self._prev_flow if s.config.temporal_init else None
         channels = None if planes is None or self._prev_planes is None else (self._prev_planes, planes)
-        result = self._estimator.estimate_grey(prev, grey, previous_flow=previous,  # both from _prepare
-                                               channels=channels)
-        self._prev, self._prev_planes, self._prev_stamp = grey, planes, stamp_ns
+        pair_mask = None if prev_mask is None and mask is None else tuple(
+            np.ones(grey.shape, bool) if m is None else m for m in (prev_mask, mask))
+        result = self._estimator.estimate_grey(prev, grey, previous_flow=previous,  # all from _prepare
+                                               channels=channels, mask=pair_mask)
+        self._prev, self._prev_planes, self._prev_stamp, self._prev_mask = grey, planes, stamp_ns, mask
         self._prev_flow = result.flow if s.config.temporal_init else None
         out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,

@@ -42,6 +42,7 @@ from ..pipeline.codec import decode
 from ..pipeline.stream import FlowStream, StreamSettings
 from ..process import keep_freed_memory, passive_thread_waits
 from . import camera_info, diagnostics, lifecycle, security, startup
+from .mask_input import MaskInput
 from .messages import descriptor, executor_advice, publish_outputs, stamp_ns
 from .motion_outputs import MOTION_TYPES, MotionOutputs
 from .params import declared_defaults, expand_preset, motion_from_values, param_specs, settings_from_values
@@ -69,6 +70,7 @@ class FlowNode(LifecycleNode):
         self._pubs: dict[str, LifecyclePublisher] = {}
         self._sub: Subscription | None = None
         self._sub_info: Subscription | None = None
+        self._mask = MaskInput(self)  # the validity mask: mask_file, ~/mask
         self._gate = threading.Lock()  # the worker publishes holding it; deactivate closes it holding it
         self._active = False
         self._resolution = "none yet"
@@ -117,6 +119,7 @@ class FlowNode(LifecycleNode):
         settings = settings_from_values(self._values())  # ConfigError: FAILURE, stays unconfigured
         self._motion = MotionOutputs(motion_from_values(self._values()))
         stream = FlowStream(settings)
+        self._mask.configure(stream, self.get_parameter("mask_file").value)
         self._stats, self._stream, self._camera_info = diagnostics.NodeStats(), stream, None
         self._backend_warning = fallback_warning(settings.config.backend, stream.backend)
         overrides = QoSOverridingOptions.with_default_policies()
@@ -150,6 +153,7 @@ class FlowNode(LifecycleNode):
         self._sub = self.create_subscription(kind, topic, self._on_image, qos, qos_overriding_options=overrides)
         self._sub_info = self.create_subscription(
             CameraInfo, camera_info.camera_info_topic(self.resolve_topic_name("image")), self._on_camera_info, qos)
+        self._mask.open(self._stream)
         self.get_logger().info(f"active: subscribed to {self._sub.topic_name}")
         self._worker.start()  # an unmanaged node warms up now; the warm-up line comes last (tools wait for it)
 
@@ -167,6 +171,7 @@ class FlowNode(LifecycleNode):
             if sub is not None:
                 self.destroy_subscription(sub)
         self._sub = self._sub_info = None
+        self._mask.close()
         with self._gate:  # waits for a publish in progress; a solve in progress publishes nothing
             self._active = False
         if self._worker is not None and self._worker.mailbox.clear():

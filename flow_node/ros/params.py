@@ -77,6 +77,9 @@ def param_specs() -> list[ParamSpec]:
                   "over the pair) or px/s (divided by the pair's interval, ~/flow_pair)", choices=FLOW_UNITS),
         ParamSpec("use_compressed", bool, False, "subscribe to <image>/compressed (sensor_msgs/CompressedImage, "
                   "decoded with OpenCV) instead of image", read_only=True),
+        ParamSpec("mask_file", str, "", "validity mask image (nonzero = valid, the input frames' size) for every "
+                  "frame until a ~/mask message replaces it; '' = none (docs/node.md, 'Validity mask')",
+                  read_only=True),
         ParamSpec("diagnostics_period", float, 1.0, "seconds between /diagnostics messages", 0.05, 60.0,
                   read_only=True),
         ParamSpec("hardware_id", str, "", "hardware_id in diagnostics ('' = frame_id of the input images)",

@@ -76,6 +76,7 @@ INTERFACES: tuple[Interface, ...] = (
     Interface("~/motion/moving_mask", "publish", "independently moving pixels, sensor_msgs/Image mono8"),
     Interface("~/motion/detected", "publish", "motion detected with hysteresis, std_msgs/Bool"),
     Interface(CAMERA_INFO, "subscribe", "the camera's CameraInfo beside the image topic (sensor_msgs/CameraInfo)"),
+    Interface("~/mask", "subscribe", "the validity mask, sensor_msgs/Image mono8, nonzero = valid (optional)"),
     Interface("/diagnostics", "publish", "the node's health, diagnostic_msgs/DiagnosticArray"),
     Interface("/rosout", "publish", "the node's log (rcl_interfaces/msg/Log); without it the node cannot start"),
     Interface("/parameter_events", "publish", "parameter changes (rcl_interfaces/msg/ParameterEvent)"),
