@@ -38,12 +38,12 @@ def replace_by_topic(h: Harness) -> None:
     pub = h.client.create_publisher(Image, f"{h.full_name}/mask", 1)
     wait_for(lambda: pub.get_subscription_count() > 0, 10.0, "~/mask matched")
     pub.publish(image(np.full((H, W), 255, np.uint8), "mono8", 0))
-    wait_for(lambda: h.node._stream._mask.all(), 10.0, "the topic's mask in effect")
+    wait_for(lambda: h.node.state().mask.all(), 10.0, "the topic's mask in effect")
     pub.publish(image(np.zeros((H, W, 3), np.uint8), "rgb8", 0))
     pub.publish(image(np.zeros((H, W), np.uint8), "mono8", 0))
     pub.publish(image(mono8(VALID.astype(np.float32)), "mono8", 0))
-    wait_for(lambda: not h.node._stream._mask.all(), 10.0, "the last good mask in effect")
-    assert (h.node._stream._mask == VALID).all()
+    wait_for(lambda: not h.node.state().mask.all(), 10.0, "the last good mask in effect")
+    assert (h.node.state().mask == VALID).all()
 
 
 def test_mask_file_then_mask_topic(tmp_path: Path) -> None:

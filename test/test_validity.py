@@ -168,7 +168,7 @@ def test_fill_reaches_far_pixels_and_scattered_masks_keep_coarse_data() -> None:
 
     dead = np.random.default_rng(0).random((H, W)) > 0.02
     img = np.zeros((H, W), np.float32)
-    pyr = make_pyramid(img, img, FlowConfig.preset("realtime"), (dead, dead))
+    pyr = make_pyramid(img, img, FlowConfig.preset("realtime"), valid=(dead, dead))
     coarse = pyr.valid(pyr.coarsest)
     assert coarse is not None
     zero = np.zeros((2,) + coarse[0].shape, np.float32)

@@ -192,7 +192,7 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     channels = colour_stage(i0.shape, channels, cfg)
     (i0, i1), judged = photometric_stage(i0, i1, cfg, backend)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
-    pyr = make_pyramid(i0, i1, cfg, channels, valid)
+    pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     state = refine_from(pyr, cfg, backend, candidates, stats)
     return interleaved_flow(state.v, pyr.shapes[0]), stats, judged

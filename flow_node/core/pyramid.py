@@ -131,7 +131,7 @@ def noise_gain(shape: tuple[int, int], cfg: FlowConfig) -> float:
     return min(1.0, 1.0 / (2.0 * math.sqrt(math.pi) * sigma))
 
 
-def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig,
+def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
                  channels: tuple[np.ndarray, np.ndarray] | None = None,
                  valid: tuple[np.ndarray, np.ndarray] | None = None) -> Pyramid:
     """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved

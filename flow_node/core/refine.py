@@ -157,6 +157,9 @@ def colour_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
         warped, outside = warped_channels(coefs, c1, v0, cfg.warp_kernel, backend.warper.sample)
         return Problem(a, c, q=backend.colour_form(f0, g0, warped, outside, v0, robust, CENSUS))
 
+    return around
+
+
 def masked_problem(linearised: Linearisation, valid0: np.ndarray, valid1: np.ndarray, data: str) -> Linearisation:
     """A level's linearisation with the validity mask (validity.py): per warp the data term weighted by
     :func:`~flow_node.core.validity.data_weight` around v0 (models.weight_data / weight_quadratic; ``data``

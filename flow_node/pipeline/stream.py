@@ -238,6 +238,11 @@ class FlowStream:
         with self._lock:
             self._reset_requested = reason
 
+    @property
+    def mask(self) -> np.ndarray | None:
+        """The validity mask in effect (:meth:`set_mask`; input size, bool), None when every pixel is valid."""
+        return self._mask
+
     def set_mask(self, mask: np.ndarray | None) -> None:
         """The validity mask (H, W) or (H, W, 1), bool or integer, nonzero = valid, at the input frames' size,
         for every frame from the next one on; None removes it. InputError for a wrong type or no valid pixel

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
 from lifecycle_msgs.srv import ChangeState
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -48,6 +49,7 @@ class NodeState:
     subscribers: dict[str, int]  # output name (``~/<name>``) -> matched subscriptions; {} unless configured
     frame_waiting: bool  # a received frame waits for the worker
     secured: bool | None  # the start-up security check (security.SecurityCheck.secured)
+    mask: np.ndarray | None = None  # the validity mask in effect (FlowStream.mask: input size, bool); None: all valid
 
 
 @dataclass

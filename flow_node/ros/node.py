@@ -212,7 +212,8 @@ class FlowNode(LifecycleNode):
             None if sub is None else sub.topic_name, None if sub is None else sub.qos_profile,
             None if info is None else info.topic_name, self._camera_info is not None,
             {name: pub.get_subscription_count() for name, pub in self._pubs.items()},
-            worker is not None and worker.mailbox.waiting, self._security.secured)
+            worker is not None and worker.mailbox.waiting, self._security.secured,
+            None if self._stream is None else self._stream.mask)
 
     # ------------------------------------------------------------------------------------------ parameters
     def _declare_parameters(self) -> None:
