@@ -7,6 +7,8 @@ Shapes (channel-first, see operators.py):
     y       (2, 2, H, W)      dual of grad v - w (or of grad v)
     z       (2, 2, 2, H, W)   dual of grad w (l1_tv_tv only)
     a, c    (2, H, W), (H, W) linearised data term rho(v) = a . v + c
+    m       (2, 2, H, W)      mass preservation: rho(v) = a . v + M : grad v + c, A v = a . v + M : grad v
+    p       (H, W)            dual of the data term A v + c (mass preservation only, where the data is dualised)
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .operators import div, grad
+from .operators import div, grad, jacobian_central, jacobian_central_adjoint
 
 
 @dataclass(frozen=True)
@@ -40,6 +42,11 @@ MODEL_SPECS: dict[str, ModelSpec] = {
     "l1_tv_l2": ModelSpec("l1_tv_l2", "l1", "tv_l2", 0.2, 1.0 / 3.0),
     "l1_tv_tv": ModelSpec("l1_tv_tv", "l1", "tv_tv", 0.2, 1.0 / 3.0),
 }
+
+
+# The data term's constraint (FlowConfig.constraint): brightness constancy I1(x + v) = I0(x), or mass
+# preservation I_t + div(I v) = 0, in the warping scheme I1(x + v) det(Id + grad v) = I0(x).
+CONSTRAINTS = ("brightness", "mass")
 
 
 # ------------------------------------------------------------------------------------------ data terms
@@ -68,6 +75,53 @@ def prox_data_l1(vt: np.ndarray, a: np.ndarray, c: np.ndarray, tau: float) -> np
 
 
 PROX_DATA = {"l2": prox_data_l2, "l1": prox_data_l1}
+
+
+# ------------------------------------------------------------------- mass preservation (continuity equation)
+def apply_a(v: np.ndarray, a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """A v = a . v + M : grad v, the linearised continuity equation I_t + div(I v) = 0 without its constant
+    (operators.mass_linearise: the warped Lagrangian form I1(x + v) det(Id + grad v) = I0(x) to first order,
+    M = I1w cof(Id + grad v0), = I1w Id without warping, i.e. M : grad v = I1w div v; grad v the central
+    differences of operators.jacobian_central). v (2, H, W), a (2, H, W), m (2, 2, H, W) -> (H, W)."""
+    return a[0] * v[0] + a[1] * v[1] + np.sum(m * jacobian_central(v), axis=(0, 1))
+
+
+def apply_a_adjoint(p: np.ndarray, a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """A* p = a p + J*(M p), the adjoint of :func:`apply_a` (J* = operators.jacobian_central_adjoint).
+    p (H, W) -> (2, H, W)."""
+    return a * p + jacobian_central_adjoint(m * p)
+
+
+def mass_residual(v: np.ndarray, a: np.ndarray, m: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """rho(v) = A v + c, the linearised mass-preservation residual. -> (H, W)."""
+    return apply_a(v, a, m) + c
+
+
+def prox_dual_data(pt: np.ndarray, sigma: np.ndarray, lam: float, data: str) -> np.ndarray:
+    """prox of sigma D* for the data term D(s) = lam |s| (l1: clip to [-lam, lam]) or (lam/2) s^2 (l2:
+    pt / (1 + sigma / lam)); the constant c enters the argument: pt = p + sigma (A v_bar + c). sigma is
+    per pixel (H, W) (:func:`mass_steps`)."""
+    if data == "l1":
+        return np.clip(pt, -lam, lam)
+    return pt / (1.0 + sigma / lam)
+
+
+def mass_steps(a: np.ndarray, m: np.ndarray, tau: float, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Diagonal preconditioning (Pock & Chambolle, ICCV 2011, alpha = 1) of K = [regulariser; s A]: the data
+    dual's step sigma_p = s / (row sum of |A|) = s / (|a0| + |a1| + sum |M_kl|) and the flow's per-pixel
+    step tau_v = 1 / (1 / tau + s * column sum of |A|), column sum of component k bounded by |a_k| +
+    sum_l max(|M_kl(x - e_l)|, |M_kl(x + e_l)|); tau is the model's step (the regulariser's column sum:
+    without data this is the paper's tau). s = ``scale`` > 0 weighs the data row (any s converges).
+    -> sigma_p (H, W), tau_v (2, H, W)."""
+    am = np.abs(m)
+    row = np.abs(a[0]) + np.abs(a[1]) + np.sum(am, axis=(0, 1))
+    sigma_p = scale / np.maximum(row, 1e-6)
+    nx = np.maximum(np.concatenate([am[:, 0, :, 1:], am[:, 0, :, -1:]], axis=-1),
+                    np.concatenate([am[:, 0, :, :1], am[:, 0, :, :-1]], axis=-1))
+    ny = np.maximum(np.concatenate([am[:, 1, 1:], am[:, 1, -1:]], axis=-2),
+                    np.concatenate([am[:, 1, :1], am[:, 1, :-1]], axis=-2))
+    tau_v = 1.0 / (1.0 / tau + scale * (np.abs(a) + nx + ny))
+    return sigma_p.astype(np.float32), tau_v.astype(np.float32)
 
 
 def prox_data_quadratic(vt: np.ndarray, q: np.ndarray, tau: float) -> np.ndarray:
@@ -134,10 +188,12 @@ def apply_k_adjoint(spec: ModelSpec, y: np.ndarray, z: np.ndarray | None) -> tup
 
 # ------------------------------------------------------------------------------------------- energy
 def energy(spec: ModelSpec, v: np.ndarray, w: np.ndarray | None, a: np.ndarray, c: np.ndarray,
-           alpha: float, alpha1: float, tv_norm: str, q: np.ndarray | None = None) -> float:
+           alpha: float, alpha1: float, tv_norm: str, q: np.ndarray | None = None,
+           m: np.ndarray | None = None) -> float:
     """The primal energy G + F(K .) of the model at (v, w) (sums over pixels, float64); with a quadratic
-    data term ``q`` (:func:`prox_data_quadratic`) that one instead of the model's data term on (a, c)."""
-    r = residual(v, a, c).astype(np.float64)
+    data term ``q`` (:func:`prox_data_quadratic`) that one instead of the model's data term on (a, c); with
+    ``m`` the mass-preservation residual (:func:`mass_residual`)."""
+    r = (residual(v, a, c) if m is None else mass_residual(v.astype(np.float64), a, m, c)).astype(np.float64)
     if q is not None:
         data = quadratic_data(v, q)
     else:

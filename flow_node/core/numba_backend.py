@@ -27,8 +27,9 @@ import numpy as np
 
 from . import numba_kernels as nk
 from . import numba_warp as nw
+from .models import mass_steps
 from .photometric import RESIDUAL_OUTLIER, reliability_stride
-from .solver import CHECK_EVERY, PDState, Problem, SolveParams
+from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 from .workspace import scratch
 
@@ -39,6 +40,7 @@ LINEARISE_PARALLEL_MIN_PIXELS = 20_000
 _DUMMY3 = np.zeros((2, 1, 1), _F32)
 _DUMMY4 = np.zeros((2, 2, 1, 1), _F32)
 _DUMMY5 = np.zeros((2, 2, 2, 1, 1), _F32)
+_DUMMY2 = np.zeros((1, 1), _F32)
 
 
 def resolve_threads(n: int) -> int:
@@ -108,6 +110,10 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
     if state.z is not None:
         state.z = _f32c(state.z)
     v_bar, w_bar, xbuf, zero_b = _work_buffers(state.v, state.w)
+    mass = problem.m is not None
+    if mass:
+        state.p = _f32c(state.data_dual())
+        sp, tv = mass_steps(problem.a, problem.m, spec.tau, MASS_DATA_SCALE)
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
@@ -120,7 +126,9 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         _F32(spec.tau), _F32(spec.sigma), _F32(spec.tau / p.alpha), _F32(p.alpha1 / p.alpha),
         spec.data == "l1", nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
-        threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None))
+        threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None,
+        mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, sp if mass else _DUMMY2,
+        tv if mass else _DUMMY3, _F32(1.0 / p.alpha)))
 
 
 def sample_numba(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel: str) -> np.ndarray:

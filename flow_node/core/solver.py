@@ -22,20 +22,40 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models import PROX_DATA, ModelSpec, project_dual_tv, prox_data_quadratic, prox_dual_l2
+from .models import (
+    PROX_DATA,
+    ModelSpec,
+    apply_a_adjoint,
+    mass_residual,
+    mass_steps,
+    project_dual_tv,
+    prox_data_quadratic,
+    prox_dual_data,
+    prox_dual_l2,
+)
 from .operators import div, grad
 
 CHECK_EVERY = 10  # iterations between evaluations of the stopping rule
+MASS_DATA_SCALE = float(__import__("os").environ.get("MS", "4"))  # TEMP tuning
 
 
 @dataclass
 class PDState:
-    """Primal and dual variables of one pyramid level (shapes in models.py); carried across warps/levels."""
+    """Primal and dual variables of one pyramid level (shapes in models.py); carried across warps/levels.
+    ``p`` (H, W), the dual of the mass-preservation data term, is carried across the warps of a level only
+    (None: start from zero)."""
 
     v: np.ndarray
     y: np.ndarray
     w: np.ndarray | None = None
     z: np.ndarray | None = None
+    p: np.ndarray | None = None
+
+    def data_dual(self) -> np.ndarray:
+        """``p``, set to zeros (H, W) float32 first when missing or of another shape."""
+        if self.p is None or self.p.shape != self.v.shape[1:]:
+            self.p = np.zeros(self.v.shape[1:], np.float32)
+        return self.p
 
     @classmethod
     def zeros(cls, spec: ModelSpec, shape: tuple[int, int]) -> PDState:
@@ -54,12 +74,15 @@ class Problem:
     """One linearised problem: rho(v) = a . v + c, and the Bregman linear term -alpha <b, v> (b may be None).
 
     ``q`` (5, H, W), when given, is a multi-channel data term collapsed to a quadratic form per pixel (the
-    census data term, census.py); it then replaces the model's data term on (a, c)."""
+    census data term, census.py); it then replaces the model's data term on (a, c). ``m`` (H, W), when given,
+    makes the data term mass preservation, rho(v) = a . v + m div v + c (models.apply_a): no longer pointwise,
+    it is dualised (p, models.prox_dual_data) with diagonally preconditioned steps (models.mass_steps)."""
 
     a: np.ndarray
     c: np.ndarray
     b: np.ndarray | None = None
     q: np.ndarray | None = None
+    m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -89,6 +112,10 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
     prox_data = PROX_DATA[spec.data]
     a, c, q = problem.a, problem.c, problem.q
     shift = None if problem.b is None else tau * problem.b  # linear term -<b, v> of E / alpha
+    mass = problem.m is not None
+    if mass:  # K = [regulariser; A]: the data dual p and per-pixel steps (sigma_p, tau_v) replace prox_{tau G}
+        p_data, m = state.data_dual(), problem.m
+        sigma_p, tau_v = mass_steps(a, m, tau, MASS_DATA_SCALE)
     v, y, w, z = state.v, state.y, state.w, state.z
     v_bar, w_bar = v.copy(), (None if w is None else w.copy())
     for k in range(1, p.iterations + 1):
@@ -100,11 +127,18 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
             y = project_dual_tv(y + sigma * ky, 1.0, p.tv_norm)
         if z is not None:
             z = project_dual_tv(z + sigma * grad(w_bar), rel1, p.tv_norm)
+        if mass:
+            p_data = prox_dual_data(p_data + sigma_p * mass_residual(v_bar, a, m, c), sigma_p, 1.0 / p.alpha,
+                                    spec.data)
         # primal descent: x <- prox_{tau G}(x - tau K* y)
-        vt = v + tau * div(y)
-        if shift is not None:
-            vt += shift
-        v_new = prox_data(vt, a, c, tau_data) if q is None else prox_data_quadratic(vt, q, tau_data)
+        if mass:  # G is the Bregman term alone: a gradient step on it with the per-pixel tau_v
+            v_new = v + tau_v * (div(y) - apply_a_adjoint(p_data, a, m)
+                                 + (0.0 if problem.b is None else problem.b))
+        else:
+            vt = v + tau * div(y)
+            if shift is not None:
+                vt += shift
+            v_new = prox_data(vt, a, c, tau_data) if q is None else prox_data_quadratic(vt, q, tau_data)
         if w is not None:
             wt = w + tau * (y if z is None else y + div(z))
             w_new = wt / (1.0 + tau * rel1) if spec.regulariser == "tv_l2" else wt
@@ -116,6 +150,8 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
         if done:
             break
     state.v, state.y, state.w, state.z = v, y, w, z
+    if mass:
+        state.p = p_data
     return k
 
 
