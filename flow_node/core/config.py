@@ -88,7 +88,8 @@ class FlowConfig:
                           "3x3 differences over their local contrast: invariant to tone curves, gain fields and "
                           "flicker), normalise (grey values on the pair's 2nd-98th percentile range; an exposure "
                           "change is detected and undone), local_contrast, structure_texture (grey values after "
-                          "local normalisation / Wedel's texture part), none (grey / max)",
+                          "local normalisation / Wedel's texture part), density (one gain, nothing subtracted: keeps "
+                          "mass, for constraint=mass), none (grey / max)",
                           choices=PHOTOMETRIC)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "

@@ -114,6 +114,9 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
     if mass:
         state.p = _f32c(state.data_dual())
         sp, tv = mass_steps(problem.a, problem.m, spec.tau, MASS_DATA_SCALE)
+        h, w = state.v.shape[1:]
+        qpad = scratch("numba.mass_q", (2, 2, h + 2, w + 2))
+        qpad.fill(0.0)  # the ring stays zero; the kernel writes the inside from p before reading it
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
@@ -127,7 +130,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         spec.data == "l1", nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
         threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None,
-        mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, sp if mass else _DUMMY2,
+        mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4, sp if mass else _DUMMY2,
         tv if mass else _DUMMY3, _F32(1.0 / p.alpha)))
 
 

@@ -36,7 +36,7 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image, TimeReference
 from std_srvs.srv import Trigger
 
 from ..core.backends import fallback_warning
-from ..core.config import implied_weights
+from ..core.config import implied_photometric, implied_weights
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import decode
 from ..pipeline.stream import FlowStream, StreamSettings
@@ -221,7 +221,8 @@ class FlowNode(LifecycleNode):
 
     def _expand_preset(self, params: list[Parameter]) -> list[Parameter]:
         """Pre-set callback: setting ``preset`` also sets its group, setting ``model`` its calibrated weights
-        (config.implied_weights); values given in the same call win."""
+        (config.implied_weights), setting ``constraint`` to mass the density photometric mode
+        (config.implied_photometric); values given in the same call win."""
         names = {p.name for p in params}
         out = list(params)
         for p in params:
@@ -233,6 +234,8 @@ class FlowNode(LifecycleNode):
                 out += [Parameter(k, value=coerce(self._specs[k], v)) for k, v in group.items() if k not in names]
         given = {p.name: p.value for p in out}  # a new model without weights brings its calibrated ones
         out += [Parameter(k, value=v) for k, v in implied_weights(self.get_parameter("model").value, given).items()]
+        out += [Parameter(k, value=v)
+                for k, v in implied_photometric(self.get_parameter("constraint").value, given).items()]
         return out
 
     def _validate(self, params: list[Parameter]) -> SetParametersResult:
