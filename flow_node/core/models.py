@@ -106,6 +106,39 @@ def prox_dual_data(pt: np.ndarray, sigma: np.ndarray, lam: float, data: str) -> 
     return pt / (1.0 + sigma / lam)
 
 
+def affine_modes(shape: tuple[int, int]) -> np.ndarray:
+    """The six affine flow fields (6, 2, H, W) float32: constant u, constant v, and u, v each times the
+    centred coordinates x / W and y / H (so every field's values stay within +-1/2)."""
+    h, w = shape
+    xs = np.broadcast_to((np.arange(w) - (w - 1) / 2.0)[None, :] / w, (h, w))
+    ys = np.broadcast_to((np.arange(h) - (h - 1) / 2.0)[:, None] / h, (h, w))
+    one = np.ones((h, w))
+    out = np.zeros((6, 2, h, w), np.float32)
+    for j, (k, f) in enumerate(((0, one), (1, one), (0, xs), (0, ys), (1, xs), (1, ys))):
+        out[j, k] = f
+    return out
+
+
+def mode_step(phi: np.ndarray, r: np.ndarray, data: str, sweeps: int = 8, stride: int = 2) -> np.ndarray:
+    """theta minimising the data term sum D(r + sum_j theta_j phi_j) over a few modes, fitted on every
+    ``stride``-th pixel per axis: L2 by the normal equations, L1 by iteratively reweighted least squares
+    (``sweeps``). phi (J, H, W) the data operator applied to each mode (A e_j), r (H, W) the residual at the
+    current flow -> theta (J,) float64; zeros when the modes are not determined by the data (singular normal
+    matrix)."""
+    sub = phi[:, ::stride, ::stride]
+    f64 = np.ascontiguousarray(sub.reshape(sub.shape[0], -1), dtype=np.float64)
+    r64 = np.ascontiguousarray(r[::stride, ::stride].reshape(-1), dtype=np.float64)
+    theta = np.zeros(phi.shape[0])
+    for _ in range(1 if data == "l2" else sweeps):
+        wgt = np.ones_like(r64) if data == "l2" else 1.0 / np.maximum(np.abs(r64 + theta @ f64), 1e-4)
+        fw = f64 * wgt
+        mat = fw @ f64.T
+        if np.linalg.cond(mat) > 1e10:
+            return np.zeros(phi.shape[0])
+        theta = np.linalg.solve(mat, -(fw @ r64))
+    return theta
+
+
 def mass_steps(a: np.ndarray, m: np.ndarray, tau: float, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Diagonal preconditioning (Pock & Chambolle, ICCV 2011, alpha = 1) of K = [regulariser; s A]: the data
     dual's step sigma_p = s / (row sum of |A|) = s / (|a0| + |a1| + sum |M_kl|) and the flow's per-pixel

@@ -29,7 +29,7 @@ from . import numba_kernels as nk
 from . import numba_warp as nw
 from .models import mass_steps
 from .photometric import RESIDUAL_OUTLIER, reliability_stride
-from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams
+from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams, shift_slow_modes
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 from .workspace import scratch
 
@@ -120,7 +120,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
-    return int(nk.iterate(
+    k = int(nk.iterate(
         state.v, state.y,
         state.w if state.w is not None else _DUMMY4,
         state.z if state.z is not None else _DUMMY5,
@@ -132,6 +132,9 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None,
         mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4, sp if mass else _DUMMY2,
         tv if mass else _DUMMY3, _F32(1.0 / p.alpha)))
+    if mass:
+        shift_slow_modes(problem, state, p)
+    return k
 
 
 def sample_numba(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel: str) -> np.ndarray:

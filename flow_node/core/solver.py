@@ -26,6 +26,10 @@ from .models import (
     PROX_DATA,
     ModelSpec,
     apply_a_adjoint,
+    affine_modes,
+    apply_a,
+    energy,
+    mode_step,
     mass_residual,
     mass_steps,
     project_dual_tv,
@@ -154,7 +158,26 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
     state.v, state.y, state.w, state.z = v, y, w, z
     if mass:
         state.p = p_data
+        shift_slow_modes(problem, state, p)
     return k
+
+
+def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
+    """A descent step of the mass problem's energy along the affine flows (models.affine_modes), run after
+    its primal-dual steps in every backend. The dualised data term moves these smooth modes
+    slowly: their data curvature |a|^2 is tiny next to the divergence part's |M|^2, which sets the steps.
+    theta minimises the data term along them (models.mode_step); the step is taken only if the whole energy
+    (data and regulariser) decreases, so it can only help. state.v updated in place."""
+    a, m, c = problem.a, problem.m, problem.c
+    modes = affine_modes(state.v.shape[1:])
+    phi = np.stack([apply_a(e, a, m) for e in modes])
+    theta = mode_step(phi, mass_residual(state.v, a, m, c), p.spec.data)
+    if not np.any(theta):
+        return
+    moved = (state.v + np.tensordot(theta, modes, axes=1)).astype(np.float32)
+    before, after = (energy(p.spec, v, state.w, a, c, p.alpha, p.alpha1, p.tv_norm, m=m) for v in (state.v, moved))
+    if after < before:
+        state.v = moved
 
 
 def _rms(d: np.ndarray) -> float:
