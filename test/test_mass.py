@@ -159,3 +159,29 @@ def test_mass_model_recovers_a_source_that_brightness_constancy_misreads() -> No
         flow = FlowEstimator(cfg).estimate(i0.astype(np.float32), i1.astype(np.float32)).flow
         errors[name] = float(np.linalg.norm(flow - gt, axis=-1)[8:-8, 8:-8].mean())
     assert errors["mass"] < 0.5 * errors["brightness"], errors
+
+
+def test_cli_reaches_the_mass_constraint(tmp_path) -> None:  # noqa: ANN001
+    """``flow_estimate --set constraint=mass`` runs the mass model (density mode implied) and writes the flow;
+    with a photometric mode that changes mass it fails with the config's one-line reason."""
+    import os
+    import subprocess
+    import sys
+
+    import cv2
+
+    from bench.suite.mass import mass_pair
+    from flow_node.core.flowio import read_flo
+
+    i0, i1, gt, _ = mass_pair(1, 1, size=(96, 72))
+    for name, img in (("a.png", i0), ("b.png", i1)):
+        cv2.imwrite(str(tmp_path / name), np.rint(np.clip(img, 0, 1) * 65535).astype(np.uint16))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    base = [sys.executable, "-m", "flow_node.cli.estimate", str(tmp_path / "a.png"), str(tmp_path / "b.png"),
+            "-o", str(tmp_path / "f.flo"), "--set", "levels=3"]
+    ok = subprocess.run([*base, "--set", "constraint=mass"], capture_output=True, text=True, env=env, check=False)
+    assert ok.returncode == 0, ok.stderr
+    assert read_flo(tmp_path / "f.flo").shape == gt.shape
+    bad = subprocess.run([*base, "--set", "constraint=mass", "--set", "photometric=normalise"], capture_output=True,
+                         text=True, env=env, check=False)
+    assert bad.returncode != 0 and "constraint 'mass' needs photometric" in bad.stderr

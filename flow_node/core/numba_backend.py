@@ -130,7 +130,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         spec.data == "l1", nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
         threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None,
-        mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4, sp if mass else _DUMMY2,
+        mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4,
+        sp if mass else _DUMMY2,
         tv if mass else _DUMMY3, _F32(1.0 / p.alpha)))
     if mass:
         shift_slow_modes(problem, state, p)

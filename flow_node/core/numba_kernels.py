@@ -88,8 +88,10 @@ def _mass_px(i, j, jl, jr, wx, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, da
     hx = np.float32(0.5) * wx
     hy = np.float32(0.5) * wy
     r = (a[0, i, j] * v_bar[0, i, j] + a[1, i, j] * v_bar[1, i, j] + c[i, j]
-         + hx * (m[0, 0, i, j] * (v_bar[0, i, jr] - v_bar[0, i, jl]) + m[1, 0, i, j] * (v_bar[1, i, jr] - v_bar[1, i, jl]))
-         + hy * (m[0, 1, i, j] * (v_bar[0, idn, j] - v_bar[0, iu, j]) + m[1, 1, i, j] * (v_bar[1, idn, j] - v_bar[1, iu, j])))
+         + hx * (m[0, 0, i, j] * (v_bar[0, i, jr] - v_bar[0, i, jl])
+                 + m[1, 0, i, j] * (v_bar[1, i, jr] - v_bar[1, i, jl]))
+         + hy * (m[0, 1, i, j] * (v_bar[0, idn, j] - v_bar[0, iu, j])
+                 + m[1, 1, i, j] * (v_bar[1, idn, j] - v_bar[1, iu, j])))
     t = p[i, j] + sp[i, j] * r
     pn = min(max(t, -lam), lam) if data_l1 else t / (_ONE + sp[i, j] / lam)
     p[i, j] = pn
@@ -243,9 +245,11 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                 vt0, vt1 = v0 + tau * (div0 + b[0, ib, j]), v1 + tau * (div1 + b[1, ib, j])
                 if mass:
                     s0 = a[0, i, j] * p[i, j] + np.float32(0.5) * (
-                        qpad[0, 0, i + 1, j] - qpad[0, 0, i + 1, j + 2] + qpad[0, 1, i, j + 1] - qpad[0, 1, i + 2, j + 1])
+                        qpad[0, 0, i + 1, j] - qpad[0, 0, i + 1, j + 2]
+                        + qpad[0, 1, i, j + 1] - qpad[0, 1, i + 2, j + 1])
                     s1 = a[1, i, j] * p[i, j] + np.float32(0.5) * (
-                        qpad[1, 0, i + 1, j] - qpad[1, 0, i + 1, j + 2] + qpad[1, 1, i, j + 1] - qpad[1, 1, i + 2, j + 1])
+                        qpad[1, 0, i + 1, j] - qpad[1, 0, i + 1, j + 2]
+                        + qpad[1, 1, i, j + 1] - qpad[1, 1, i + 2, j + 1])
                     n0 = v0 + tv[0, i, j] * (div0 + b[0, ib, j] - s0)
                     n1 = v1 + tv[1, i, j] * (div1 + b[1, ib, j] - s1)
                 elif quad:
