@@ -185,3 +185,17 @@ def test_cli_reaches_the_mass_constraint(tmp_path) -> None:  # noqa: ANN001
     bad = subprocess.run([*base, "--set", "constraint=mass", "--set", "photometric=normalise"], capture_output=True,
                          text=True, env=env, check=False)
     assert bad.returncode != 0 and "constraint 'mass' needs photometric" in bad.stderr
+
+
+def test_density_mode_is_one_gain_for_both_frames() -> None:
+    """photometric=density keeps mass: both frames times the same factor, nothing subtracted, and a density
+    change between the frames is not undone as an exposure change."""
+    from flow_node.core.photometric import stage
+
+    rng = np.random.default_rng(2)
+    i0 = rng.uniform(0.1, 0.7, (60, 80)).astype(np.float32)
+    i1 = (i0 * np.float32(1.2)).astype(np.float32)  # a uniform compression: 20 % more density
+    (d0, d1), _ = stage(i0, i1, "density")
+    gain = d0 / i0
+    np.testing.assert_allclose(gain, gain.flat[0], rtol=1e-5)
+    np.testing.assert_allclose(d1 / i1, gain.flat[0], rtol=1e-5)

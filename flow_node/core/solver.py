@@ -43,6 +43,7 @@ CHECK_EVERY = 10  # iterations between evaluations of the stopping rule
 # weight s of the mass data row in the preconditioning (models.mass_steps): on the mass regime's tune seeds the
 # AEE is flat for s in 2-8 (0.069-0.071 px at 10 warps; 0.091-0.095 at 5) and worse at 1 (slow data dual)
 MASS_DATA_SCALE = 4.0
+MODE_STEP_MAX = 0.25  # px: the largest change of the flow one affine-mode step may make (shift_slow_modes)
 
 
 @dataclass
@@ -167,14 +168,19 @@ def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
     its primal-dual steps in every backend. The dualised data term moves these smooth modes
     slowly: their data curvature |a|^2 is tiny next to the divergence part's |M|^2, which sets the steps.
     theta minimises the data term along them (models.mode_step); the step is taken only if the whole energy
-    (data and regulariser) decreases, so it can only help. state.v updated in place."""
+    (data and regulariser) decreases and is cut to MODE_STEP_MAX px: the energy is the warp's linearised one,
+    which holds only near v0 (uncut, one step took a fine texture's flow 5 px off). state.v updated in place."""
     a, m, c = problem.a, problem.m, problem.c
     modes = affine_modes(state.v.shape[1:])
     phi = np.stack([apply_a(e, a, m) for e in modes])
     theta = mode_step(phi, mass_residual(state.v, a, m, c), p.spec.data)
     if not np.any(theta):
         return
-    moved = (state.v + np.tensordot(theta, modes, axes=1)).astype(np.float32)
+    step = np.tensordot(theta, modes, axes=1)
+    largest = float(np.max(np.abs(step)))
+    if largest > MODE_STEP_MAX:  # a trust region: the linearisation holds within a fraction of a pixel
+        step *= MODE_STEP_MAX / largest
+    moved = (state.v + step).astype(np.float32)
     before, after = (energy(p.spec, v, state.w, a, c, p.alpha, p.alpha1, p.tv_norm, m=m) for v in (state.v, moved))
     if after < before:
         state.v = moved
