@@ -111,6 +111,19 @@ def test_model_brings_its_calibrated_weights(harness: Harness) -> None:
     assert harness.node.settings.config.alpha == 0.04 and harness.node.settings.config.model == "l1_tv_tv"
 
 
+def test_mass_constraint_brings_the_density_mode(harness: Harness) -> None:
+    """Setting `constraint` to mass alone also sets photometric=density (config.implied_photometric); the node
+    then estimates with the mass-preservation data term; mass with a photometric mode that changes mass is
+    refused with the reason."""
+    results = harness.set_params(constraint="mass")
+    assert all(r.successful for r in results), [r.reason for r in results]
+    assert get_values(harness, ["constraint", "photometric"]) == {"constraint": "mass", "photometric": "density"}
+    harness.send_pair(image(mono8(I0), "mono8", 1), image(mono8(I1), "mono8", 2))
+    assert harness.node.settings.config.constraint == "mass"
+    results = harness.set_params(photometric="census")
+    assert not results[0].successful and "constraint 'mass' needs photometric" in results[0].reason
+
+
 @pytest.mark.parametrize("name,value,reason", [
     ("alpha", 0.0, "alpha: must be > 0"),             # inside the descriptor range, caught by FlowConfig
     ("alpha", -1.0, "range"),                         # outside the descriptor range (rclpy)

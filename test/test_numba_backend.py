@@ -211,7 +211,7 @@ def test_each_estimator_runs_its_kernels_on_its_own_threads(monkeypatch: pytest.
     iterate, seen = numba_backend.nk.iterate, []
 
     def spy(*args: object) -> int:
-        seen.append((threading.current_thread().name, numba.get_num_threads(), args[-2]))  # (..., parallel, quad)
+        seen.append((threading.current_thread().name, numba.get_num_threads(), args[21]))  # iterate's `parallel`
         return iterate(*args)
 
     monkeypatch.setattr(numba_backend.nk, "iterate", spy)

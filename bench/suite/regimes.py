@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from . import data, missing, photometric, realexact, synthetic
+from . import data, mass, missing, photometric, realexact, synthetic
 from .data import Sample
 
 
@@ -56,6 +56,10 @@ REGIMES: dict[str, Regime] = {r.name: r for r in (
            "flow), with a foreground cut from another photograph; grey and RGB", realexact.real_exact),
     Regime("real_exact_photometric", "The real_exact pairs, frame 2 under the split's photometric families",
            realexact.real_exact_photometric),
+    Regime("mass", "Density textures 320x240 moved by compressible maps (affine zoom/shear with det != 1, radial "
+           "sources/sinks, separable sinusoids), frame 2's intensity scaled by 1/det of the map: mass preserved, "
+           "brightness not (report only for the presets and peers, all brightness-constancy models; the mass "
+           "target compares the methods named 'brightness' and 'mass')", mass.mass, report_only=True),
     Regime("bags", "The bundled bags (128x96; mono8, mono16, rgb8, png; noise and brightness in 'objects')",
            lambda split, q: data.bags(q), seeded=False),
 )}

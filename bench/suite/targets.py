@@ -14,6 +14,9 @@ FINE = ("fine_320", "fine_640")
 EXPOSURE_BOUND = 1.3  # each gain variant's mean AEE / the same seeds' unchanged mean AEE
 DEPTH_BOUND = 1.10  # 10/12/16-bit mean AEE / 8-bit mean AEE (better than 8 bit always passes)
 MIDDLEBURY_BOUNDS = {"quality": 0.30, "realtime": 0.45}
+MASS_METHODS = ("brightness", "mass")  # a config and the same with constraint=mass, as the run names them
+MASS_RATIO = 0.5  # on the mass regime: mass AEE / brightness AEE
+MASS_ELSEWHERE = 1.10  # on every other regime both ran: mass AEE / brightness AEE
 
 
 def _check(target: str, regime: str, method: str, value: float | None, bound: float, detail: str) -> dict[str, Any]:
@@ -118,10 +121,25 @@ def missing_checks(res: dict[str, Any]) -> list[dict[str, Any]]:
     return out
 
 
+def mass_checks(res: dict[str, Any]) -> list[dict[str, Any]]:
+    """Issue 27: the method 'mass' (constraint=mass) <= 0.5x the method 'brightness' on the mass regime and
+    within 10 % of it on each other regime both ran on."""
+    out = []
+    for regime in res.get("regimes", {}):
+        b, m = (_get(res, regime, name) for name in MASS_METHODS)
+        if not (b and m):
+            continue
+        bound = MASS_RATIO if regime == "mass" else MASS_ELSEWHERE
+        v = m["aee"] / b["aee"]
+        out.append(_check(f"mass AEE <= {bound}x brightness", regime, "mass", v, bound,
+                          f"{m['aee']:.4f} vs {b['aee']:.4f} px = {v:.2f}x"))
+    return out
+
+
 def all_checks(res: dict[str, Any]) -> list[dict[str, Any]]:
     """Every target check the result allows."""
     return (fine_checks(res)
             + variant_checks(res, "exposure", "unchanged", EXPOSURE_BOUND,
                              "exposure: every gain's AEE <= 1.3x the unchanged pair's")
             + variant_checks(res, "bit_depth", "8 bit", DEPTH_BOUND, "10/12/16-bit AEE within 10% of 8-bit")
-            + middlebury_checks(res) + peer_checks(res) + missing_checks(res))
+            + middlebury_checks(res) + peer_checks(res) + missing_checks(res) + mass_checks(res))

@@ -16,8 +16,8 @@ from typing import Any
 from .colour import COLOUR_MODES
 from .errors import ConfigError, FileFormatError, short_path
 from .initialise import SOURCES as INITIALISATIONS
-from .models import MODEL_SPECS
-from .photometric import PHOTOMETRIC
+from .models import CONSTRAINTS, MODEL_SPECS
+from .photometric import MASS_PHOTOMETRIC, PHOTOMETRIC
 from .settings import FieldInfo
 from .settings import check_field as _check_field
 from .settings import fields_info as settings_fields_info
@@ -90,13 +90,18 @@ class FlowConfig:
                           "3x3 differences over their local contrast: invariant to tone curves, gain fields and "
                           "flicker), normalise (grey values on the pair's 2nd-98th percentile range; an exposure "
                           "change is detected and undone), local_contrast, structure_texture (grey values after "
-                          "local normalisation / Wedel's texture part), none (grey / max)",
+                          "local normalisation / Wedel's texture part), density (one gain, nothing subtracted: keeps "
+                          "mass, for constraint=mass), none (grey / max)",
                           choices=PHOTOMETRIC)
     colour: str = _f("grey", "what the data term sees of colour input: grey (the BT.601 luma) or channels (with "
                      "photometric census: the signatures of R, G and B, each channel normalised on its own, "
                      "stacked into one data term; invariant to white balance; ~1.9x the census term's time, "
                      "docs/engine.md). Grey input, and the grey-value data terms, use the luma either way",
                      choices=COLOUR_MODES)
+    constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
+                         "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
+                         "densities that thin out or pile up, e.g. fluids, cells, PET; needs photometric density "
+                         "or none, which setting mass without photometric selects)", choices=CONSTRAINTS)
     model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1); choosing a "
                     "model without alpha/alpha1 also selects its calibrated weights", choices=MODELS)
     alpha: float = _f(CALIBRATED, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv); default: the "
@@ -170,6 +175,9 @@ class FlowConfig:
         if self.reconstruction == "joint" and MODEL_SPECS[self.model].data != "l1":
             raise ConfigError(f"reconstruction 'joint' needs a model with an L1 data term (its coupling C is L1), "
                               f"got {self.model!r}")
+        if self.constraint == "mass" and self.photometric not in MASS_PHOTOMETRIC:
+            raise ConfigError(f"constraint 'mass' needs photometric {' or '.join(MASS_PHOTOMETRIC)} (got "
+                              f"{self.photometric!r}: it shifts or reshapes intensities, which changes mass)")
         if self.finest_level >= self.levels:
             raise ConfigError(f"finest_level must be < levels (got finest_level={self.finest_level}, "
                               f"levels={self.levels})")
@@ -246,7 +254,8 @@ class FlowConfig:
         unknown = sorted(set(changes) - set(field_names()))
         if unknown:
             raise ConfigError(f"unknown parameter(s) {', '.join(unknown)}")
-        return dataclasses.replace(self, **implied_weights(self.model, changes), **changes)
+        return dataclasses.replace(self, **implied_weights(self.model, changes),
+                                   **implied_photometric(self.constraint, changes), **changes)
 
     def with_overrides(self, assignments: Iterable[str]) -> FlowConfig:
         """Apply ``key=value`` strings (CLI ``--set``), parsed by each field's type."""
@@ -277,6 +286,15 @@ MODEL_WEIGHTS: dict[str, dict[str, float]] = {
     "l1_tv_l2": dict(alpha=0.03, alpha1=0.5),
     "l1_tv_tv": dict(alpha=0.02, alpha1=0.5),
 }
+def implied_photometric(current_constraint: str, changes: Mapping[str, Any]) -> dict[str, str]:
+    """The photometric mode a change implies: switching ``constraint`` to ``mass`` without giving
+    ``photometric`` selects ``density`` (the one mode that keeps mass: a pure gain); else {}. One rule for
+    every entry point, like :func:`implied_weights`."""
+    if changes.get("constraint", current_constraint) != "mass" or current_constraint == "mass":
+        return {}
+    return {} if "photometric" in changes else {"photometric": "density"}
+
+
 def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str, float]:
     """The weights a change implies: when ``changes`` switches the model away from ``current_model`` and does
     not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS); else {}.

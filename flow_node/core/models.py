@@ -9,6 +9,8 @@ Shapes (channel-first, see operators.py), for an image; on a volume every "2" is
     z       (2, 2, 2, H, W)   dual of grad w (l1_tv_tv only)
     a, c    (2, H, W), (H, W) linearised data term rho(v) = a . v + c
     s       (H, W)            dual of div v (the incompressibility penalty, volumes)
+    m       (2, 2, H, W)      mass preservation: rho(v) = a . v + M : grad v + c, A v = a . v + M : grad v
+    p       (H, W)            dual of the data term A v + c (mass preservation only, where the data is dualised)
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .operators import div, grad
+from .operators import div, grad, jacobian_central, jacobian_central_adjoint
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,11 @@ MODEL_SPECS: dict[str, ModelSpec] = {
     "l1_tv_l2": ModelSpec("l1_tv_l2", "l1", "tv_l2", 0.2, 1.0 / 3.0),
     "l1_tv_tv": ModelSpec("l1_tv_tv", "l1", "tv_tv", 0.2, 1.0 / 3.0),
 }
+
+
+# The data term's constraint (FlowConfig.constraint): brightness constancy I1(x + v) = I0(x), or mass
+# preservation I_t + div(I v) = 0, in the warping scheme I1(x + v) det(Id + grad v) = I0(x).
+CONSTRAINTS = ("brightness", "mass")
 
 
 # ------------------------------------------------------------------------------------------ data terms
@@ -112,6 +119,86 @@ def weight_quadratic(q: np.ndarray, weight: np.ndarray) -> np.ndarray:
     """A quadratic data term (5, H, W) (:func:`prox_data_quadratic`) times the per-pixel weight m (H, W):
     m (v^T T v / 2 + g . v). -> float32 (5, H, W), a new array."""
     return (q * weight).astype(np.float32, copy=False)
+
+
+# ------------------------------------------------------------------- mass preservation (continuity equation)
+def apply_a(v: np.ndarray, a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """A v = a . v + M : grad v, the linearised continuity equation I_t + div(I v) = 0 without its constant
+    (operators.mass_linearise: the warped Lagrangian form I1(x + v) det(Id + grad v) = I0(x) to first order,
+    M = I1w cof(Id + grad v0), = I1w Id without warping, i.e. M : grad v = I1w div v; grad v the central
+    differences of operators.jacobian_central). v (2, H, W), a (2, H, W), m (2, 2, H, W) -> (H, W)."""
+    return a[0] * v[0] + a[1] * v[1] + np.sum(m * jacobian_central(v), axis=(0, 1))
+
+
+def apply_a_adjoint(p: np.ndarray, a: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """A* p = a p + J*(M p), the adjoint of :func:`apply_a` (J* = operators.jacobian_central_adjoint).
+    p (H, W) -> (2, H, W)."""
+    return a * p + jacobian_central_adjoint(m * p)
+
+
+def mass_residual(v: np.ndarray, a: np.ndarray, m: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """rho(v) = A v + c, the linearised mass-preservation residual. -> (H, W)."""
+    return apply_a(v, a, m) + c
+
+
+def prox_dual_data(pt: np.ndarray, sigma: np.ndarray, lam: float, data: str) -> np.ndarray:
+    """prox of sigma D* for the data term D(s) = lam |s| (l1: clip to [-lam, lam]) or (lam/2) s^2 (l2:
+    pt / (1 + sigma / lam)); the constant c enters the argument: pt = p + sigma (A v_bar + c). sigma is
+    per pixel (H, W) (:func:`mass_steps`)."""
+    if data == "l1":
+        return np.clip(pt, -lam, lam)
+    return pt / (1.0 + sigma / lam)
+
+
+def affine_modes(shape: tuple[int, int]) -> np.ndarray:
+    """The six affine flow fields (6, 2, H, W) float32: constant u, constant v, and u, v each times the
+    centred coordinates x / W and y / H (so every field's values stay within +-1/2)."""
+    h, w = shape
+    xs = np.broadcast_to((np.arange(w) - (w - 1) / 2.0)[None, :] / w, (h, w))
+    ys = np.broadcast_to((np.arange(h) - (h - 1) / 2.0)[:, None] / h, (h, w))
+    one = np.ones((h, w))
+    out = np.zeros((6, 2, h, w), np.float32)
+    for j, (k, f) in enumerate(((0, one), (1, one), (0, xs), (0, ys), (1, xs), (1, ys))):
+        out[j, k] = f
+    return out
+
+
+def mode_step(phi: np.ndarray, r: np.ndarray, data: str, sweeps: int = 8, stride: int = 2) -> np.ndarray:
+    """theta minimising the data term sum D(r + sum_j theta_j phi_j) over a few modes, fitted on every
+    ``stride``-th pixel per axis: L2 by the normal equations, L1 by iteratively reweighted least squares
+    (``sweeps``). phi (J, H, W) the data operator applied to each mode (A e_j), r (H, W) the residual at the
+    current flow -> theta (J,) float64; zeros when the modes are not determined by the data (singular normal
+    matrix)."""
+    sub = phi[:, ::stride, ::stride]
+    f64 = np.ascontiguousarray(sub.reshape(sub.shape[0], -1), dtype=np.float64)
+    r64 = np.ascontiguousarray(r[::stride, ::stride].reshape(-1), dtype=np.float64)
+    theta = np.zeros(phi.shape[0])
+    for _ in range(1 if data == "l2" else sweeps):
+        wgt = np.ones_like(r64) if data == "l2" else 1.0 / np.maximum(np.abs(r64 + theta @ f64), 1e-4)
+        fw = f64 * wgt
+        mat = fw @ f64.T
+        if np.linalg.cond(mat) > 1e10:
+            return np.zeros(phi.shape[0])
+        theta = np.linalg.solve(mat, -(fw @ r64))
+    return theta
+
+
+def mass_steps(a: np.ndarray, m: np.ndarray, tau: float, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Diagonal preconditioning (Pock & Chambolle, ICCV 2011, alpha = 1) of K = [regulariser; s A]: the data
+    dual's step sigma_p = s / (row sum of |A|) = s / (|a0| + |a1| + sum |M_kl|) and the flow's per-pixel
+    step tau_v = 1 / (1 / tau + s * column sum of |A|), column sum of component k bounded by |a_k| +
+    sum_l max(|M_kl(x - e_l)|, |M_kl(x + e_l)|); tau is the model's step (the regulariser's column sum:
+    without data this is the paper's tau). s = ``scale`` > 0 weighs the data row (any s converges).
+    -> sigma_p (H, W), tau_v (2, H, W)."""
+    am = np.abs(m)
+    row = np.abs(a[0]) + np.abs(a[1]) + np.sum(am, axis=(0, 1))
+    sigma_p = scale / np.maximum(row, 1e-6)
+    nx = np.maximum(np.concatenate([am[:, 0, :, 1:], am[:, 0, :, -1:]], axis=-1),
+                    np.concatenate([am[:, 0, :, :1], am[:, 0, :, :-1]], axis=-1))
+    ny = np.maximum(np.concatenate([am[:, 1, 1:], am[:, 1, -1:]], axis=-2),
+                    np.concatenate([am[:, 1, :1], am[:, 1, :-1]], axis=-2))
+    tau_v = 1.0 / (1.0 / tau + scale * (np.abs(a) + nx + ny))
+    return sigma_p.astype(np.float32), tau_v.astype(np.float32)
 
 
 def prox_data_quadratic(vt: np.ndarray, q: np.ndarray, tau: float) -> np.ndarray:
@@ -233,12 +320,13 @@ def apply_k_adjoint(spec: ModelSpec, y: np.ndarray, z: np.ndarray | None) -> tup
 # ------------------------------------------------------------------------------------------- energy
 def energy(spec: ModelSpec, v: np.ndarray, w: np.ndarray | None, a: np.ndarray, c: np.ndarray,
            alpha: float, alpha1: float, tv_norm: str, q: np.ndarray | None = None,
-           incompressibility: float = 0.0) -> float:
+           incompressibility: float = 0.0, m: np.ndarray | None = None) -> float:
     """The primal energy G + F(K .) of the model at (v, w) (sums over pixels, float64); with a quadratic
-    data term ``q`` (:func:`prox_data_quadratic`) that one instead of the model's data term on (a, c); plus
-    the incompressibility penalty (beta/2)|div v|^2 with beta = ``incompressibility``."""
+    data term ``q`` (:func:`prox_data_quadratic`) that one instead of the model's data term on (a, c); with
+    ``m`` the mass-preservation residual (:func:`mass_residual`); plus the incompressibility penalty
+    (beta/2)|div v|^2 with beta = ``incompressibility``."""
     spatial = v.shape[0]
-    r = residual(v, a, c).astype(np.float64)
+    r = (residual(v, a, c) if m is None else mass_residual(v.astype(np.float64), a, m, c)).astype(np.float64)
     if q is not None:
         data = quadratic_data(v, q)
     else:

@@ -27,8 +27,9 @@ import numpy as np
 
 from . import numba_kernels as nk
 from . import numba_warp as nw
+from .models import mass_steps
 from .photometric import RESIDUAL_OUTLIER, reliability_stride
-from .solver import CHECK_EVERY, PDState, Problem, SolveParams
+from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams, shift_slow_modes
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 from .workspace import scratch
 
@@ -39,6 +40,7 @@ LINEARISE_PARALLEL_MIN_PIXELS = 20_000
 _DUMMY3 = np.zeros((2, 1, 1), _F32)
 _DUMMY4 = np.zeros((2, 2, 1, 1), _F32)
 _DUMMY5 = np.zeros((2, 2, 2, 1, 1), _F32)
+_DUMMY2 = np.zeros((1, 1), _F32)
 
 
 def resolve_threads(n: int) -> int:
@@ -108,10 +110,17 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
     if state.z is not None:
         state.z = _f32c(state.z)
     v_bar, w_bar, xbuf, zero_b = work_buffers(state.v, state.w)
+    mass = problem.m is not None
+    if mass:
+        state.p = _f32c(state.data_dual())
+        sp, tv = mass_steps(problem.a, problem.m, spec.tau, MASS_DATA_SCALE)
+        h, w = state.v.shape[1:]
+        qpad = scratch("numba.mass_q", (2, 2, h + 2, w + 2))
+        qpad.fill(0.0)  # the ring stays zero; the kernel writes the inside from p before reading it
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
-    return int(nk.iterate(
+    k = int(nk.iterate(
         state.v, state.y,
         state.w if state.w is not None else _DUMMY4,
         state.z if state.z is not None else _DUMMY5,
@@ -121,7 +130,13 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         spec.data == "l1", _F32(2.0 * p.gamma * p.alpha / spec.tau),  # soft = 2 gamma / tau_d (nk.prox_data)
         nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
-        threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None))
+        threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None,
+        mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4,
+        sp if mass else _DUMMY2,
+        tv if mass else _DUMMY3, _F32(1.0 / p.alpha)))
+    if mass:
+        shift_slow_modes(problem, state, p)
+    return k
 
 
 def sample_numba(coef: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, kernel: str) -> np.ndarray:

@@ -81,6 +81,40 @@ def prox_quadratic(vt0, vt1, t11, t12, t22, g0, g1, tau_d):  # noqa: ANN001, ANN
     return (m11 * r0 - m01 * r1) * inv, (m00 * r1 - m01 * r0) * inv
 
 
+@njit(**_JIT)
+def _mass_px(i, j, jl, jr, wx, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1):  # noqa: ANN001, ANN201
+    """The data dual at pixel (i, j): p <- prox_{sigma_p D*}(p + sigma_p (A v_bar + c)) (models.prox_dual_data),
+    then qpad[k, l, i + 1, j + 1] = M[k, l] p, zero where the central difference along l is (border): what
+    the primal pass's A* reads. jl/jr, iu/idn: clamped neighbours; wx, wy: 1 inside, 0 on the border."""
+    hx = np.float32(0.5) * wx
+    hy = np.float32(0.5) * wy
+    r = (a[0, i, j] * v_bar[0, i, j] + a[1, i, j] * v_bar[1, i, j] + c[i, j]
+         + hx * (m[0, 0, i, j] * (v_bar[0, i, jr] - v_bar[0, i, jl])
+                 + m[1, 0, i, j] * (v_bar[1, i, jr] - v_bar[1, i, jl]))
+         + hy * (m[0, 1, i, j] * (v_bar[0, idn, j] - v_bar[0, iu, j])
+                 + m[1, 1, i, j] * (v_bar[1, idn, j] - v_bar[1, iu, j])))
+    t = p[i, j] + sp[i, j] * r
+    pn = min(max(t, -lam), lam) if data_l1 else t / (_ONE + sp[i, j] / lam)
+    p[i, j] = pn
+    for k in range(2):
+        qpad[k, 0, i + 1, j + 1] = m[k, 0, i, j] * pn * wx
+        qpad[k, 1, i + 1, j + 1] = m[k, 1, i, j] * pn * wy
+
+
+@njit(**_JIT)
+def p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1):  # noqa: ANN001, ANN201
+    """The mass-preservation data dual, row i (:func:`_mass_px`): the two border columns, then the interior
+    (no index tests in its loop)."""
+    h, wd = v_bar.shape[1], v_bar.shape[2]
+    wy = _ONE if (i >= 1 and i <= h - 2) else _ZERO
+    iu, idn = max(i - 1, 0), min(i + 1, h - 1)
+    _mass_px(i, 0, 0, 0, _ZERO, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
+    if wd > 1:
+        _mass_px(i, wd - 1, wd - 1, wd - 1, _ZERO, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
+    for j in range(1, wd - 1):
+        _mass_px(i, j, j - 1, j + 1, _ONE, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
+
+
 # ------------------------------------------------------------------------------------ row updates
 @njit(**_JIT)
 def z_row(i, ir, rm, w_bar, z, sigma, rel1, iso):  # noqa: ANN001, ANN201
@@ -147,8 +181,8 @@ def _make_passes(parallel: bool):  # noqa: ANN202
 
     Distinct function names keep the on-disk cache entries of the two variants apart."""
 
-    def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso):  # noqa: ANN001, ANN202
-        """One dual step over the whole image, in place on y (and z)."""
+    def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1):  # noqa: ANN001, ANN202
+        """One dual step over the whole image, in place on y (and z, and with ``mass`` the data dual p)."""
         h, wd = v_bar.shape[1], v_bar.shape[2]
         ext = reg >= 2
         l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
@@ -178,12 +212,16 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                     y[1, 1, i, j] = t3
             if reg == 3:
                 z_row(i, ir, rm, w_bar, z, sigma, rel1, iso)
+            if mass:
+                p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
 
     def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,  # noqa: ANN001, ANN202
-                    soft):
+                    soft, mass, p, qpad, tv):
         """One primal step over the whole image, in place on v, v_bar (and w, w_bar); returns
         sum |v_new - v|^2. xbuf: (threads, 2, W + 1) scratch for the x-part of div y (see below). ``quad``:
-        ``a`` is a quadratic data term (5, H, W) (:func:`prox_quadratic`; ``c`` unused), else rho = a . v + c."""
+        ``a`` is a quadratic data term (5, H, W) (:func:`prox_quadratic`; ``c`` unused), else rho = a . v + c.
+        ``mass``: the data term is dualised: v <- v + tv (div y + b - A* p), per-pixel tv, A* p = a p + the
+        central differences' adjoint of ``qpad`` = M p (zero-padded by one pixel, see :func:`_mass_px`)."""
         h, wd = v.shape[1], v.shape[2]
         total = 0.0
         for i in prange(h):
@@ -206,7 +244,16 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                 div1 = q[1, j + 1] - q[1, j] + y[1, 1, i, j] * rd - y[1, 1, iu, j] * ru
                 v0, v1 = v[0, i, j], v[1, i, j]
                 vt0, vt1 = v0 + tau * (div0 + b[0, ib, j]), v1 + tau * (div1 + b[1, ib, j])
-                if quad:
+                if mass:
+                    s0 = a[0, i, j] * p[i, j] + np.float32(0.5) * (
+                        qpad[0, 0, i + 1, j] - qpad[0, 0, i + 1, j + 2]
+                        + qpad[0, 1, i, j + 1] - qpad[0, 1, i + 2, j + 1])
+                    s1 = a[1, i, j] * p[i, j] + np.float32(0.5) * (
+                        qpad[1, 0, i + 1, j] - qpad[1, 0, i + 1, j + 2]
+                        + qpad[1, 1, i, j + 1] - qpad[1, 1, i + 2, j + 1])
+                    n0 = v0 + tv[0, i, j] * (div0 + b[0, ib, j] - s0)
+                    n1 = v1 + tv[1, i, j] * (div1 + b[1, ib, j] - s1)
+                elif quad:
                     n0, n1 = prox_quadratic(vt0, vt1, a[0, i, j], a[1, i, j], a[2, i, j], a[3, i, j], a[4, i, j],
                                             tau_d)
                 else:
@@ -236,22 +283,26 @@ dual_pass_ser, primal_pass_ser = _make_passes(False)
 
 @njit(**_JIT)
 def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN201
-            data_l1, soft, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad):
+            data_l1, soft, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad,
+            mass, m, p, qpad, sp, tv, lam):
     """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
     per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
     cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass); ``soft``: the joint
-    model's data term (:func:`prox_data`; 0 = the model's own). Returns the number of iterations run."""
+    model's data term (:func:`prox_data`; 0 = the model's own); ``mass``: mass
+    preservation, M = ``m`` (2, 2, H, W), its dual ``p`` (H, W), the scratch ``qpad`` (2, 2, H + 2, W + 2) of
+    M p (zero ring), the steps ``sp`` (H, W) and ``tv`` (2, H, W) (models.mass_steps) and the data weight
+    ``lam`` (else 1x1 dummies). Returns the number of iterations run."""
     n = 2.0 * v.shape[1] * v.shape[2]
     k = 0
     for k in range(1, iterations + 1):
         if parallel:
-            dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso)
+            dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
             ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
-                                 soft)
+                                 soft, mass, p, qpad, tv)
         else:
-            dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso)
+            dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
             ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
-                                 soft)
+                                 soft, mass, p, qpad, tv)
         if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
             break
     return k

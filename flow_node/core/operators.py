@@ -53,6 +53,31 @@ def div(p: np.ndarray) -> np.ndarray:
     return d
 
 
+def jacobian_central(v: np.ndarray) -> np.ndarray:
+    """Central-difference Jacobian of a flow: J[k, l] = d v_k / d x_l = (v_k(x + e_l) - v_k(x - e_l)) / 2,
+    zero on the border columns (l = 0) / rows (l = 1) as the central image gradient: the derivative at the
+    pixel itself. v (2, H, W) -> (2, 2, H, W) [component, direction]."""
+    j = np.zeros((2,) + v.shape, dtype=v.dtype)
+    j[:, 0, :, 1:-1] = 0.5 * (v[:, :, 2:] - v[:, :, :-2])
+    j[:, 1, 1:-1, :] = 0.5 * (v[:, 2:, :] - v[:, :-2, :])
+    return j
+
+
+def jacobian_central_adjoint(q: np.ndarray) -> np.ndarray:
+    """The adjoint of :func:`jacobian_central`: q (2, 2, H, W) -> (2, H, W), component k at x =
+    sum_l (q[k, l](x - e_l) - q[k, l](x + e_l)) / 2, q read as zero on its border columns/rows and outside."""
+    out = np.zeros((2,) + q.shape[2:], dtype=q.dtype)
+    qx = np.zeros_like(q[:, 0])
+    qx[:, :, 1:-1] = q[:, 0, :, 1:-1]
+    out[:, :, 1:] += 0.5 * qx[:, :, :-1]
+    out[:, :, :-1] -= 0.5 * qx[:, :, 1:]
+    qy = np.zeros_like(q[:, 1])
+    qy[:, 1:-1, :] = q[:, 1, 1:-1, :]
+    out[:, 1:, :] += 0.5 * qy[:, :-1, :]
+    out[:, :-1, :] -= 0.5 * qy[:, 1:, :]
+    return out
+
+
 def image_gradient(img: np.ndarray, scheme: str, out: np.ndarray | None = None) -> np.ndarray:
     """Spatial derivative of an image or volume for the data term. img: (H, W) or (Z, Y, X) -> (img.ndim,
     *img.shape) float32 in direction order x, y[, z], intensity per pixel.
@@ -131,3 +156,26 @@ def linearise(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | None, f
     a *= inside
     c *= inside
     return a.astype(np.float32, copy=False), c.astype(np.float32, copy=False)
+
+
+def mass_linearise(i0: np.ndarray, a: np.ndarray, c: np.ndarray, flow0: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mass preservation I1(x + v) det(Id + grad v) = I0(x) linearised about flow0, from the brightness
+    linearisation (a, c) around it (c = I1w - I0 - a . v0, I1w = I1(x + v0), whichever scheme gave a):
+
+        rho(v) = det(J0) a . v + I1w cof(J0) : grad v + c',   J0 = Id + grad v0 (central differences),
+        c' = I1w det(J0) - I0 - det(J0) a . v0 - I1w cof(J0) : grad v0,
+
+    first order in v - v0 (det(J) ~ det(J0) + cof(J0) : (J - J0)); with v0 = 0 it is I_t + grad I1 . v +
+    I1 div v. Returns a' (2, H, W), M = I1w cof(J0) (2, 2, H, W) [component, direction] and c' (H, W),
+    float32, zero where x + v0 leaves the image."""
+    inside = warp_maps(flow0)[2]
+    i1w = c + i0 + a[0] * flow0[0] + a[1] * flow0[1]
+    jac = jacobian_central(flow0.astype(np.float32))
+    ux, uy, vx, vy = jac[0, 0], jac[0, 1], jac[1, 0], jac[1, 1]
+    det0 = (1.0 + ux) * (1.0 + vy) - uy * vx
+    cof = np.stack([np.stack([1.0 + vy, -vx]), np.stack([-uy, 1.0 + ux])])  # d det / d J[k, l]
+    a_m = (det0 * a * inside).astype(np.float32)
+    m = (i1w * cof * inside).astype(np.float32)
+    c_m = (i1w * det0 - i0) * inside - a_m[0] * flow0[0] - a_m[1] * flow0[1] - np.sum(m * jac, axis=(0, 1))
+    return a_m, m, c_m.astype(np.float32)

@@ -15,6 +15,10 @@ result explains them.
   scale; they are taken on a strided subsample (every ``STRIDE``-th pixel in each direction). One map for
   both frames, not one per frame: the frames' content differs (motion at the border), and a per-frame map
   would turn that into a brightness difference, i.e. flow error.
+* ``density``: both frames multiplied by one gain, 1 / the pair's robust range (the ``normalise`` range,
+  quantised content treated the same way), nothing subtracted and no exposure change undone: the intensity
+  is a density whose total may change only by the motion's divergence, and a gain is the one map that
+  keeps the continuity equation (the mass-preservation data term, FlowConfig.constraint).
 * ``local_contrast``: ``normalise``, then each frame divided by its local contrast (:func:`local_contrast`):
   invariant to gain and offset without estimating them, so also to vignetting and local exposure changes.
 * ``structure_texture``: ``normalise``, then the texture part of Wedel et al.'s structure-texture
@@ -42,7 +46,8 @@ import numpy as np
 from .operators import div, grad
 from .warping import Sample, sample_coefficients
 
-PHOTOMETRIC = ("census", "normalise", "local_contrast", "structure_texture", "none")
+PHOTOMETRIC = ("census", "normalise", "local_contrast", "structure_texture", "density", "none")
+MASS_PHOTOMETRIC = ("density", "none")  # the modes that keep the continuity equation (constraint "mass")
 SIGNATURE_MODES = ("census",)  # modes whose data term compares census signatures (census.py), not grey values
 PERCENTILES = (2.0, 98.0)
 STRIDE = 3
@@ -168,6 +173,16 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> t
     return n0, n1, (gain, offset) != (1.0, 0.0)
 
 
+def density_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Both frames (H, W) float32 times one gain, 1 / the pair's robust range (mean 2nd-98th percentiles),
+    coarse quantisation treated as in :func:`normalise_pair`: the ``density`` mode, no offset (see module doc)."""
+    s0, s1 = sorted_sample(i0), sorted_sample(i1)
+    lo, hi = 0.5 * (quantiles(s0, PERCENTILES) + quantiles(s1, PERCENTILES))
+    step = quantisation_step(s0)
+    n0, n1 = (affine_normalised(img, 0.0, hi - lo, step, noise_gain) for img in (i0, i1))
+    return n0, n1
+
+
 def rof_structure(img: np.ndarray, theta: float = ROF_THETA, iterations: int = ROF_ITERATIONS) -> np.ndarray:
     """ROF denoising argmin_S |grad S|_1 + |S - img|^2 / (2 theta) by Chambolle's dual projection
     (step 1/4, isotropic), the structure part of the decomposition. img (H, W) -> (H, W) float32."""
@@ -209,6 +224,8 @@ def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0
         pair = normalise_frame(i0, noise_gain), normalise_frame(i1, noise_gain)
         return pair, pair
     n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain)
+    if mode == "density":
+        return density_pair(i0, i1, noise_gain), (n0, n1)
     if mode == "none":
         return (i0, i1), (n0, n1)
     if mode == "normalise" and exposure_changed:

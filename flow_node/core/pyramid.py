@@ -78,6 +78,7 @@ def resize_state(state: PDState, shape: tuple[int, int]) -> PDState:
         y=resize_field(state.y, shape),
         w=None if state.w is None else resize_field(state.w, shape),
         z=None if state.z is None else resize_field(state.z, shape),
+        p=None if state.p is None else resize_field(state.p, shape),
     )
 
 

@@ -22,7 +22,7 @@ from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS, weight_data, weight_quadratic
-from .operators import image_gradient, warp_source
+from .operators import image_gradient, mass_linearise, warp_source
 from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
@@ -93,8 +93,7 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     if pyr.c0 is not None and pyr.c1 is not None and compares_signatures(cfg.photometric):
         linearised = colour_problem(pyr.c0[level], pyr.c1[level], cfg, backend, robust)
     else:
-        linearised = (census_problem if compares_signatures(cfg.photometric) else grey_problem)(
-            pyr.i0[level], pyr.i1[level], cfg, backend, robust)
+        linearised = problem_source(cfg)(pyr.i0[level], pyr.i1[level], cfg, backend, robust)
     if pyr.valid(level) is not None:
         linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
@@ -127,6 +126,27 @@ def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
         return Problem(*backend.linearise(i0, src1, g0, v0, cfg.gradient_scheme, cfg.warp_kernel, backend.warper))
 
     return around
+
+
+def mass_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
+    """Mass preservation (the continuity equation, models.apply_a): per warp the grey-value linearisation
+    around v0, turned into that of I1(x + v) det(Id + grad v) = I0(x) (operators.mass_linearise)."""
+    grey = grey_problem(i0, i1, cfg, backend, robust)
+
+    def around(v0: np.ndarray) -> Problem:
+        lin = grey(v0)
+        a, m, c = mass_linearise(i0, lin.a, lin.c, v0)
+        return Problem(a, c, m=m)
+
+    return around
+
+
+def problem_source(cfg: FlowConfig) -> Callable[..., Linearisation]:
+    """The per-warp problem of ``cfg``'s data term: census signatures, mass preservation or brightness
+    constancy on grey values (the constraint is checked against the photometric mode in config.py)."""
+    if compares_signatures(cfg.photometric):
+        return census_problem
+    return mass_problem if cfg.constraint == "mass" else grey_problem
 
 
 def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:

@@ -29,10 +29,18 @@ import numpy as np
 from .models import (
     PROX_DATA,
     ModelSpec,
+    affine_modes,
+    apply_a,
+    apply_a_adjoint,
+    energy,
     flow_divergence,
+    mass_residual,
+    mass_steps,
+    mode_step,
     project_dual_tv,
     prox_data_joint,
     prox_data_quadratic,
+    prox_dual_data,
     prox_dual_incompressibility,
     prox_dual_l2,
     step_sizes,
@@ -40,17 +48,30 @@ from .models import (
 from .operators import div, grad
 
 CHECK_EVERY = 10  # iterations between evaluations of the stopping rule
+# weight s of the mass data row in the preconditioning (models.mass_steps): on the mass regime's tune seeds the
+# AEE is flat for s in 2-8 (0.069-0.071 px at 10 warps; 0.091-0.095 at 5) and worse at 1 (slow data dual)
+MASS_DATA_SCALE = 4.0
+MODE_STEP_MAX = 0.25  # px: the largest change of the flow one affine-mode step may make (shift_slow_modes)
 
 
 @dataclass
 class PDState:
-    """Primal and dual variables of one pyramid level (shapes in models.py); carried across warps/levels."""
+    """Primal and dual variables of one pyramid level (shapes in models.py); carried across warps/levels.
+    ``p`` (H, W), the dual of the mass-preservation data term, is carried across the warps of a level only
+    (None: start from zero)."""
 
     v: np.ndarray
     y: np.ndarray
     w: np.ndarray | None = None
     z: np.ndarray | None = None
     s: np.ndarray | None = None
+    p: np.ndarray | None = None
+
+    def data_dual(self) -> np.ndarray:
+        """``p``, set to zeros (H, W) float32 first when missing or of another shape."""
+        if self.p is None or self.p.shape != self.v.shape[1:]:
+            self.p = np.zeros(self.v.shape[1:], np.float32)
+        return self.p
 
     @classmethod
     def zeros(cls, spec: ModelSpec, shape: tuple[int, ...], incompressible: bool = False) -> PDState:
@@ -70,12 +91,15 @@ class Problem:
     """One linearised problem: rho(v) = a . v + c, and the Bregman linear term -alpha <b, v> (b may be None).
 
     ``q`` (5, H, W), when given, is a multi-channel data term collapsed to a quadratic form per pixel (the
-    census data term, census.py); it then replaces the model's data term on (a, c)."""
+    census data term, census.py); it then replaces the model's data term on (a, c). ``m`` (H, W), when given,
+    makes the data term mass preservation, rho(v) = a . v + m div v + c (models.apply_a): no longer pointwise,
+    it is dualised (p, models.prox_dual_data) with diagonally preconditioned steps (models.mass_steps)."""
 
     a: np.ndarray
     c: np.ndarray
     b: np.ndarray | None = None
     q: np.ndarray | None = None
+    m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -112,6 +136,10 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
             return prox_data_joint(vt, a, c, t, p.gamma)
     a, c, q = problem.a, problem.c, problem.q
     shift = None if problem.b is None else tau * problem.b  # linear term -<b, v> of E / alpha
+    mass = problem.m is not None
+    if mass:  # K = [regulariser; A]: the data dual p and per-pixel steps (sigma_p, tau_v) replace prox_{tau G}
+        p_data, m = state.data_dual(), problem.m
+        sigma_p, tau_v = mass_steps(a, m, tau, MASS_DATA_SCALE)
     v, y, w, z, s = state.v, state.y, state.w, state.z, state.s
     if incompressible and s is None:
         s = np.zeros(v.shape[1:], np.float32)
@@ -128,16 +156,23 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
             z = project_dual_tv(z + sigma * grad(w_bar, dims=dims), rel1, p.tv_norm, dims)
         if incompressible:
             s = prox_dual_incompressibility(s + sigma * flow_divergence(v_bar), sigma, rel_inc)
+        if mass:
+            p_data = prox_dual_data(p_data + sigma_p * mass_residual(v_bar, a, m, c), sigma_p, 1.0 / p.alpha,
+                                    spec.data)
         # primal descent: x <- prox_{tau G}(x - tau K* y); K* of the div v block: -div of s on y's diagonal
         ys = y
         if incompressible:
             ys = y.copy()
             for d in range(dims):
                 ys[d, d] += s
-        vt = v + tau * div(ys)
-        if shift is not None:
-            vt += shift
-        v_new = prox_data(vt, a, c, tau_data) if q is None else prox_data_quadratic(vt, q, tau_data)
+        if mass:  # G is the Bregman term alone: a gradient step on it with the per-pixel tau_v
+            v_new = v + tau_v * (div(ys) - apply_a_adjoint(p_data, a, m)
+                                 + (0.0 if problem.b is None else problem.b))
+        else:
+            vt = v + tau * div(ys)
+            if shift is not None:
+                vt += shift
+            v_new = prox_data(vt, a, c, tau_data) if q is None else prox_data_quadratic(vt, q, tau_data)
         if w is not None:
             wt = w + tau * (y if z is None else y + div(z))
             w_new = wt / (1.0 + tau * rel1) if spec.regulariser == "tv_l2" else wt
@@ -149,7 +184,33 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
         if done:
             break
     state.v, state.y, state.w, state.z, state.s = v, y, w, z, s
+    if mass:
+        state.p = p_data
+        shift_slow_modes(problem, state, p)
     return k
+
+
+def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
+    """A descent step of the mass problem's energy along the affine flows (models.affine_modes), run after
+    its primal-dual steps in every backend. The dualised data term moves these smooth modes
+    slowly: their data curvature |a|^2 is tiny next to the divergence part's |M|^2, which sets the steps.
+    theta minimises the data term along them (models.mode_step); the step is taken only if the whole energy
+    (data and regulariser) decreases and is cut to MODE_STEP_MAX px: the energy is the warp's linearised one,
+    which holds only near v0 (uncut, one step took a fine texture's flow 5 px off). state.v updated in place."""
+    a, m, c = problem.a, problem.m, problem.c
+    modes = affine_modes(state.v.shape[1:])
+    phi = np.stack([apply_a(e, a, m) for e in modes])
+    theta = mode_step(phi, mass_residual(state.v, a, m, c), p.spec.data)
+    if not np.any(theta):
+        return
+    step = np.tensordot(theta, modes, axes=1)
+    largest = float(np.max(np.abs(step)))
+    if largest > MODE_STEP_MAX:  # a trust region: the linearisation holds within a fraction of a pixel
+        step *= MODE_STEP_MAX / largest
+    moved = (state.v + step).astype(np.float32)
+    before, after = (energy(p.spec, v, state.w, a, c, p.alpha, p.alpha1, p.tv_norm, m=m) for v in (state.v, moved))
+    if after < before:
+        state.v = moved
 
 
 def _rms(d: np.ndarray) -> float:

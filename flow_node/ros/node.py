@@ -232,9 +232,11 @@ class FlowNode(LifecycleNode):
         return values
 
     def _expand_preset(self, params: list[Parameter]) -> list[Parameter]:
-        """Pre-set callback: a preset brings its group, a model its calibrated weights (params.expand_preset)."""
+        """Pre-set callback: a preset brings its group, a model its calibrated weights, ``constraint`` mass the
+        density photometric mode (params.expand_preset)."""
         given = [(p.name, p.value) for p in params]
-        return params + [Parameter(k, value=v) for k, v in expand_preset(given, self.get_parameter("model").value)]
+        return params + [Parameter(k, value=v) for k, v in expand_preset(
+            given, self.get_parameter("model").value, self.get_parameter("constraint").value)]
 
     def _validate(self, params: list[Parameter]) -> SetParametersResult:
         """On-set callback: the whole would-be configuration must be valid, else nothing changes."""

@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from ..core.config import PRESETS, FlowConfig, field_names, fields_info, implied_weights
+from ..core.config import PRESETS, FlowConfig, field_names, fields_info, implied_photometric, implied_weights
 from ..core.errors import ConfigError
 from ..core.settings import fields_info as settings_fields_info
 from ..core.settings import from_flat
@@ -151,10 +151,12 @@ def declared_defaults(preset: str) -> dict[str, Any]:
     return {s.name: base.get(s.name, s.default) for s in param_specs() if s.name != "preset"}
 
 
-def expand_preset(given: list[tuple[str, Any]], model: str) -> list[tuple[str, Any]]:
+def expand_preset(given: list[tuple[str, Any]], model: str, constraint: str) -> list[tuple[str, Any]]:
     """What a set of parameters ``given`` (name, value) implies besides itself: a ``preset`` its group, a new
-    model without weights its calibrated ones (config.implied_weights; ``model`` is the current one); values
-    given in the same call win. An unknown preset implies nothing (validation rejects it with the reason)."""
+    model without weights its calibrated ones (config.implied_weights; ``model`` is the current one), the
+    mass constraint its density photometric mode (config.implied_photometric; ``constraint`` the current
+    one); values given in the same call win. An unknown preset implies nothing (validation rejects it with
+    the reason)."""
     specs, names = specs_by_name(), {name for name, _ in given}
     out = list(given)
     for name, value in given:
@@ -164,7 +166,9 @@ def expand_preset(given: list[tuple[str, Any]], model: str) -> list[tuple[str, A
             except ConfigError:
                 continue
             out += [(k, coerce(specs[k], v)) for k, v in group.items() if k not in names]
-    return out[len(given):] + list(implied_weights(model, dict(out)).items())
+    implied = dict(out)
+    return (out[len(given):] + list(implied_weights(model, implied).items())
+            + list(implied_photometric(constraint, implied).items()))
 
 
 def _yaml_value(value: Any) -> str:
