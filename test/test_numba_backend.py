@@ -8,6 +8,7 @@ specialisation serves all cases, so the JIT cost (cold cache) is paid once for t
 from __future__ import annotations
 
 import contextlib
+import inspect
 import logging
 import sys
 import threading
@@ -209,9 +210,10 @@ def test_each_estimator_runs_its_kernels_on_its_own_threads(monkeypatch: pytest.
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("one core: numba cannot run two threads")
     iterate, seen = numba_backend.nk.iterate, []
+    parallel = list(inspect.signature(iterate.py_func).parameters).index("parallel")
 
     def spy(*args: object) -> int:
-        seen.append((threading.current_thread().name, numba.get_num_threads(), args[21]))  # iterate's `parallel`
+        seen.append((threading.current_thread().name, numba.get_num_threads(), args[parallel]))
         return iterate(*args)
 
     monkeypatch.setattr(numba_backend.nk, "iterate", spy)
