@@ -16,6 +16,7 @@ from .engine import estimate_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
 from .photometric import compares_signatures
 from .refine import SolveStats
+from .temporal import FULL, Prior, estimate_predicted, result_fails
 
 log = logging.getLogger("flow_node")
 
@@ -132,6 +133,7 @@ class FlowEstimator:
         self.estimate(f0, f1)
         with self._backend.running():
             warm_fusion(self._backend)
+            self._backend.splat(np.zeros((2,) + shape, np.float32))  # the stream stage's kernel
         self.confidence(f0, f1, np.zeros(shape + (2,), np.float32))
         return time.perf_counter() - start
 
@@ -164,13 +166,43 @@ class FlowEstimator:
         start = time.perf_counter()
         with self._backend.running():
             flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend, init, prev)
-            ensure_finite(flow)
-            if compares_signatures(self._config.photometric):
-                unexplained = census_reliability(*normalised, flow, self._backend.warper.sample)
-            else:
-                unexplained = self._backend.reliability(*normalised, flow)
+            unexplained = self._unexplained(flow, normalised)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
+
+    def estimate_next(self, i0: np.ndarray, i1: np.ndarray, prior: Prior) -> FlowResult:
+        """:meth:`estimate_grey` for the next pair of a stream whose previous pair's flow is known (``prior``:
+        its flow (H, W, 2) px on i0's predecessor's grid, its unexplained fraction, the interval ratio): with
+        ``config.stream_levels`` > 0 the stream stage (core/temporal.py) refines the carried-forward flow on
+        the finest levels only, and the pair is solved in full when its checks fail (``stats.stream`` says
+        which, and why). With ``stream_levels`` 0: exactly :meth:`estimate_grey`."""
+        if not self._config.stream_levels:
+            return self.estimate_grey(i0, i1)
+        if i0.shape != i1.shape or prior.flow.shape != i0.shape + (2,):
+            raise InputError(f"stream pair: frames {i0.shape} and {i1.shape}, previous flow {prior.flow.shape}")
+        start = time.perf_counter()
+        with self._backend.running():
+            carried = Prior(np.moveaxis(prior.flow, -1, 0), prior.unexplained, prior.interval_ratio)
+            attempt = estimate_predicted(i0, i1, self._config, self._backend, carried)
+            reason = attempt if isinstance(attempt, str) else None
+            if reason is None:
+                flow, stats, normalised = attempt
+                unexplained = self._unexplained(flow, normalised)
+                reason = result_fails(self._config, prior, unexplained)
+            if reason is not None:
+                flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend)
+                unexplained = self._unexplained(flow, normalised)
+                stats.stream = f"{FULL}: {reason}"
+        seconds = time.perf_counter() - start
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
+
+    def _unexplained(self, flow: np.ndarray, normalised: tuple[np.ndarray, np.ndarray]) -> float:
+        """The unexplained fraction of a finished ``flow`` (H, W, 2) on the ``normalised`` pair (the census
+        or the grey-value figure), after :func:`ensure_finite`."""
+        ensure_finite(flow)
+        if compares_signatures(self._config.photometric):
+            return census_reliability(*normalised, flow, self._backend.warper.sample)
+        return self._backend.reliability(*normalised, flow)
 
 
 def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -> np.ndarray | None:

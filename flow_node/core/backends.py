@@ -8,8 +8,11 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from typing import NamedTuple
 
+import numpy as np
+
 from .census import CensusForm, LevelSignature, census_form, level_signature
 from .confidence import Confidence, confidence
+from .densify import forward_propagate
 from .errors import ConfigError
 from .fusion import Fuse, fuse
 from .initialise import Consistent, forward_backward_consistent
@@ -29,7 +32,8 @@ def _single_threaded(threads: int) -> AbstractContextManager[object]:
 class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
     reliability figure, the fusion and its forward-backward check, the census data term's level
-    signature and per-warp form, and the per-pixel confidence of a flow (same semantics in every backend;
+    signature and per-warp form, the per-pixel confidence of a flow and the stream stage's forward splat
+(temporal.predict; same semantics in every backend;
     the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on
     and the context that binds them (:meth:`running`).
     """
@@ -46,6 +50,7 @@ class Backend(NamedTuple):
     confidence: Confidence = confidence
     threads: int = 1
     on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
+    splat: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] = forward_propagate
 
     def running(self) -> AbstractContextManager[object]:
         """The context each estimate runs in: the backend's kernels on its ``threads``, bound to the calling
@@ -94,7 +99,7 @@ def select_backend(name: str, threads: int = 0) -> Backend:
         log.info("flow_node backend: numpy (reference, requested)")
         return NUMPY
     try:
-        from . import numba_backend, numba_census, numba_confidence, numba_fusion
+        from . import numba_backend, numba_census, numba_confidence, numba_fusion, numba_temporal
     except ImportError as exc:
         if name == "numba":
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
@@ -107,4 +112,4 @@ def select_backend(name: str, threads: int = 0) -> Backend:
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
                    numba_census.level_signature_numba, numba_census.census_form_numba,
                    numba_confidence.confidence_numba, used,
-                   numba_backend.thread_count)
+                   numba_backend.thread_count, splat=numba_temporal.splat_numba)

@@ -137,6 +137,24 @@ class FlowConfig:
                                 "0 = always)", lo=0.0, hi=10000.0)
     temporal_init: int = _f(0, "in a stream (node, flow_bag eval): 1 = the previous pair's flow, carried "
                             "forward, is an initialisation of the next pair", choices=(0, 1))
+    stream_levels: int = _f(0, "in a stream (node, flow_bag eval): the previous pair's flow, carried to the new "
+                            "frame, starts the refinement on this many finest solved levels, skipping the coarser "
+                            "ones and the initialisation while the prediction holds (0 = off: every pair solved "
+                            "in full)", lo=0, hi=4)
+    stream_warps: int = _f(2, "stream mode: warps per level refined from the prediction", lo=1, hi=100)
+    stream_iterations: int = _f(10, "stream mode: primal-dual iterations per warp on those levels", lo=1,
+                                hi=100000)
+    stream_max_predicted: float = _f(0.5, "stream mode: the pair is solved in full when more than this fraction "
+                                     "of the prediction's pixels is unexplained (its robust data cost on its "
+                                     "start level: a scene cut, a jump)", lo=0.0, hi=1.0)
+    stream_max_unexplained: float = _f(0.3, "stream mode: a previous flow, or a refined prediction, with more "
+                                       "unexplained pixels than this is not used (full solve)", lo=0.0, hi=1.0)
+    stream_margin: float = _f(0.05, "stream mode: a refined prediction explaining the pair worse than the "
+                              "previous pair's flow by more than this fraction is replaced by a full solve",
+                              lo=0.0, hi=1.0)
+    stream_max_gap: float = _f(2.5, "stream mode: a pair whose stamp interval differs from the previous pair's "
+                               "by more than this factor (a dropped run of frames) is solved in full; within "
+                               "it the prediction is scaled by the ratio", lo=1.0, hi=1000.0)
     backend: str = _f("auto", "solver backend: numba kernels, numpy reference, or auto (numba if importable)",
                       choices=BACKENDS)
     threads: int = _f(0, "threads for the numba backend (0 = all cores)", lo=0, hi=1024)
@@ -299,6 +317,16 @@ PRESETS: dict[str, dict[str, Any]] = {
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2),
+    # stream presets (issue 26, docs/engine.md "The stream mode"): a single pair, and a stream's fallback, is
+    # solved as the base preset does; while the previous flow predicts the next, only the finest levels run
+    "stream_realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
+                            levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                            initialisation="dis_ultrafast", init_finest_level=2, stream_levels=2, stream_warps=2,
+                            stream_iterations=10),
+    "stream_fast": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
+                        finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=1, stream_warps=2,
+                        stream_iterations=8),
 }
 
 

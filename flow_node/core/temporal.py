@@ -1,0 +1,161 @@
+"""The stream stage: the previous pair's flow, carried to the new frame, starts the refinement on the finest
+one or two levels only (docs/engine.md, "The stream mode").
+
+In a stream consecutive flows are nearly the same. The previous pair's flow lives on the grid of its first
+frame; under constant velocity the point x moves on to x + f(x) and keeps its velocity there, so the
+prediction of the new pair's flow at x + f(x) is f(x) (:func:`predict`: a forward splat, the fastest point
+winning where several land on one pixel -- the nearer surface -- and the holes, disoccluded pixels and the
+border the motion brings in, filled by normalised convolution, densify.push_pull). The prediction replaces the
+coarse levels, the initialisation matcher and their warps: :func:`refine_prediction` refines it on the levels
+``finest + cfg.stream_levels - 1`` down to the finest solved one, with ``cfg.stream_warps`` warps of
+``cfg.stream_iterations`` primal-dual iterations each.
+
+A per-frame check decides whether the prediction holds (:func:`prediction_fails`, :func:`result_fails`); when
+it does not, the caller runs the full single-pair solve (engine.estimate_pair) instead:
+
+* the previous flow itself was unreliable (its unexplained fraction above ``cfg.stream_max_unexplained``:
+  after a scene cut every flow is);
+* the pair spans a different interval than the previous one by more than ``cfg.stream_max_gap`` (a dropped run
+  of frames: the motion no longer continues; shorter gaps scale the prediction by the ratio);
+* the prediction's robust data cost on its start level -- the fraction of pixels whose warped residual
+  exceeds photometric.RESIDUAL_OUTLIER -- is above ``cfg.stream_max_predicted`` (a scene cut, a jump);
+* after the refinement, the result explains the pair worse than the previous pair's result by more than
+  ``cfg.stream_margin``, or is unreliable (``cfg.stream_max_unexplained``).
+
+Flows are channel-first (2, h, w) px of their grid; images grey float32 (h, w).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from .backends import Backend
+from .config import FlowConfig
+from .densify import push_pull
+from .layout import interleaved_flow
+from .models import MODEL_SPECS
+from .photometric import stage
+from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow
+from .refine import SolveStats, finest_level, refine_levels
+from .solver import PDState
+
+PREDICTED = "predicted"  # SolveStats.stream of a pair solved from the prediction
+FULL = "full"  # ... of a pair the stream solved from scratch; followed by ": <reason>"
+
+# splat(flow (2, h, w)) -> (values (2, h, w), weight (h, w)): densify.forward_propagate or a backend's kernel
+Splat = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class Prior:
+    """What a stream knows before a pair: the previous pair's ``flow`` px on the grid of its first frame, at
+    this pair's resolution ((2, H, W) for this stage; api.FlowEstimator.estimate_next takes the (H, W, 2) of
+    its results); that result's ``unexplained`` fraction (api.FlowResult); and this pair's
+    interval over the previous pair's (``interval_ratio``, 1 for equal stamps spacing)."""
+
+    flow: np.ndarray
+    unexplained: float
+    interval_ratio: float = 1.0
+
+
+def predict(previous: np.ndarray, shape: tuple[int, int], ratio: float, splat: Splat) -> np.ndarray:
+    """The previous pair's flow (2, H, W) px carried to the new pair's first frame on a grid of ``shape``:
+    resampled to it (vectors rescaled), multiplied by the interval ``ratio``, splatted forward (``splat``:
+    each pixel's flow to x + f(x)) and its holes filled by normalised convolution. (2, h, w) float32 px."""
+    flow = previous if previous.shape[1:] == shape else resize_flow(previous, shape)
+    if ratio != 1.0:
+        flow = flow * np.float32(ratio)
+    values, weight = splat(np.ascontiguousarray(flow, dtype=np.float32))
+    return push_pull(values, weight)
+
+
+def stream_span(pyr: Pyramid, cfg: FlowConfig) -> tuple[int, int]:
+    """(start, finest): the levels a predicted pair is refined on, coarse to fine -- ``cfg.stream_levels``
+    levels ending at the finest solved one (clamped to the pyramid)."""
+    finest = finest_level(pyr, cfg)
+    return min(pyr.coarsest, finest + max(cfg.stream_levels, 1) - 1), finest
+
+
+@lru_cache(maxsize=8)
+def stream_schedule(cfg: FlowConfig) -> FlowConfig:
+    """The settings of the refinement of a prediction: ``cfg`` with every level (finest included) at
+    ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` iterations and the pyramid cut below the levels it
+    visits (the shapes of the levels kept are the same). Derived, never written back; cached per config."""
+    levels = min(cfg.levels, cfg.finest_level + max(cfg.stream_levels, 1))
+    return cfg.replace(warps=cfg.stream_warps, iterations=cfg.stream_iterations, finest_warps=0,
+                       finest_iterations=0, levels=levels)
+
+
+def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: np.ndarray,
+                      stats: SolveStats) -> PDState:
+    """Refine ``predicted`` (2, h, w) px on the start level of :func:`stream_span` down to the finest solved
+    level with :func:`stream_schedule`'s warps (``cfg`` is that schedule); the dual variables start at zero.
+    Returns the state on the finest solved level; iterations go to ``stats``."""
+    start, finest = stream_span(pyr, cfg)
+    state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[start])
+    state.v = np.ascontiguousarray(predicted, dtype=np.float32)
+    stats.start_level = start
+    return refine_levels(pyr, cfg, backend, state, start, finest, stats, finest)
+
+
+def predicted_cost(n0: np.ndarray, n1: np.ndarray, predicted: np.ndarray, backend: Backend) -> float:
+    """The prediction's robust data cost: the fraction of pixels of the normalised pair (n0, n1: (H, W),
+    photometric.stage's second result) resampled to the prediction's grid (area average) whose warped residual
+    exceeds photometric.RESIDUAL_OUTLIER (the backend's reliability figure, sampled)."""
+    h, w = predicted.shape[1:]
+    if n0.shape != (h, w):
+        n0, n1 = (cv2.resize(n, (w, h), interpolation=cv2.INTER_AREA) for n in (n0, n1))
+    return backend.reliability(n0, n1, interleaved_flow(predicted, (h, w)))
+
+
+def prior_fails(cfg: FlowConfig, prior: Prior) -> str | None:
+    """Why the prior cannot start this pair (a full solve's reason), or None: an unreliable previous flow, or
+    an interval ratio beyond ``cfg.stream_max_gap`` either way."""
+    if prior.unexplained > cfg.stream_max_unexplained:
+        return f"previous flow unreliable ({prior.unexplained:.2f} unexplained)"
+    if not 1.0 / cfg.stream_max_gap <= prior.interval_ratio <= cfg.stream_max_gap:
+        return f"stamp gap ({prior.interval_ratio:.2f}x the previous pair's interval)"
+    return None
+
+
+def prediction_fails(cfg: FlowConfig, cost: float) -> str | None:
+    """Why the prediction is not refined (its data cost, :func:`predicted_cost`, above
+    ``cfg.stream_max_predicted``: a scene cut or a jump), or None."""
+    if cost > cfg.stream_max_predicted:
+        return f"prediction does not fit ({cost:.2f} unexplained)"
+    return None
+
+
+def result_fails(cfg: FlowConfig, prior: Prior, unexplained: float) -> str | None:
+    """Why the refined prediction is not kept, or None: it is unreliable (``cfg.stream_max_unexplained``) or
+    explains the pair worse than the previous result by more than ``cfg.stream_margin``."""
+    if unexplained > cfg.stream_max_unexplained or unexplained > prior.unexplained + cfg.stream_margin:
+        return f"refined prediction worse ({unexplained:.2f} unexplained, previous {prior.unexplained:.2f})"
+    return None
+
+
+def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, prior: Prior
+                       ) -> tuple[np.ndarray, SolveStats, tuple[np.ndarray, np.ndarray]] | str:
+    """The stream stage on one pair (grey float32 (H, W) in [0, 1]): the photometric stage, the prediction
+    from ``prior``, its check and its refinement -- (flow (H, W, 2) px, stats, normalised pair) as
+    engine.estimate_pair returns them -- or the reason the prediction does not hold (the caller then solves
+    the pair in full). The result's own check (:func:`result_fails`) is the caller's, on its reliability."""
+    reason = prior_fails(cfg, prior)
+    if reason is not None:
+        return reason
+    schedule = stream_schedule(cfg)
+    (s0, s1), normalised = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
+    pyr = make_pyramid(s0, s1, schedule)
+    start, _ = stream_span(pyr, schedule)
+    predicted = predict(prior.flow, pyr.shapes[start], prior.interval_ratio, backend.splat)
+    reason = prediction_fails(cfg, predicted_cost(*normalised, predicted, backend))
+    if reason is not None:
+        return reason
+    stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes), stream=PREDICTED)
+    state = refine_prediction(pyr, schedule, backend, predicted, stats)
+    return interleaved_flow(state.v, pyr.shapes[0]), stats, normalised

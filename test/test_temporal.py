@@ -1,0 +1,104 @@
+"""The stream stage (core/temporal.py): the forward splat's numba kernel against the numpy reference
+(densify.forward_propagate), the prediction, the checks that send a pair to the full solve, and that a single
+pair is solved as before."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
+from flow_node.core import FlowConfig, FlowEstimator
+from flow_node.core.densify import forward_propagate
+from flow_node.core.numba_temporal import splat_numba
+from flow_node.core.temporal import FULL, PREDICTED, Prior, predict, prior_fails, result_fails
+
+LUMA = np.array([0.299, 0.587, 0.114])
+
+
+def frames(scene: Scene, count: int) -> list[np.ndarray]:
+    return [(scene.render(t) @ LUMA).astype(np.float32) for t in range(count)]
+
+
+def pan(seed: int = 1, velocity: tuple[float, float] = (2.0, 1.0), size: tuple[int, int] = (160, 120)) -> Scene:
+    c = ((size[0] - 1) / 2, (size[1] - 1) / 2)
+    return Scene("pan", size, (Layer(Texture.random(np.random.default_rng(seed)), AffineMotion(c, velocity)),))
+
+
+def aee(flow: np.ndarray, gt: np.ndarray) -> float:
+    return float(np.linalg.norm(flow - gt, axis=-1).mean())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_numba_splat_equals_the_reference(seed: int) -> None:
+    """Random flows with many collisions (several pixels land on one), equal speeds (ties: the first source
+    pixel wins in both), half-integer targets (rounding half to even) and targets outside the grid."""
+    rng = np.random.default_rng(seed)
+    flow = rng.normal(0.0, 4.0, (2, 37, 53)).astype(np.float32)
+    flow[:, :5] = np.float32(2.5)  # equal speeds, .5 targets
+    flow[:, 5:9] = np.round(flow[:, 5:9])
+    ref_values, ref_weight = forward_propagate(flow)
+    values, weight = splat_numba(flow)
+    assert 0.2 < ref_weight.mean() < 0.9  # holes and hits both present
+    np.testing.assert_allclose(values, ref_values, atol=1e-5, rtol=0)
+    np.testing.assert_array_equal(weight, ref_weight)
+
+
+def test_prediction_of_a_steady_pan_is_exact_inside_and_filled_at_the_border() -> None:
+    flow = np.empty((2, 40, 60), np.float32)
+    flow[0], flow[1] = 2.0, -1.0
+    for splat in (forward_propagate, splat_numba):
+        p = predict(flow, (40, 60), 1.0, splat)
+        np.testing.assert_allclose(p, flow, atol=1e-5)  # the holes (2 columns, 1 row) take the neighbours' flow
+        np.testing.assert_allclose(predict(flow, (20, 30), 2.0, splat), flow[:, :20, :30] * 1.0, atol=1e-5)
+
+
+def test_the_checks_name_their_reason() -> None:
+    cfg = FlowConfig(stream_levels=1)
+    flow = np.zeros((2, 8, 8), np.float32)
+    assert prior_fails(cfg, Prior(flow, 0.05)) is None
+    assert "unreliable" in prior_fails(cfg, Prior(flow, cfg.stream_max_unexplained + 0.01))
+    assert "stamp gap" in prior_fails(cfg, Prior(flow, 0.05, cfg.stream_max_gap + 0.1))
+    assert "stamp gap" in prior_fails(cfg, Prior(flow, 0.05, 0.9 / cfg.stream_max_gap))
+    assert result_fails(cfg, Prior(flow, 0.05), 0.05 + cfg.stream_margin - 0.001) is None
+    assert "worse" in result_fails(cfg, Prior(flow, 0.05), 0.05 + cfg.stream_margin + 0.001)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_a_steady_stream_is_predicted_and_a_scene_cut_is_solved_in_full(backend: str) -> None:
+    cfg = FlowConfig.preset("stream_fast").replace(backend=backend)
+    scene, other = pan(1), pan(7, (-1.5, 0.5))
+    seq = frames(scene, 4)
+    est = FlowEstimator(cfg)
+    prev = est.estimate_grey(seq[0], seq[1])
+    assert prev.stats.stream == ""
+    for t in (2, 3):
+        single = est.estimate_grey(seq[t - 1], seq[t])
+        res = est.estimate_next(seq[t - 1], seq[t], Prior(prev.flow, prev.unexplained))
+        assert res.stats.stream == PREDICTED
+        # only the finest solved level ran (stream_levels 1), from the prediction; the pyramid stops there
+        assert res.stats.start_level == cfg.finest_level == len(res.stats.shapes) - 1
+        assert res.stats.iterations[-1] == cfg.stream_warps * cfg.stream_iterations
+        gt = scene.ground_truth(t)
+        assert aee(res.flow, gt) < max(0.1, 1.2 * aee(single.flow, gt))
+        prev = res
+    cut = frames(other, 1)[0]
+    res = est.estimate_next(seq[3], cut, Prior(prev.flow, prev.unexplained))
+    assert res.stats.stream.startswith(FULL + ": prediction does not fit")
+    assert res.stats.total_iterations == est.estimate_grey(seq[3], cut).stats.total_iterations
+
+
+def test_stream_mode_off_is_the_single_pair_solve() -> None:
+    """stream_levels 0 (every preset but the stream ones, and FlowConfig()): estimate_next is estimate_grey."""
+    seq = frames(pan(3), 3)
+    est = FlowEstimator(FlowConfig.preset("fastest").replace(backend="numpy"))  # numba: threads reorder sums
+    prev = est.estimate_grey(seq[0], seq[1])
+    a = est.estimate_next(seq[1], seq[2], Prior(prev.flow, prev.unexplained))
+    b = est.estimate_grey(seq[1], seq[2])
+    np.testing.assert_array_equal(a.flow, b.flow)
+    assert a.stats.stream == b.stats.stream == ""
+    # the stream presets solve a single pair exactly as their base presets do
+    for stream, base in (("stream_fast", "fastest"), ("stream_realtime", "realtime")):
+        flows = [FlowEstimator(FlowConfig.preset(p).replace(backend="numpy")).estimate_grey(seq[0], seq[1]).flow
+                 for p in (stream, base)]
+        np.testing.assert_array_equal(*flows)
