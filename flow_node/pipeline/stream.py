@@ -17,6 +17,10 @@ previous to this frame. Rules, in order:
 * with ``config.temporal_init`` = 1 the previous pair's flow, carried forward to the new pair's first frame,
   initialises the next solve (fused per pixel with the pyramid's estimate, so a scene cut costs nothing but
   time); a reset or a change of the config forgets it.
+* with ``config.stream_levels`` > 0 (the stream mode, core/temporal.py) the previous pair's flow, carried
+  forward and scaled by the ratio of the two pairs' stamp intervals, is refined on the finest levels only;
+  a pair whose prediction fails the stage's checks is solved in full. ``stream_totals`` counts both
+  (``FlowOutput.stats.stream`` says which each pair was, and why).
 
 No rclpy or rosbags here: the caller decodes messages with :mod:`flow_node.pipeline.codec`.
 """
@@ -36,6 +40,7 @@ from ..core.config import FlowConfig
 from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
 from ..core.refine import SolveStats
+from ..core.temporal import FULL, PREDICTED, Prior
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
 COLOR_MAX_FLOW_RANGE = (0.0, 10000.0)
@@ -187,6 +192,25 @@ class FlowOutput:
                        _color=None, _summary=None)
 
 
+@dataclass
+class StreamTotals:
+    """Pairs of the stream mode since the stream was made: solved from the prediction (``predicted``) and solved
+    in full because the prediction failed a check (``fallbacks``; the last one's reason in ``last_fallback``).
+    Pairs without a previous flow (the first after a reset) count as neither."""
+
+    predicted: int = 0
+    fallbacks: int = 0
+    last_fallback: str = ""
+
+    def count(self, stream: str) -> None:
+        """Count one pair by its SolveStats.stream."""
+        if stream == PREDICTED:
+            self.predicted += 1
+        elif stream.startswith(FULL):
+            self.fallbacks += 1
+            self.last_fallback = stream.partition(": ")[2]
+
+
 class FlowStream:
     """Previous frame + engine; see the module docstring for the rules. Thread-safe for ``update`` and
     ``reset`` called from another thread while ``process`` runs (they apply before the next frame)."""
@@ -201,7 +225,10 @@ class FlowStream:
         self._prev_key: tuple[tuple[int, ...], str] | None = None
         self._prev_stamp: int = 0
         self._prev_flow: np.ndarray | None = None  # flow of the pair that ended with _prev (temporal_init)
+        self._prev_unexplained = 0.0  # that flow's unexplained fraction (stream mode)
+        self._prev_interval = 0  # that pair's stamp interval, ns (stream mode)
         self.last_reset_reason: str = "first frame"
+        self.stream_totals = StreamTotals()
 
     # ----------------------------------------------------------------------------------------- settings
     @property
@@ -284,10 +311,18 @@ class FlowStream:
             return None
         prev, prev_stamp = self._prev, self._prev_stamp
         s = self._settings
-        previous = self._prev_flow if s.config.temporal_init else None
-        result = self._estimator.estimate_grey(prev, grey, previous_flow=previous)  # both from _prepare
+        interval = stamp_ns - prev_stamp
+        if s.config.stream_levels and self._prev_flow is not None:
+            ratio = interval / self._prev_interval if self._prev_interval > 0 else 1.0
+            result = self._estimator.estimate_next(prev, grey, Prior(self._prev_flow, self._prev_unexplained, ratio))
+            self.stream_totals.count(result.stats.stream)
+        else:
+            previous = self._prev_flow if s.config.temporal_init else None
+            result = self._estimator.estimate_grey(prev, grey, previous_flow=previous)  # both from _prepare
         self._prev, self._prev_stamp = grey, stamp_ns
-        self._prev_flow = result.flow if s.config.temporal_init else None
+        keep = s.config.temporal_init or s.config.stream_levels
+        self._prev_flow = result.flow if keep else None
+        self._prev_unexplained, self._prev_interval = result.unexplained, interval
         out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
                          result.frames, confidence_of=self._estimator.confidence)
