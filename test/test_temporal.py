@@ -1,5 +1,5 @@
 """The stream stage (core/temporal.py): the forward splat's numba kernel against the numpy reference
-(densify.forward_propagate), the prediction, the checks that send a pair to the full solve, and that a single
+(densify.splat_forward), the prediction, the checks that send a pair to the full solve, and that a single
 pair is solved as before."""
 
 from __future__ import annotations
@@ -9,8 +9,9 @@ import pytest
 
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowConfig, FlowEstimator
-from flow_node.core.densify import forward_propagate
+from flow_node.core.densify import forward_propagate, splat_forward
 from flow_node.core.numba_temporal import splat_numba
+from flow_node.core.solver import PDState
 from flow_node.core.temporal import FULL, PREDICTED, Prior, predict, prior_fails, result_fails
 
 LUMA = np.array([0.299, 0.587, 0.114])
@@ -32,30 +33,38 @@ def aee(flow: np.ndarray, gt: np.ndarray) -> float:
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_numba_splat_equals_the_reference(seed: int) -> None:
     """Random flows with many collisions (several pixels land on one), equal speeds (ties: the first source
-    pixel wins in both), half-integer targets (rounding half to even) and targets outside the grid."""
+    pixel wins in both), half-integer targets (rounding half to even) and targets outside the grid; the
+    carried fields follow the flow's winners."""
     rng = np.random.default_rng(seed)
     flow = rng.normal(0.0, 4.0, (2, 37, 53)).astype(np.float32)
     flow[:, :5] = np.float32(2.5)  # equal speeds, .5 targets
     flow[:, 5:9] = np.round(flow[:, 5:9])
-    ref_values, ref_weight = forward_propagate(flow)
-    values, weight = splat_numba(flow)
-    assert 0.2 < ref_weight.mean() < 0.9  # holes and hits both present
-    np.testing.assert_allclose(values, ref_values, atol=1e-5, rtol=0)
-    np.testing.assert_array_equal(weight, ref_weight)
+    carried = rng.normal(0.0, 1.0, (5, 37, 53)).astype(np.float32)
+    ref = splat_forward(flow, carried)
+    got = splat_numba(flow, carried)
+    assert 0.2 < ref[2].mean() < 0.9  # holes and hits both present
+    for a, b in zip(got, ref, strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-5, rtol=0)
+    np.testing.assert_array_equal(got[2], ref[2])
+    np.testing.assert_array_equal(ref[0], forward_propagate(flow)[0])  # the engine's one forward splat
 
 
 def test_prediction_of_a_steady_pan_is_exact_inside_and_filled_at_the_border() -> None:
-    flow = np.empty((2, 40, 60), np.float32)
-    flow[0], flow[1] = 2.0, -1.0
-    for splat in (forward_propagate, splat_numba):
-        p = predict(flow, (40, 60), 1.0, splat)
-        np.testing.assert_allclose(p, flow, atol=1e-5)  # the holes (2 columns, 1 row) take the neighbours' flow
-        np.testing.assert_allclose(predict(flow, (20, 30), 2.0, splat), flow[:, :20, :30] * 1.0, atol=1e-5)
+    v = np.empty((2, 40, 60), np.float32)
+    v[0], v[1] = 2.0, -1.0
+    y = np.random.default_rng(0).uniform(-1, 1, (2, 2, 40, 60)).astype(np.float32)
+    for splat in (splat_forward, splat_numba):
+        p = predict(PDState(v, y), (40, 60), 1.0, splat)
+        np.testing.assert_allclose(p.v, v, atol=1e-5)  # the holes (2 columns, 1 row) take the neighbours' flow
+        np.testing.assert_array_equal(p.y[:, :, :-1, 2:], y[:, :, 1:, :-2])  # the duals moved with the flow
+        assert not p.y[:, :, -1].any() and not p.y[:, :, :, :2].any()  # ... and 0 where nothing landed
+        half = predict(PDState(v, y), (20, 30), 2.0, splat)  # resampled (vectors halved), then doubled
+        np.testing.assert_allclose(half.v, v[:, :20, :30], atol=1e-5)
 
 
 def test_the_checks_name_their_reason() -> None:
     cfg = FlowConfig(stream_levels=1)
-    flow = np.zeros((2, 8, 8), np.float32)
+    flow = PDState(np.zeros((2, 8, 8), np.float32), np.zeros((2, 2, 8, 8), np.float32))
     assert prior_fails(cfg, Prior(flow, 0.05)) is None
     assert "unreliable" in prior_fails(cfg, Prior(flow, cfg.stream_max_unexplained + 0.01))
     assert "stamp gap" in prior_fails(cfg, Prior(flow, 0.05, cfg.stream_max_gap + 0.1))
@@ -70,11 +79,11 @@ def test_a_steady_stream_is_predicted_and_a_scene_cut_is_solved_in_full(backend:
     scene, other = pan(1), pan(7, (-1.5, 0.5))
     seq = frames(scene, 4)
     est = FlowEstimator(cfg)
-    prev = est.estimate_grey(seq[0], seq[1])
-    assert prev.stats.stream == ""
+    prev = est.estimate_next(seq[0], seq[1], None)
+    assert prev.stats.stream == "" and prev.state.v.shape == (2, 60, 80)  # finest_level 1 of 120x160
     for t in (2, 3):
         single = est.estimate_grey(seq[t - 1], seq[t])
-        res = est.estimate_next(seq[t - 1], seq[t], Prior(prev.flow, prev.unexplained))
+        res = est.estimate_next(seq[t - 1], seq[t], Prior(prev.state, prev.unexplained))
         assert res.stats.stream == PREDICTED
         # only the finest solved level ran (stream_levels 1), from the prediction; the pyramid stops there
         assert res.stats.start_level == cfg.finest_level == len(res.stats.shapes) - 1
@@ -83,7 +92,7 @@ def test_a_steady_stream_is_predicted_and_a_scene_cut_is_solved_in_full(backend:
         assert aee(res.flow, gt) < max(0.1, 1.2 * aee(single.flow, gt))
         prev = res
     cut = frames(other, 1)[0]
-    res = est.estimate_next(seq[3], cut, Prior(prev.flow, prev.unexplained))
+    res = est.estimate_next(seq[3], cut, Prior(prev.state, prev.unexplained))
     assert res.stats.stream.startswith(FULL + ": prediction does not fit")
     assert res.stats.total_iterations == est.estimate_grey(seq[3], cut).stats.total_iterations
 
@@ -92,8 +101,8 @@ def test_stream_mode_off_is_the_single_pair_solve() -> None:
     """stream_levels 0 (every preset but the stream ones, and FlowConfig()): estimate_next is estimate_grey."""
     seq = frames(pan(3), 3)
     est = FlowEstimator(FlowConfig.preset("fastest").replace(backend="numpy"))  # numba: threads reorder sums
-    prev = est.estimate_grey(seq[0], seq[1])
-    a = est.estimate_next(seq[1], seq[2], Prior(prev.flow, prev.unexplained))
+    prev = est.estimate_next(seq[0], seq[1], None)
+    a = est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained))
     b = est.estimate_grey(seq[1], seq[2])
     np.testing.assert_array_equal(a.flow, b.flow)
     assert a.stats.stream == b.stats.stream == ""

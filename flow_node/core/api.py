@@ -5,17 +5,19 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .backends import Backend, select_backend
 from .census import reliability as census_reliability
 from .config import FlowConfig
-from .engine import estimate_pair, warm_fusion
+from .engine import estimate_pair, solve_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
+from .layout import interleaved_flow
 from .photometric import compares_signatures
 from .refine import SolveStats
+from .solver import PDState
 from .temporal import FULL, Prior, estimate_predicted, result_fails
 
 log = logging.getLogger("flow_node")
@@ -91,6 +93,7 @@ class FlowResult:
     backend: str
     unexplained: float = 0.0
     frames: tuple[np.ndarray, np.ndarray] | None = None
+    state: PDState | None = field(default=None, repr=False)  # estimate_next's: the solver state it ended in
 
 
 class FlowEstimator:
@@ -133,7 +136,7 @@ class FlowEstimator:
         self.estimate(f0, f1)
         with self._backend.running():
             warm_fusion(self._backend)
-            self._backend.splat(np.zeros((2,) + shape, np.float32))  # the stream stage's kernel
+            self._backend.splat(np.zeros((2,) + shape, np.float32), np.zeros((4,) + shape, np.float32))  # stream
         self.confidence(f0, f1, np.zeros(shape + (2,), np.float32))
         return time.perf_counter() - start
 
@@ -170,31 +173,34 @@ class FlowEstimator:
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
 
-    def estimate_next(self, i0: np.ndarray, i1: np.ndarray, prior: Prior) -> FlowResult:
-        """:meth:`estimate_grey` for the next pair of a stream whose previous pair's flow is known (``prior``:
-        its flow (H, W, 2) px on i0's predecessor's grid, its unexplained fraction, the interval ratio): with
-        ``config.stream_levels`` > 0 the stream stage (core/temporal.py) refines the carried-forward flow on
-        the finest levels only, and the pair is solved in full when its checks fail (``stats.stream`` says
-        which, and why). With ``stream_levels`` 0: exactly :meth:`estimate_grey`."""
-        if not self._config.stream_levels:
-            return self.estimate_grey(i0, i1)
-        if i0.shape != i1.shape or prior.flow.shape != i0.shape + (2,):
-            raise InputError(f"stream pair: frames {i0.shape} and {i1.shape}, previous flow {prior.flow.shape}")
+    def estimate_next(self, i0: np.ndarray, i1: np.ndarray, prior: Prior | None) -> FlowResult:
+        """:meth:`estimate_grey` for the next pair of a stream, with the solver state it ends in
+        (``FlowResult.state``, for the next pair's ``prior``). ``prior``: the previous pair's state, its
+        unexplained fraction and the interval ratio (temporal.Prior), None when there is no previous pair.
+        With ``config.stream_levels`` > 0 and a prior, the stream stage (core/temporal.py) refines the
+        carried-forward state on the finest levels only, and the pair is solved in full when its checks
+        fail (``stats.stream`` says which, and why). Without either: the single-pair solve."""
+        if i0.shape != i1.shape:
+            raise InputError(f"frames differ in size: frame0 is {i0.shape[1]}x{i0.shape[0]}, "
+                             f"frame1 is {i1.shape[1]}x{i1.shape[0]}")
         start = time.perf_counter()
         with self._backend.running():
-            carried = Prior(np.moveaxis(prior.flow, -1, 0), prior.unexplained, prior.interval_ratio)
-            attempt = estimate_predicted(i0, i1, self._config, self._backend, carried)
-            reason = attempt if isinstance(attempt, str) else None
-            if reason is None:
-                flow, stats, normalised = attempt
+            reason: str | None = None
+            if self._config.stream_levels and prior is not None:
+                attempt = estimate_predicted(i0, i1, self._config, self._backend, prior)
+                reason = attempt if isinstance(attempt, str) else None
+                if reason is None:
+                    state, stats, normalised = attempt
+                    flow = interleaved_flow(state.v, stats.shapes[0])
+                    unexplained = self._unexplained(flow, normalised)
+                    reason = result_fails(self._config, prior, unexplained)
+            if reason is not None or not self._config.stream_levels or prior is None:
+                state, stats, normalised = solve_pair(i0, i1, self._config, self._backend)
+                flow = interleaved_flow(state.v, stats.shapes[0])
                 unexplained = self._unexplained(flow, normalised)
-                reason = result_fails(self._config, prior, unexplained)
-            if reason is not None:
-                flow, stats, normalised = estimate_pair(i0, i1, self._config, self._backend)
-                unexplained = self._unexplained(flow, normalised)
-                stats.stream = f"{FULL}: {reason}"
+                stats.stream = "" if reason is None else f"{FULL}: {reason}"
         seconds = time.perf_counter() - start
-        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised)
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, normalised, state)
 
     def _unexplained(self, flow: np.ndarray, normalised: tuple[np.ndarray, np.ndarray]) -> float:
         """The unexplained fraction of a finished ``flow`` (H, W, 2) on the ``normalised`` pair (the census

@@ -12,7 +12,7 @@ import numpy as np
 
 from .census import CensusForm, LevelSignature, census_form, level_signature
 from .confidence import Confidence, confidence
-from .densify import forward_propagate
+from .densify import splat_forward
 from .errors import ConfigError
 from .fusion import Fuse, fuse
 from .initialise import Consistent, forward_backward_consistent
@@ -50,7 +50,7 @@ class Backend(NamedTuple):
     confidence: Confidence = confidence
     threads: int = 1
     on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
-    splat: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] = forward_propagate
+    splat: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] = splat_forward
 
     def running(self) -> AbstractContextManager[object]:
         """The context each estimate runs in: the backend's kernels on its ``threads``, bound to the calling

@@ -137,9 +137,18 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     costs time, not accuracy. The finest solved level is ``cfg.finest_level`` (clamped); its flow is
     upsampled to (H, W) by the output layout stage.
     """
+    state, stats, normalised = solve_pair(i0, i1, cfg, backend, initial_flow, previous_flow)
+    return interleaved_flow(state.v, stats.shapes[0]), stats, normalised
+
+
+def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
+               initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None
+               ) -> tuple[PDState, SolveStats, tuple[np.ndarray, np.ndarray]]:
+    """:func:`estimate_pair` before the output layout: the solver state on the finest solved level (its
+    flow (2, h, w) in px of that level; a stream carries the whole state to the next pair, temporal.py),
+    the stats (``stats.shapes[0]`` is the input size) and the normalised pair."""
     (i0, i1), normalised = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
     pyr = make_pyramid(i0, i1, cfg)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
-    state = refine_from(pyr, cfg, backend, candidates, stats)
-    return interleaved_flow(state.v, pyr.shapes[0]), stats, normalised
+    return refine_from(pyr, cfg, backend, candidates, stats), stats, normalised

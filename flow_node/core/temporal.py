@@ -5,10 +5,13 @@ In a stream consecutive flows are nearly the same. The previous pair's flow live
 frame; under constant velocity the point x moves on to x + f(x) and keeps its velocity there, so the
 prediction of the new pair's flow at x + f(x) is f(x) (:func:`predict`: a forward splat, the fastest point
 winning where several land on one pixel -- the nearer surface -- and the holes, disoccluded pixels and the
-border the motion brings in, filled by normalised convolution, densify.push_pull). The prediction replaces the
-coarse levels, the initialisation matcher and their warps: :func:`refine_prediction` refines it on the levels
-``finest + cfg.stream_levels - 1`` down to the finest solved one, with ``cfg.stream_warps`` warps of
-``cfg.stream_iterations`` primal-dual iterations each.
+border the motion brings in, filled by normalised convolution, densify.push_pull). The solver's other
+variables (the dual of the regulariser, and the extended models' w) are carried along the same way (holes:
+0): a primal-dual method restarted with zero duals first fits each pixel's data alone and needs tens of
+iterations to regularise that again, while with the carried duals a few iterations correct the prediction.
+The prediction replaces the coarse levels, the initialisation matcher and their warps:
+:func:`refine_prediction` refines it on the levels ``finest + cfg.stream_levels - 1`` down to the finest
+solved one, with ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` primal-dual iterations each.
 
 A per-frame check decides whether the prediction holds (:func:`prediction_fails`, :func:`result_fails`); when
 it does not, the caller runs the full single-pair solve (engine.estimate_pair) instead:
@@ -38,40 +41,48 @@ from .backends import Backend
 from .config import FlowConfig
 from .densify import push_pull
 from .layout import interleaved_flow
-from .models import MODEL_SPECS
 from .photometric import stage
-from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow
+from .pyramid import Pyramid, make_pyramid, noise_gain, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
 
 PREDICTED = "predicted"  # SolveStats.stream of a pair solved from the prediction
 FULL = "full"  # ... of a pair the stream solved from scratch; followed by ": <reason>"
 
-# splat(flow (2, h, w)) -> (values (2, h, w), weight (h, w)): densify.forward_propagate or a backend's kernel
-Splat = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+# splat(flow (2, h, w), carried (C, h, w)) -> (flow, carried, weight (h, w)): densify.splat_forward (the numpy
+# reference) or a backend's kernel (numba_temporal.splat_numba)
+Splat = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 @dataclass(frozen=True)
 class Prior:
-    """What a stream knows before a pair: the previous pair's ``flow`` px on the grid of its first frame, at
-    this pair's resolution ((2, H, W) for this stage; api.FlowEstimator.estimate_next takes the (H, W, 2) of
-    its results); that result's ``unexplained`` fraction (api.FlowResult); and this pair's
-    interval over the previous pair's (``interval_ratio``, 1 for equal stamps spacing)."""
+    """What a stream knows before a pair: the previous pair's solver ``state`` (solver.PDState on its finest
+    solved level: the flow v (2, h, w) px of that level on the grid of that pair's first frame, and the duals)
+    at this pair's resolution; that result's ``unexplained`` fraction (api.FlowResult); and this pair's
+    interval over the previous pair's (``interval_ratio``; 1 for evenly spaced stamps)."""
 
-    flow: np.ndarray
+    state: PDState
     unexplained: float
     interval_ratio: float = 1.0
 
 
-def predict(previous: np.ndarray, shape: tuple[int, int], ratio: float, splat: Splat) -> np.ndarray:
-    """The previous pair's flow (2, H, W) px carried to the new pair's first frame on a grid of ``shape``:
-    resampled to it (vectors rescaled), multiplied by the interval ``ratio``, splatted forward (``splat``:
-    each pixel's flow to x + f(x)) and its holes filled by normalised convolution. (2, h, w) float32 px."""
-    flow = previous if previous.shape[1:] == shape else resize_flow(previous, shape)
-    if ratio != 1.0:
-        flow = flow * np.float32(ratio)
-    values, weight = splat(np.ascontiguousarray(flow, dtype=np.float32))
-    return push_pull(values, weight)
+def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Splat) -> PDState:
+    """The previous pair's solver state carried to the new pair's first frame on a grid of ``shape``:
+    resampled to it (flow vectors rescaled), the flow multiplied by the interval ``ratio``, everything
+    splatted forward along the flow (``splat``), the flow's holes filled by normalised convolution
+    (densify.push_pull), the other variables' holes left at 0. A new PDState, float32."""
+    state = previous if previous.v.shape[1:] == shape else resize_state(previous, shape)
+    flow = state.v * np.float32(ratio) if ratio != 1.0 else state.v
+    others = [a for a in (state.y, state.w, state.z) if a is not None]
+    stacked = np.concatenate([a.reshape((-1,) + shape) for a in others])
+    values, carried, weight = splat(np.ascontiguousarray(flow, dtype=np.float32),
+                                    np.ascontiguousarray(stacked, dtype=np.float32))
+    ends = np.cumsum([a.size // (shape[0] * shape[1]) for a in others])[:-1]
+    moved = iter(part.reshape(a.shape) for part, a in zip(np.split(carried, ends), others, strict=True))
+    y = next(moved)
+    w = next(moved) if state.w is not None else None
+    z = next(moved) if state.z is not None else None
+    return PDState(push_pull(values, weight), y, w, z)
 
 
 def stream_span(pyr: Pyramid, cfg: FlowConfig) -> tuple[int, int]:
@@ -91,16 +102,14 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
                        finest_iterations=0, levels=levels)
 
 
-def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: np.ndarray,
+def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: PDState,
                       stats: SolveStats) -> PDState:
-    """Refine ``predicted`` (2, h, w) px on the start level of :func:`stream_span` down to the finest solved
-    level with :func:`stream_schedule`'s warps (``cfg`` is that schedule); the dual variables start at zero.
-    Returns the state on the finest solved level; iterations go to ``stats``."""
+    """Refine the ``predicted`` state (:func:`predict`, on the start level of :func:`stream_span`) down to
+    the finest solved level with :func:`stream_schedule`'s warps (``cfg`` is that schedule). Returns the state
+    on the finest solved level; iterations go to ``stats``."""
     start, finest = stream_span(pyr, cfg)
-    state = PDState.zeros(MODEL_SPECS[cfg.model], pyr.shapes[start])
-    state.v = np.ascontiguousarray(predicted, dtype=np.float32)
     stats.start_level = start
-    return refine_levels(pyr, cfg, backend, state, start, finest, stats, finest)
+    return refine_levels(pyr, cfg, backend, predicted, start, finest, stats, finest)
 
 
 def predicted_cost(n0: np.ndarray, n1: np.ndarray, predicted: np.ndarray, backend: Backend) -> float:
@@ -140,11 +149,12 @@ def result_fails(cfg: FlowConfig, prior: Prior, unexplained: float) -> str | Non
 
 
 def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, prior: Prior
-                       ) -> tuple[np.ndarray, SolveStats, tuple[np.ndarray, np.ndarray]] | str:
+                       ) -> tuple[PDState, SolveStats, tuple[np.ndarray, np.ndarray]] | str:
     """The stream stage on one pair (grey float32 (H, W) in [0, 1]): the photometric stage, the prediction
-    from ``prior``, its check and its refinement -- (flow (H, W, 2) px, stats, normalised pair) as
-    engine.estimate_pair returns them -- or the reason the prediction does not hold (the caller then solves
-    the pair in full). The result's own check (:func:`result_fails`) is the caller's, on its reliability."""
+    from ``prior``, its check and its refinement -- (state on the finest solved level, stats, normalised
+    pair) as engine.solve_pair returns them -- or the reason the prediction does not hold (the
+    caller then solves the pair in full). The result's own check (:func:`result_fails`) is the caller's, on
+    its reliability."""
     reason = prior_fails(cfg, prior)
     if reason is not None:
         return reason
@@ -152,10 +162,9 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
     (s0, s1), normalised = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
     pyr = make_pyramid(s0, s1, schedule)
     start, _ = stream_span(pyr, schedule)
-    predicted = predict(prior.flow, pyr.shapes[start], prior.interval_ratio, backend.splat)
-    reason = prediction_fails(cfg, predicted_cost(*normalised, predicted, backend))
+    predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat)
+    reason = prediction_fails(cfg, predicted_cost(*normalised, predicted.v, backend))
     if reason is not None:
         return reason
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes), stream=PREDICTED)
-    state = refine_prediction(pyr, schedule, backend, predicted, stats)
-    return interleaved_flow(state.v, pyr.shapes[0]), stats, normalised
+    return refine_prediction(pyr, schedule, backend, predicted, stats), stats, normalised

@@ -40,6 +40,7 @@ from ..core.config import FlowConfig
 from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
 from ..core.refine import SolveStats
+from ..core.solver import PDState
 from ..core.temporal import FULL, PREDICTED, Prior
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
@@ -225,6 +226,7 @@ class FlowStream:
         self._prev_key: tuple[tuple[int, ...], str] | None = None
         self._prev_stamp: int = 0
         self._prev_flow: np.ndarray | None = None  # flow of the pair that ended with _prev (temporal_init)
+        self._prev_state: PDState | None = None  # the solver state that pair ended in (stream mode)
         self._prev_unexplained = 0.0  # that flow's unexplained fraction (stream mode)
         self._prev_interval = 0  # that pair's stamp interval, ns (stream mode)
         self.last_reset_reason: str = "first frame"
@@ -270,7 +272,7 @@ class FlowStream:
                 reason = reason or "input_scale changed"
             if pending.config != self._settings.config:
                 self._estimator.config = pending.config
-                self._prev_flow = None
+                self._prev_flow = self._prev_state = None
             self._settings = pending
         return reason
 
@@ -286,7 +288,7 @@ class FlowStream:
 
     def _start(self, grey: np.ndarray, key: tuple[tuple[int, ...], str], stamp_ns: int, reason: str) -> None:
         self._prev, self._prev_key, self._prev_stamp = grey, key, stamp_ns
-        self._prev_flow = None
+        self._prev_flow = self._prev_state = None
         self.last_reset_reason = reason
 
     def process(self, frame: np.ndarray, stamp_ns: int, encoding: str = "",
@@ -312,16 +314,17 @@ class FlowStream:
         prev, prev_stamp = self._prev, self._prev_stamp
         s = self._settings
         interval = stamp_ns - prev_stamp
-        if s.config.stream_levels and self._prev_flow is not None:
+        if s.config.stream_levels:
             ratio = interval / self._prev_interval if self._prev_interval > 0 else 1.0
-            result = self._estimator.estimate_next(prev, grey, Prior(self._prev_flow, self._prev_unexplained, ratio))
+            prior = None if self._prev_state is None else Prior(self._prev_state, self._prev_unexplained, ratio)
+            result = self._estimator.estimate_next(prev, grey, prior)  # both from _prepare
             self.stream_totals.count(result.stats.stream)
         else:
             previous = self._prev_flow if s.config.temporal_init else None
-            result = self._estimator.estimate_grey(prev, grey, previous_flow=previous)  # both from _prepare
+            result = self._estimator.estimate_grey(prev, grey, previous_flow=previous)
         self._prev, self._prev_stamp = grey, stamp_ns
-        keep = s.config.temporal_init or s.config.stream_levels
-        self._prev_flow = result.flow if keep else None
+        self._prev_flow = result.flow if s.config.temporal_init else None
+        self._prev_state = result.state if s.config.stream_levels else None
         self._prev_unexplained, self._prev_interval = result.unexplained, interval
         out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
