@@ -38,8 +38,10 @@ from .sequences import FRAMES, KINDS, Sequence, sequences
 
 RESULTS = REPO / "bench" / "results" / "suite" / "stream"
 PERIOD_NS = 33_333_333  # 30 Hz stamps
-STREAM_BASE = {"stream_realtime": "realtime", "stream_fast": "fastest"}  # the single-pair preset of each
-DEFAULT_METHODS = ("stream_realtime", "stream_fast", "realtime", "fastest")
+# each stream preset's own single-pair solve (the preset with stream_levels 0), run beside it for event_ratio
+STREAM_BASE = {"stream_fast": "fastest", "stream_lite": "stream_lite/single"}
+DEFAULT_METHODS = {"stream_fast": ("stream_fast", {}), "stream_lite": ("stream_lite", {}), "realtime": ("realtime", {}),
+                   "fastest": ("fastest", {}), "stream_lite/single": ("stream_lite", {"stream_levels": 0})}
 
 
 class Runner:
@@ -216,7 +218,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="directory for <split>_<size>.{json,md}")
     args = ap.parse_args(argv)
     w, h = (int(x) for x in args.size.split("x"))
-    methods = dict(parse_method(m) for m in args.method) or {n: FlowConfig.preset(n) for n in DEFAULT_METHODS}
+    methods = dict(parse_method(m) for m in args.method) or {
+        n: FlowConfig.preset(p).replace(**kw) for n, (p, kw) in DEFAULT_METHODS.items()}
     res = run(methods, args.split, (w, h), tuple(args.kinds.split(",")), args.frames)
     command = "python -m bench.suite.streams " + " ".join(argv if argv is not None else sys.argv[1:])
     res["command"] = command

@@ -318,15 +318,17 @@ PRESETS: dict[str, dict[str, Any]] = {
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2),
     # stream presets (issue 26, docs/engine.md "The stream mode"): a single pair, and a stream's fallback, is
-    # solved as the base preset does; while the previous flow predicts the next, only the finest levels run
-    "stream_realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
-                            levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                            initialisation="dis_ultrafast", init_finest_level=2, stream_levels=2, stream_warps=2,
-                            stream_iterations=10),
+    # solved as fastest (stream_fast) or as fastest at quarter size (stream_lite) does; while the previous flow
+    # predicts the next, only the finest solved level runs, from the carried state (tuned on the suite's
+    # stream regime, tune split: bench/results/suite/stream/)
     "stream_fast": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                         finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=1, stream_warps=2,
-                        stream_iterations=8),
+                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=1, stream_warps=3,
+                        stream_iterations=10),
+    "stream_lite": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
+                        finest_level=2, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=1, stream_warps=4,
+                        stream_iterations=10),
 }
 
 
