@@ -20,6 +20,8 @@ it does not, the caller runs the full single-pair solve (engine.estimate_pair) i
   after a scene cut every flow is);
 * the pair spans a different interval than the previous one by more than ``cfg.stream_max_gap`` (a dropped run
   of frames: the motion no longer continues; shorter gaps scale the prediction by the ratio);
+* the photometric stage found an exposure change between the frames (``normalise`` mode: it then compares
+  local contrast, a data term of another scale than the one the carried state was solved on);
 * the prediction's robust data cost on its start level -- the fraction of pixels whose warped residual
   exceeds photometric.RESIDUAL_OUTLIER -- is above ``cfg.stream_max_predicted`` (a scene cut, a jump);
 * after the refinement, the result explains the pair worse than the previous pair's result by more than
@@ -160,6 +162,10 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         return reason
     schedule = stream_schedule(cfg)
     (s0, s1), normalised = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
+    if cfg.photometric == "normalise" and s0 is not normalised[0]:
+        # the stage hands the solver the normalised pair itself unless it found an exposure change between the
+        # frames (then: local contrast, a data term of another scale than the carried state was solved on)
+        return "exposure step"
     pyr = make_pyramid(s0, s1, schedule)
     start, _ = stream_span(pyr, schedule)
     predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat)
