@@ -190,7 +190,9 @@ def test_stream_mode_predicts_steady_motion_and_falls_back_on_cut_gap_and_reset(
         return np.clip(np.rint(sc.render(t) * 255), 0, 255).astype(np.uint8)
 
     pan, other = scene(2, (1.5, -0.5)), scene(9, (-1.0, 1.0))
-    st = FlowStream(StreamSettings(config=FlowConfig.preset("stream_fast").replace(backend="numpy")))
+    # one stream level: on these 96x72 frames a second one would be 24x18 px, too coarse to judge a prediction
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numpy", stream_levels=1)
+    st = FlowStream(StreamSettings(config=cfg))
     period = 33_000_000
     assert st.process(frame(pan, 0), 0, "rgb8") is None
     kinds = []

@@ -85,9 +85,10 @@ def test_a_steady_stream_is_predicted_and_a_scene_cut_is_solved_in_full(backend:
         single = est.estimate_grey(seq[t - 1], seq[t])
         res = est.estimate_next(seq[t - 1], seq[t], Prior(prev.state, prev.unexplained))
         assert res.stats.stream == PREDICTED
-        # only the finest solved level ran (stream_levels 1), from the prediction; the pyramid stops there
-        assert res.stats.start_level == cfg.finest_level == len(res.stats.shapes) - 1
-        assert res.stats.iterations[-1] == cfg.stream_warps * cfg.stream_iterations
+        # only the finest stream_levels solved levels ran, from the prediction; the pyramid stops there
+        assert res.stats.start_level == cfg.finest_level + cfg.stream_levels - 1 == len(res.stats.shapes) - 1
+        assert res.stats.iterations[:cfg.finest_level] == [0] * cfg.finest_level
+        assert res.stats.iterations[cfg.finest_level:] == [cfg.stream_warps * cfg.stream_iterations] * cfg.stream_levels
         gt = scene.ground_truth(t)
         assert aee(res.flow, gt) < max(0.1, 1.2 * aee(single.flow, gt))
         prev = res
