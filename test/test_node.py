@@ -295,3 +295,28 @@ def test_published_payload_is_the_array_on_both_message_paths(direct: bool, monk
         assert np.array_equal(image_to_array(got[0]), flow)
     finally:
         rclpy.try_shutdown(context=ctx)
+
+
+def test_stream_preset_predicts_pairs_and_reports_its_fallbacks() -> None:
+    """The stream mode in the node (preset stream_fast): the second pair of a steady motion is solved from
+    the previous pair's state, a scene cut falls back to the full solve, and /diagnostics counts both."""
+    from synth import texture
+
+    t = texture(H, W, seed=3)  # frame_messages' texture: I0 = T(x + GT), I1 = T
+    ys, xs = np.mgrid[0:H, 0:W].astype(np.float64)
+    before = t.sample(xs + 2 * GT[..., 0], ys + 2 * GT[..., 1])  # moves by GT onto I0
+    other = texture(H, W, seed=11).image
+    h = Harness("/t_stream", {"preset": "stream_fast", "finest_level": 0, "backend": "numpy"}, name="flow_stream")
+    try:
+        h.send_frame(image(mono8(before), "mono8", 1_000))
+        h.send_pair(image(mono8(I0), "mono8", 2_000), image(mono8(I1), "mono8", 3_000))
+        assert h.node._stream.stream_totals.predicted == 1
+        assert aee(image_to_array(h.last("flow")), GT) < AEE_BOUND
+        h.send_frame(image(mono8(other), "mono8", 4_000))
+        assert h.node._stream.stream_totals.fallbacks == 1
+        values = wait_for(lambda: [v for v in ({kv.key: kv.value for kv in s.values}
+                                               for _, s in h.received["diagnostics"])
+                                   if v["stream fallbacks (full solves)"] == "1"], 5.0, "diagnostics")[-1]
+        assert values["stream frames predicted"] == "1" and values["last stream fallback"] != "none"
+    finally:
+        h.close()

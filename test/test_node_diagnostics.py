@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 
+from flow_node.core.refine import SolveStats
 from flow_node.pipeline.stream import FlowOutput
 from flow_node.ros.diagnostics import ERROR, OK, WARN, NodeStats, level_of, status
 
@@ -138,3 +139,19 @@ def test_an_unreliable_flow_warns_and_is_counted() -> None:
     values = {kv.key: kv.value for kv in status(w, name="n: flow", hardware_id="", ready=True, backend="numpy",
                                                 model="l1_tv", input_scale=1.0, resolution="5x4").values}
     assert values["unreliable frames"] == "1" and values["unexplained pixels (%)"] == "5.0"
+
+
+def test_stream_fallbacks_are_counted_with_their_reason() -> None:
+    """The stream mode's pairs (SolveStats.stream): predicted ones and full solves with the check that failed."""
+    s = NodeStats()
+    kinds = ["", "predicted", "predicted", "full: prediction does not fit (0.80 unexplained)", "predicted"]
+    for kind in kinds:
+        out = output(1.0)
+        out.stats = SolveStats(stream=kind)
+        s.received(False)
+        s.solved(0.01, 0.001, 0.0005, out)
+    values = {kv.key: kv.value for kv in status(s.window(), name="n: flow", hardware_id="", ready=True,
+                                                backend="numpy", model="l1_tv", input_scale=1.0,
+                                                resolution="5x4").values}
+    assert values["stream frames predicted"] == "3" and values["stream fallbacks (full solves)"] == "1"
+    assert values["last stream fallback"] == "prediction does not fit (0.80 unexplained)"

@@ -26,6 +26,7 @@ from flow_node.core.census import census_form, level_signature
 from flow_node.core.colour import colour_form
 from flow_node.core.confidence import confidence
 from flow_node.core.config import MODELS, FlowConfig
+from flow_node.core.densify import splat_forward
 from flow_node.core.errors import ConfigError
 from flow_node.core.fusion import fuse
 from flow_node.core.initialise import forward_backward_consistent
@@ -35,6 +36,7 @@ from flow_node.core.numba_backend import WARPER, linearise_numba, reliability_nu
 from flow_node.core.numba_census import census_form_numba, colour_form_numba, level_signature_numba
 from flow_node.core.numba_confidence import confidence_numba
 from flow_node.core.numba_fusion import consistent_numba, fuse_numba
+from flow_node.core.numba_temporal import splat_numba
 from flow_node.core.operators import linearise
 from flow_node.core.photometric import reliability
 from flow_node.core.solver import CHECK_EVERY, PDState, Problem, SolveParams, solve_numpy
@@ -275,10 +277,10 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
 
 
 NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability, fuse, forward_backward_consistent,
-                level_signature, census_form, confidence, 1, NUMPY.on_threads, colour_form)
+                level_signature, census_form, confidence, 1, NUMPY.on_threads, colour_form, splat_forward)
 NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, reliability_numba, fuse_numba, consistent_numba,
                 level_signature_numba, census_form_numba, confidence_numba,
-                numba.config.NUMBA_NUM_THREADS, numba_backend.thread_count, colour_form_numba)
+                numba.config.NUMBA_NUM_THREADS, numba_backend.thread_count, colour_form_numba, splat_numba)
 
 
 def test_backend_selection_and_log() -> None:

@@ -173,3 +173,44 @@ def test_flow_units_are_a_stream_setting_validated_once() -> None:
     assert s.update(flow_units="px/frame").flow_units == "px/frame"
     out = s.process(I1, 300_000_000)
     assert out is not None and out.frame_flow is None and aee(out.flow, GT) < 0.15
+
+
+def test_stream_mode_predicts_steady_motion_and_falls_back_on_cut_gap_and_reset() -> None:
+    """With a stream preset the second and later pairs of a steady pan are solved from the previous flow
+    (and stay accurate); a scene cut, a dropped run of frames (stamp gap) fall back to the full solve and
+    are counted; a reset or a size change forgets the previous flow (no prediction, no fallback)."""
+    from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
+    from flow_node.core.config import FlowConfig
+
+    def scene(seed: int, velocity: tuple[float, float]) -> Scene:
+        tex = Texture.random(np.random.default_rng(seed))
+        return Scene("pan", (96, 72), (Layer(tex, AffineMotion((47.5, 35.5), velocity)),))
+
+    def frame(sc: Scene, t: int) -> np.ndarray:
+        return np.clip(np.rint(sc.render(t) * 255), 0, 255).astype(np.uint8)
+
+    pan, other = scene(2, (1.5, -0.5)), scene(9, (-1.0, 1.0))
+    # one stream level: on these 96x72 frames a second one would be 24x18 px, too coarse to judge a prediction
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numpy", stream_levels=1)
+    st = FlowStream(StreamSettings(config=cfg))
+    period = 33_000_000
+    assert st.process(frame(pan, 0), 0, "rgb8") is None
+    kinds = []
+    for t in range(1, 5):
+        out = st.process(frame(pan, t), t * period, "rgb8")
+        kinds.append(out.stats.stream)
+        assert aee(out.flow, pan.ground_truth(t).astype(np.float32)) < 0.25
+    assert kinds == ["", "predicted", "predicted", "predicted"]
+    assert (st.stream_totals.predicted, st.stream_totals.fallbacks) == (3, 0)
+    out = st.process(frame(other, 0), 5 * period, "rgb8")  # scene cut
+    assert out.stats.stream.startswith(("full: prediction does not fit", "full: exposure step"))
+    out = st.process(frame(other, 1), 6 * period, "rgb8")  # the cut pair's flow is unreliable
+    assert out.stats.stream.startswith("full: previous flow unreliable")
+    assert st.process(frame(other, 2), 7 * period, "rgb8").stats.stream == "predicted"
+    out = st.process(frame(other, 3), 11 * period, "rgb8")  # 3 frames dropped
+    assert out.stats.stream.startswith("full: stamp gap (4.00x")
+    assert (st.stream_totals.predicted, st.stream_totals.fallbacks) == (4, 3)
+    assert st.stream_totals.last_fallback.startswith("stamp gap")
+    st.reset()
+    assert st.process(frame(other, 4), 12 * period, "rgb8") is None
+    assert st.process(frame(other, 5), 13 * period, "rgb8").stats.stream == ""

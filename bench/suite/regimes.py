@@ -3,6 +3,9 @@
 Recorded data (Middlebury, large motions, bags) is the same in every split; the synthetic regimes draw
 their seeds from the split (see :mod:`.synthetic`), the photometric regimes their families of changes (see
 :mod:`.photometric`), and ``real_exact`` its photographs and shifts (see :mod:`.realexact`).
+
+The ``stream`` regime is not here: its methods carry state from frame to frame, so it has its own runner over
+whole sequences (:mod:`.streams`, :mod:`.sequences`; docs/suite.md, "Streams").
 """
 
 from __future__ import annotations

@@ -5,15 +5,18 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .backends import Backend, select_backend
 from .config import FlowConfig
-from .engine import estimate_pair, warm_fusion
+from .engine import Judged, estimate_pair, solve_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
+from .layout import interleaved_flow
 from .refine import SolveStats
+from .solver import PDState
+from .temporal import FULL, Prior, estimate_predicted, result_fails
 from .validity import MaskInput, as_masks
 from .volume import estimate_volume, is_volume
 
@@ -106,6 +109,7 @@ class FlowResult:
     backend: str
     unexplained: float = 0.0
     frames: tuple[np.ndarray, np.ndarray] | None = None
+    state: PDState | None = field(default=None, repr=False)  # estimate_next's: the solver state it ended in
 
 
 class FlowEstimator:
@@ -148,6 +152,7 @@ class FlowEstimator:
         self.estimate(f0, f1)
         with self._backend.running():
             warm_fusion(self._backend)
+            self._backend.splat(np.zeros((2,) + shape, np.float32), np.zeros((4,) + shape, np.float32))  # stream
         self.confidence(f0, f1, np.zeros(shape + (2,), np.float32))
         return time.perf_counter() - start
 
@@ -182,24 +187,74 @@ class FlowEstimator:
         with the pyramid's estimate on the level where they are trusted (``config.init_scale``).
         ``channels``: both frames' colour planes (C, H, W) from :func:`to_planes` (i0, i1 their luma), used by
         the census data term when ``config.colour`` is ``channels`` (colour.py)."""
-        if i0.shape != i1.shape:
-            raise InputError(f"frames differ in size: frame0 is {i0.shape[1]}x{i0.shape[0]}, "
-                             f"frame1 is {i1.shape[1]}x{i1.shape[0]}")
-        if channels is not None and (channels[0].shape != channels[1].shape or channels[0].shape[1:] != i0.shape):
-            raise InputError(f"colour planes {channels[0].shape} and {channels[1].shape} do not match the "
-                             f"frames' size {i0.shape}")
-
-        valid = as_masks(mask, i0.shape)
+        valid = check_pair(i0, i1, channels, mask)
         init, prev = (_channel_first(f, name, i0.shape) for f, name in ((initial_flow, "initial_flow"),
                                                                         (previous_flow, "previous_flow")))
         start = time.perf_counter()
         with self._backend.running():
             flow, stats, judged = estimate_pair(i0, i1, self._config, self._backend, init, prev,
-                                                channels if self._config.colour == "channels" else None, valid)
-            ensure_finite(flow)
-            unexplained = judged.unexplained(flow)  # the photometric stage's own judge
+                                                self._colour(channels), valid)
+            unexplained = unexplained_of(flow, judged)
         seconds = time.perf_counter() - start  # preprocessing, output layout, reliability: the engine's work
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, judged.frames)
+
+    def estimate_next(self, i0: np.ndarray, i1: np.ndarray, prior: Prior | None,
+                      channels: tuple[np.ndarray, np.ndarray] | None = None, mask: MaskInput = None) -> FlowResult:
+        """:meth:`estimate_grey` for the next pair of a stream, with the solver state it ends in
+        (``FlowResult.state``, for the next pair's ``prior``). ``prior``: the previous pair's state, its
+        unexplained fraction and the interval ratio (temporal.Prior), None when there is no previous pair.
+        With ``config.stream_levels`` > 0 and a prior, the stream stage (core/temporal.py) refines the
+        carried-forward state on the finest levels only, and the pair is solved in full when its checks
+        fail (``stats.stream`` says which, and why). Without either: the single-pair solve. ``channels`` and
+        ``mask`` as for :meth:`estimate_grey`; the stream stage does not carry them yet, so a pair with
+        either is solved in full."""
+        valid = check_pair(i0, i1, channels, mask)
+        channels = self._colour(channels)
+        start = time.perf_counter()
+        with self._backend.running():
+            reason: str | None = None
+            if self._config.stream_levels and prior is not None and (channels is not None or valid is not None):
+                reason = "mask or colour channels (not carried by the stream stage)"
+            elif self._config.stream_levels and prior is not None:
+                attempt = estimate_predicted(i0, i1, self._config, self._backend, prior)
+                reason = attempt if isinstance(attempt, str) else None
+                if reason is None:
+                    state, stats, judged = attempt
+                    flow = interleaved_flow(state.v, stats.shapes[0])
+                    unexplained = unexplained_of(flow, judged)
+                    reason = result_fails(self._config, prior, unexplained)
+            if reason is not None or not self._config.stream_levels or prior is None:
+                state, stats, judged = solve_pair(i0, i1, self._config, self._backend, channels=channels,
+                                                  valid=valid)
+                flow = interleaved_flow(state.v, stats.shapes[0])
+                unexplained = unexplained_of(flow, judged)
+                stats.stream = "" if reason is None else f"{FULL}: {reason}"
+        seconds = time.perf_counter() - start
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, judged.frames, state)
+
+    def _colour(self, channels: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray] | None:
+        """The colour planes the engine is given: ``channels`` with ``config.colour`` ``channels``, else None."""
+        return channels if self._config.colour == "channels" else None
+
+
+def check_pair(i0: np.ndarray, i1: np.ndarray, channels: tuple[np.ndarray, np.ndarray] | None,
+               mask: MaskInput) -> tuple[np.ndarray, np.ndarray] | None:
+    """InputError unless the grey frames (H, W) and the colour planes (C, H, W), if any, are of one size;
+    returns the validity masks (validity.as_masks: None without a mask)."""
+    if i0.shape != i1.shape:
+        raise InputError(f"frames differ in size: frame0 is {i0.shape[1]}x{i0.shape[0]}, "
+                         f"frame1 is {i1.shape[1]}x{i1.shape[0]}")
+    if channels is not None and (channels[0].shape != channels[1].shape or channels[0].shape[1:] != i0.shape):
+        raise InputError(f"colour planes {channels[0].shape} and {channels[1].shape} do not match the "
+                         f"frames' size {i0.shape}")
+    return as_masks(mask, i0.shape)
+
+
+def unexplained_of(flow: np.ndarray, judged: Judged) -> float:
+    """The unexplained fraction of a finished ``flow`` (H, W, 2) by the photometric stage's own judge, after
+    :func:`ensure_finite`."""
+    ensure_finite(flow)
+    return judged.unexplained(flow)
 
 
 def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -> np.ndarray | None:

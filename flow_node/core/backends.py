@@ -8,9 +8,12 @@ from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from typing import NamedTuple
 
+import numpy as np
+
 from .census import CensusForm, LevelSignature, census_form, level_signature
 from .colour import ColourForm, colour_form
 from .confidence import Confidence, confidence
+from .densify import splat_forward
 from .errors import ConfigError
 from .fusion import Fuse, fuse
 from .initialise import Consistent, forward_backward_consistent
@@ -30,8 +33,8 @@ def _single_threaded(threads: int) -> AbstractContextManager[object]:
 class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
     reliability figure, the fusion and its forward-backward check, the census data term's level
-    signature and per-warp form (``colour_form``: its colour version, colour.py), and the per-pixel
-    confidence of a flow (same semantics in every backend;
+    signature and per-warp form (``colour_form``: its colour version, colour.py), the per-pixel confidence of
+    a flow and the stream stage's forward splat (temporal.predict; same semantics in every backend;
     the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on
     and the context that binds them (:meth:`running`).
     """
@@ -49,6 +52,7 @@ class Backend(NamedTuple):
     threads: int = 1
     on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
     colour_form: ColourForm = colour_form
+    splat: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] = splat_forward
 
     def running(self) -> AbstractContextManager[object]:
         """The context each estimate runs in: the backend's kernels on its ``threads``, bound to the calling
@@ -97,7 +101,7 @@ def select_backend(name: str, threads: int = 0) -> Backend:
         log.info("flow_node backend: numpy (reference, requested)")
         return NUMPY
     try:
-        from . import numba_backend, numba_census, numba_confidence, numba_fusion
+        from . import numba_backend, numba_census, numba_confidence, numba_fusion, numba_temporal
     except ImportError as exc:
         if name == "numba":
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
@@ -110,4 +114,5 @@ def select_backend(name: str, threads: int = 0) -> Backend:
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
                    numba_census.level_signature_numba, numba_census.census_form_numba,
                    numba_confidence.confidence_numba, used,
-                   numba_backend.thread_count, numba_census.colour_form_numba)
+                   numba_backend.thread_count, numba_census.colour_form_numba,
+                   splat=numba_temporal.splat_numba)

@@ -159,6 +159,24 @@ class FlowConfig:
     image_gamma: float = _f(0.01, "joint: weight gamma of the coupling C(u, v) = |u1(x + v) - u0(x)|_1 against the "
                             "images' fidelity (grey levels of the normalised frames: frames differing by less than "
                             "2 gamma along the flow are averaged)", lo=0.0, hi=10.0, lo_open=True)
+    stream_levels: int = _f(0, "in a stream (node, flow_bag eval): the previous pair's flow, carried to the new "
+                            "frame, starts the refinement on this many finest solved levels, skipping the coarser "
+                            "ones and the initialisation while the prediction holds (0 = off: every pair solved "
+                            "in full)", lo=0, hi=4)
+    stream_warps: int = _f(2, "stream mode: warps per level refined from the prediction", lo=1, hi=100)
+    stream_iterations: int = _f(10, "stream mode: primal-dual iterations per warp on those levels", lo=1,
+                                hi=100000)
+    stream_max_predicted: float = _f(0.5, "stream mode: the pair is solved in full when more than this fraction "
+                                     "of the prediction's pixels is unexplained (its robust data cost on its "
+                                     "start level: a scene cut, a jump)", lo=0.0, hi=1.0)
+    stream_max_unexplained: float = _f(0.3, "stream mode: a previous flow, or a refined prediction, with more "
+                                       "unexplained pixels than this is not used (full solve)", lo=0.0, hi=1.0)
+    stream_margin: float = _f(0.05, "stream mode: a refined prediction explaining the pair worse than the "
+                              "previous pair's flow by more than this fraction is replaced by a full solve",
+                              lo=0.0, hi=1.0)
+    stream_max_gap: float = _f(2.5, "stream mode: a pair whose stamp interval differs from the previous pair's "
+                               "by more than this factor (a dropped run of frames) is solved in full; within "
+                               "it the prediction is scaled by the ratio", lo=1.0, hi=1000.0)
     backend: str = _f("auto", "solver backend: numba kernels, numpy reference, or auto (numba if importable)",
                       choices=BACKENDS)
     threads: int = _f(0, "threads for the numba backend (0 = all cores)", lo=0, hi=1024)
@@ -342,6 +360,18 @@ PRESETS: dict[str, dict[str, Any]] = {
     "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                   levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                   initialisation="dis_ultrafast", init_finest_level=2, reconstruction="joint", image_gamma=0.02),
+    # stream presets (issue 26, docs/engine.md "The stream mode"): a single pair, and a stream's fallback, is
+    # solved as fastest (stream_fast) or as fastest at quarter size (stream_lite) does; while the previous flow
+    # predicts the next, only the finest two solved levels (stream_lite: one) run, from the carried state (tuned
+    # on the suite's stream regime, tune split: bench/results/suite/stream/; docs/engine.md "The stream mode")
+    "stream_fast": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
+                        finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=2, stream_warps=3,
+                        stream_iterations=10),
+    "stream_lite": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
+                        finest_level=2, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
+                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=1, stream_warps=4,
+                        stream_iterations=10),
 }
 
 

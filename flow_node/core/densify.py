@@ -86,11 +86,11 @@ def splat_points(shape: tuple[int, int], points: np.ndarray, flows: np.ndarray) 
     return out.reshape(2, h, w), weight.reshape(h, w)
 
 
-def forward_propagate(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Carry a flow (2, H, W) on frame t-1's grid forward to frame t's grid under constant velocity: the
-    point x moves to x + f(x) and keeps moving by f(x). Returns the partial flow on the new grid (2, H, W)
-    and its weight (H, W): 0 where nothing landed (disocclusions, image border). Where several points land
-    on one pixel the fastest wins (the nearer surface, for a camera that translates)."""
+def forward_targets(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where each point of frame t-1's grid lands on frame t's grid under a flow (2, H, W): the flat indices
+    of the targets (rounded x + f(x), half to even) and of the source pixel that wins each (the fastest where
+    several land on one pixel -- the nearer surface, for a camera that translates; the first in raster order
+    among equally fast ones). Points landing outside the grid have no target."""
     h, w = flow.shape[1:]
     ys, xs = np.mgrid[0:h, 0:w]
     tx = np.rint(xs + flow[0]).astype(np.int64)
@@ -103,9 +103,33 @@ def forward_propagate(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     first = np.ones(order.size, bool)
     first[1:] = target[order][1:] != target[order][:-1]
     pick = order[first]
+    return target[pick], src[pick]
+
+
+def forward_propagate(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Carry a flow (2, H, W) on frame t-1's grid forward to frame t's grid under constant velocity: the
+    point x moves to x + f(x) and keeps moving by f(x) (:func:`forward_targets`). Returns the partial flow on
+    the new grid (2, H, W) and its weight (H, W): 0 where nothing landed (disocclusions, image border)."""
+    h, w = flow.shape[1:]
+    target, src = forward_targets(flow)
     out = np.zeros((2, h * w), np.float32)
     weight = np.zeros(h * w, np.float32)
     for k in range(2):
-        out[k, target[pick]] = flow[k].reshape(-1)[src[pick]]
-    weight[target[pick]] = 1.0
+        out[k, target] = flow[k].reshape(-1)[src]
+    weight[target] = 1.0
     return out.reshape(2, h, w), weight.reshape(h, w)
+
+
+def splat_forward(flow: np.ndarray, carried: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The numpy reference of the splat: ``flow`` (2, h, w) px and the ``carried`` fields (C, h, w) moved to
+    the targets of densify.forward_targets (each point to round(x + f(x)), the fastest winning): the flow
+    (2, h, w), the carried fields (C, h, w), both 0 where nothing landed, and the weight (h, w), 1 where
+    something did. float32."""
+    h, w = flow.shape[1:]
+    target, src = forward_targets(flow)
+    out = np.zeros((2 + carried.shape[0], h * w), np.float32)
+    out[:, target] = np.concatenate([flow, carried]).reshape(out.shape[0], -1)[:, src]
+    weight = np.zeros(h * w, np.float32)
+    weight[target] = 1.0
+    out = out.reshape(-1, h, w)
+    return out[:2], out[2:], weight.reshape(h, w)

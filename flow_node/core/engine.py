@@ -11,6 +11,7 @@ initialisation  (i0, i1, cfg, initial, previous) -> [Candidate]                 
 refinement      (pyramid, cfg, backend, state, first, last, stats, finest) -> state  ``core/refine.py``
 fusion          (i0, i1, [flow]) -> (flow, choice), a backend field                  ``core/fusion.py``
 output layout   (2, h, w) -> (H, W, 2) at the input size                             ``core/layout.py``
+(stream)        (i0, i1, cfg, backend, prior) -> (state, stats, normalised) | reason ``core/temporal.py``
 (confidence)    (i0, i1, flow) -> (H, W) in [0, 1], on demand                        ``core/confidence.py``
 ==============  ===================================================================  =======================
 
@@ -187,6 +188,18 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     they are not used. ``valid``: the frames' validity masks (H, W) bool (validity.py): invalid pixels are
     filled before every stage and carry no data term in the refinement.
     """
+    state, stats, judged = solve_pair(i0, i1, cfg, backend, initial_flow, previous_flow, channels, valid)
+    return interleaved_flow(state.v, stats.shapes[0]), stats, judged
+
+
+def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
+               initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None,
+               channels: tuple[np.ndarray, np.ndarray] | None = None,
+               valid: tuple[np.ndarray, np.ndarray] | None = None
+               ) -> tuple[PDState, SolveStats, Judged]:
+    """:func:`estimate_pair` before the output layout: the solver state on the finest solved level (its
+    flow (2, h, w) in px of that level; a stream carries the whole state to the next pair, temporal.py),
+    the stats (``stats.shapes[0]`` is the input size) and the Judged pair."""
     if valid is not None:
         i0, i1 = fill_invalid(i0, valid[0]), fill_invalid(i1, valid[1])
     channels = colour_stage(i0.shape, channels, cfg)
@@ -194,5 +207,4 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
     pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
-    state = refine_from(pyr, cfg, backend, candidates, stats)
-    return interleaved_flow(state.v, pyr.shapes[0]), stats, judged
+    return refine_from(pyr, cfg, backend, candidates, stats), stats, judged

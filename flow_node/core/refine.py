@@ -47,6 +47,7 @@ class SolveStats:
     start_level: int = -1
     init_share: float = 0.0
     final_init_share: float = 0.0
+    stream: str = ""  # in a stream mode (temporal.py): 'predicted', or 'full: <why the prediction failed>'
 
     @property
     def total_iterations(self) -> int:

@@ -21,6 +21,10 @@ previous to this frame. Rules, in order:
 * with ``config.temporal_init`` = 1 the previous pair's flow, carried forward to the new pair's first frame,
   initialises the next solve (fused per pixel with the pyramid's estimate, so a scene cut costs nothing but
   time); a reset or a change of the config forgets it.
+* with ``config.stream_levels`` > 0 (the stream mode, core/temporal.py) the previous pair's flow, carried
+  forward and scaled by the ratio of the two pairs' stamp intervals, is refined on the finest levels only;
+  a pair whose prediction fails the stage's checks is solved in full. ``stream_totals`` counts both
+  (``FlowOutput.stats.stream`` says which each pair was, and why).
 
 No rclpy or rosbags here: the caller decodes messages with :mod:`flow_node.pipeline.codec`.
 """
@@ -41,6 +45,8 @@ from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
 from ..core.photometric import compares_signatures
 from ..core.refine import SolveStats
+from ..core.solver import PDState
+from ..core.temporal import FULL, PREDICTED, Prior
 from ..core.validity import VALID_LEVEL, as_mask
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
@@ -193,6 +199,25 @@ class FlowOutput:
                        _color=None, _summary=None)
 
 
+@dataclass
+class StreamTotals:
+    """Pairs of the stream mode since the stream was made: solved from the prediction (``predicted``) and solved
+    in full because the prediction failed a check (``fallbacks``; the last one's reason in ``last_fallback``).
+    Pairs without a previous flow (the first after a reset) count as neither."""
+
+    predicted: int = 0
+    fallbacks: int = 0
+    last_fallback: str = ""
+
+    def count(self, stream: str) -> None:
+        """Count one pair by its SolveStats.stream."""
+        if stream == PREDICTED:
+            self.predicted += 1
+        elif stream.startswith(FULL):
+            self.fallbacks += 1
+            self.last_fallback = stream.partition(": ")[2]
+
+
 class FlowStream:
     """Previous frame + engine; see the module docstring for the rules. Thread-safe for ``update`` and
     ``reset`` called from another thread while ``process`` runs (they apply before the next frame)."""
@@ -210,7 +235,11 @@ class FlowStream:
         self._prev_flow: np.ndarray | None = None  # flow of the pair that ended with _prev (temporal_init)
         self._mask: np.ndarray | None = None  # the validity mask in effect (input size, bool), set_mask
         self._prev_mask: np.ndarray | None = None  # _prev's mask at processing resolution
+        self._prev_state: PDState | None = None  # the solver state that pair ended in (stream mode)
+        self._prev_unexplained = 0.0  # that flow's unexplained fraction (stream mode)
+        self._prev_interval = 0  # that pair's stamp interval, ns (stream mode)
         self.last_reset_reason: str = "first frame"
+        self.stream_totals = StreamTotals()
 
     # ----------------------------------------------------------------------------------------- settings
     @property
@@ -279,7 +308,7 @@ class FlowStream:
                 reason = reason or "input_scale changed"
             if pending.config != self._settings.config:
                 self._estimator.config = pending.config
-                self._prev_flow = None
+                self._prev_flow = self._prev_state = None
             self._settings = pending
         return reason
 
@@ -304,7 +333,7 @@ class FlowStream:
                reason: str, mask: np.ndarray | None = None) -> None:
         self._prev, self._prev_planes, self._prev_key, self._prev_stamp = grey, planes, key, stamp_ns
         self._prev_mask = mask
-        self._prev_flow = None
+        self._prev_flow = self._prev_state = None
         self.last_reset_reason = reason
 
     def process(self, frame: np.ndarray, stamp_ns: int, encoding: str = "",
@@ -330,14 +359,23 @@ class FlowStream:
             return None
         prev, prev_stamp, prev_mask = self._prev, self._prev_stamp, self._prev_mask
         s = self._settings
-        previous = self._prev_flow if s.config.temporal_init else None
         channels = None if planes is None or self._prev_planes is None else (self._prev_planes, planes)
         pair_mask = None if prev_mask is None and mask is None else tuple(
             np.ones(grey.shape, bool) if m is None else m for m in (prev_mask, mask))
-        result = self._estimator.estimate_grey(prev, grey, previous_flow=previous,  # all from _prepare
-                                               channels=channels, mask=pair_mask)
+        interval = stamp_ns - prev_stamp
+        if s.config.stream_levels:
+            ratio = interval / self._prev_interval if self._prev_interval > 0 else 1.0
+            prior = None if self._prev_state is None else Prior(self._prev_state, self._prev_unexplained, ratio)
+            result = self._estimator.estimate_next(prev, grey, prior, channels, pair_mask)  # all from _prepare
+            self.stream_totals.count(result.stats.stream)
+        else:
+            previous = self._prev_flow if s.config.temporal_init else None
+            result = self._estimator.estimate_grey(prev, grey, previous_flow=previous, channels=channels,
+                                                   mask=pair_mask)
         self._prev, self._prev_planes, self._prev_stamp, self._prev_mask = grey, planes, stamp_ns, mask
         self._prev_flow = result.flow if s.config.temporal_init else None
+        self._prev_state = result.state if s.config.stream_levels else None
+        self._prev_unexplained, self._prev_interval = result.unexplained, interval
         out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
                          result.frames, confidence_of=self._estimator.confidence)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from ..core.photometric import UNRELIABLE
+from ..core.temporal import FULL, PREDICTED
 from ..pipeline.stream import FlowOutput, FlowSummary
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
@@ -31,6 +32,8 @@ class Totals:
     resets: int = 0
     errors: int = 0
     analysed: int = 0  # pairs whose derived motion outputs were computed (some ~/motion/* subscribed)
+    predicted: int = 0  # pairs the stream mode solved from the previous flow (core/temporal.py)
+    stream_fallbacks: int = 0  # pairs the stream mode solved in full because the prediction failed a check
 
 
 @dataclass
@@ -55,6 +58,7 @@ class Window:
     unreliable: int = 0  # outputs of the period whose unexplained fraction exceeds UNRELIABLE
     unexplained: float | None = None  # of the last output
     motion_times: list[float] = field(default_factory=list)  # seconds of the derived outputs, per analysed pair
+    last_stream_fallback: str = ""  # NodeStats.last_stream_fallback
 
 
 @dataclass
@@ -75,6 +79,7 @@ class NodeStats:
     last_reset: str = ""
     last_rejection: str = ""
     last_error: str = ""
+    last_stream_fallback: str = ""  # why the stream mode last solved a pair in full
     solve_max: float = 0.0  # longest solve since start (s)
     solve_total: float = 0.0  # seconds spent solving since start
 
@@ -125,6 +130,12 @@ class NodeStats:
             self._publish.append(publish_s)
             self._unreliable += int(output.unexplained > UNRELIABLE)
             self._last = output
+            stream = output.stats.stream if output.stats is not None else ""
+            if stream == PREDICTED:
+                self.totals.predicted += 1
+            elif stream.startswith(FULL):
+                self.totals.stream_fallbacks += 1
+                self.last_stream_fallback = stream.partition(": ")[2]
 
     def analysed(self, seconds: float) -> None:
         """The derived motion outputs of a pair were computed (and published) in ``seconds``."""
@@ -142,7 +153,7 @@ class NodeStats:
                        t.dropped - m.dropped, t.rejected - m.rejected, t.errors - m.errors, self._solve,
                        self._overhead, self._publish, None, self.last_reset, self.last_rejection, self.last_error,
                        None if self._last_input is None else now - self._last_input, self._unreliable,
-                       None if last is None else last.unexplained, self._motion)
+                       None if last is None else last.unexplained, self._motion, self.last_stream_fallback)
             self._start, self._mark = now, Totals(**vars(t))
             self._solve, self._overhead, self._publish, self._motion, self._unreliable = [], [], [], [], 0
         w.summary = None if last is None else last.summary
@@ -251,6 +262,9 @@ def status(w: Window, *, name: str, hardware_id: str, ready: bool, backend: str,
         ("engine errors", str(w.totals.errors)),
         ("frames analysed (motion)", str(w.totals.analysed)),
         ("resets", str(w.totals.resets)),
+        ("stream frames predicted", str(w.totals.predicted)),
+        ("stream fallbacks (full solves)", str(w.totals.stream_fallbacks)),
+        ("last stream fallback", w.last_stream_fallback or "none"),
         ("last reset", w.last_reset or "none"),
         ("last rejection", w.last_rejection or "none"),
         ("backend", backend),

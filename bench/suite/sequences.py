@@ -1,0 +1,156 @@
+"""The suite's ``stream`` regime: exactly rendered frame sequences (issue 26).
+
+A sequence is 40 frames of one scene of flow_node.bag.scenes, rendered exactly at every frame t
+(I_t(x) = T(psi_t(x)); the flow of pair t-1 -> t is phi_t(psi_{t-1}(x)) - x, nothing resampled), grey (BT.601
+luma), plus Gaussian sensor noise of NOISE grey levels, quantised to 8 bit. The motions are functions of
+continuous time, so a time warp t -> tau(t) makes them
+accelerate or decelerate exactly. Kinds (one sequence of each per split; the scene comes from the seed):
+
+* ``pan``: a translation of 2-6 px/frame (scaled to a 320 px wide image);
+* ``rotation``: 0.4-0.9 deg/frame about the centre plus a slow drift;
+* ``zoom``: 1-1.5 % per frame in or out;
+* ``accelerating``: a pan from 0.5 to 5-8 px/frame (tau(t) = t + a t^2);
+* ``decelerating``: a rotating pan slowing from 6 px/frame to a near stop;
+* ``objects``: a panning background with three objects crossing on their own paths (occlusions);
+* ``cut``: a pan, then half-way (frame 20) a different scene (rotating); the pair across the cut has no ground
+  truth (not scored), the pairs after it are scored;
+* ``exposure``: a pan whose frames from half-way on have a gain of 1.3 and an offset (or 0.75 and one): an
+  exposure step between frames 19 and 20.
+
+``tune`` uses seeds 0-7, ``report`` 1000-1007 (as bench/suite/synthetic.py's splits).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture, make_scene
+
+from .data import LUMA
+from .synthetic import quantise, seeds
+
+FRAMES = 40
+NOISE = 1.0  # grey levels (of 255): a camera's sensor noise on every frame, independent from frame to frame
+KINDS = ("pan", "rotation", "zoom", "accelerating", "decelerating", "objects", "cut", "exposure")
+
+
+@dataclass(frozen=True)
+class TimeWarped:
+    """A scene motion run on warped time: phi_t = motion.phi_{tau(t)} with tau(t) = t + accel t^2 (accel > 0
+    speeds up, < 0 slows down; tau stays increasing over the sequence). Exact like the motion itself."""
+
+    motion: AffineMotion
+    accel: float
+
+    def tau(self, t: float) -> float:
+        return t + self.accel * t * t
+
+    def forward(self, p: np.ndarray, t: float) -> np.ndarray:
+        return self.motion.forward(p, self.tau(t))
+
+    def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
+        return self.motion.inverse(x, self.tau(t))
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """A rendered sequence: ``frames`` uint8 (H, W), ``gt[t]`` the flow of pair t -> t+1 (H, W, 2) float32 or
+    None where there is none (across a scene cut), its kind and name, and ``event``: the index of the first
+    frame after a cut or exposure step (-1 without)."""
+
+    name: str
+    kind: str
+    frames: list[np.ndarray]
+    gt: list[np.ndarray | None]
+    event: int = -1
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return int(self.frames[0].shape[1]), int(self.frames[0].shape[0])
+
+
+def _texture(rng: np.random.Generator) -> Texture:
+    return Texture.random(rng, n=36, fmin=1 / 120, fmax=1 / 5)
+
+
+def _direction(rng: np.random.Generator, speed: float) -> tuple[float, float]:
+    a = float(rng.uniform(0.0, 2 * math.pi))
+    return speed * math.cos(a), speed * math.sin(a)
+
+
+def scene_of(kind: str, size: tuple[int, int], rng: np.random.Generator) -> Scene:
+    """The scene of one sequence kind (not ``cut``/``exposure``, which are built from two/one of these)."""
+    w, h = size
+    k = w / 320.0
+    c = ((w - 1) / 2.0, (h - 1) / 2.0)
+    tex = _texture(rng)
+    if kind == "pan":
+        motion: AffineMotion | TimeWarped = AffineMotion(c, _direction(rng, float(rng.uniform(2.0, 6.0)) * k))
+    elif kind == "rotation":
+        theta = math.radians(float(rng.uniform(0.4, 0.9)) * float(rng.choice([-1.0, 1.0])))
+        motion = AffineMotion(c, _direction(rng, 0.5 * k), theta=theta)
+    elif kind == "zoom":
+        s = 1.0 + float(rng.uniform(0.01, 0.015)) * float(rng.choice([-1.0, 1.0]))
+        motion = AffineMotion(c, scale=s)
+    elif kind == "accelerating":  # velocity tau'(t) = 1 + 2 a t from 1 (x 0.5 px) to 1 + 2 a (FRAMES - 1)
+        top = float(rng.uniform(10.0, 16.0))
+        motion = TimeWarped(AffineMotion(c, _direction(rng, 0.5 * k)), (top - 1.0) / (2 * (FRAMES - 1)))
+    elif kind == "decelerating":  # velocity from 1 (x 6 px) down to 0.1 of it
+        theta = math.radians(0.5 * float(rng.choice([-1.0, 1.0])))
+        motion = TimeWarped(AffineMotion(c, _direction(rng, 6.0 * k), theta=theta), -0.9 / (2 * (FRAMES - 1)))
+    elif kind == "objects":
+        objects = make_scene("objects", size, rng)
+        bg = Layer(tex, AffineMotion(c, _direction(rng, float(rng.uniform(1.0, 2.0)) * k)))
+        return Scene(kind, size, (bg,) + objects.layers[1:])
+    else:
+        raise ValueError(f"unknown sequence kind {kind!r}")
+    return Scene(kind, size, (Layer(tex, motion),))  # type: ignore[arg-type]  # TimeWarped is a motion
+
+
+def grey(scene: Scene, t: int) -> np.ndarray:
+    """Frame t of ``scene`` as float64 grey (H, W) in [0, 1]."""
+    return scene.render(t) @ LUMA
+
+
+def render(kind: str, seed: int, size: tuple[int, int], frames: int = FRAMES) -> Sequence:
+    """The sequence of ``kind`` and ``seed`` at ``size`` (width, height)."""
+    rng = np.random.default_rng([seed, KINDS.index(kind)])
+    noise = np.random.default_rng([seed, KINDS.index(kind), 1])
+    name, event = f"s{seed}_{kind}", frames // 2
+
+    def delivered(img: np.ndarray) -> np.ndarray:
+        return quantise(img + noise.normal(0.0, NOISE / 255.0, img.shape), 8)
+
+    if kind == "cut":
+        a, b = scene_of("pan", size, rng), scene_of("rotation", size, rng)
+        imgs = [grey(a, t) if t < event else grey(b, t - event) for t in range(frames)]
+        gt = [a.ground_truth(t + 1) if t + 1 < event else None if t + 1 == event
+              else b.ground_truth(t + 1 - event) for t in range(frames - 1)]
+        return Sequence(name, kind, [delivered(i) for i in imgs], _f32(gt), event)
+    if kind == "exposure":
+        a = scene_of("pan", size, rng)
+        gain, offset = ((1.3, -0.04), (0.75, 0.05))[seed % 2]
+        imgs = [grey(a, t) * (gain if t >= event else 1.0) + (offset if t >= event else 0.0) for t in range(frames)]
+        gt = [a.ground_truth(t + 1) for t in range(frames - 1)]
+        return Sequence(name, kind, [delivered(i) for i in imgs], _f32(gt), event)
+    scene = scene_of(kind, size, rng)
+    return Sequence(name, kind, [delivered(grey(scene, t)) for t in range(frames)],
+                    _f32([scene.ground_truth(t + 1) for t in range(frames - 1)]))
+
+
+def _f32(gt: list[np.ndarray | None]) -> list[np.ndarray | None]:
+    return [None if g is None else g.astype(np.float32) for g in gt]
+
+
+def sequences(split: str, size: tuple[int, int], kinds: tuple[str, ...] = KINDS, frames: int = FRAMES
+              ) -> Iterator[Sequence]:
+    """One sequence of every kind for the split's seeds (``tune``: 0.., ``report``: 1000..), in order."""
+    for k, seed in seeds(split, len(KINDS)):
+        if KINDS[k] in kinds:
+            yield render(KINDS[k], seed, size, frames)
+
+

@@ -1,0 +1,235 @@
+"""``python -m bench.suite.streams``: the suite's ``stream`` regime -- flow_node's stream presets (FlowStream,
+as the node and ``flow_bag eval`` run them), its single-pair presets and OpenCV DIS medium and ultrafast on
+the same exactly rendered sequences (bench/suite/sequences.py), frame by frame (docs/suite.md, "Streams").
+
+    python -m bench.suite.streams --split tune --size 320x240
+    python -m bench.suite.streams --split report --size 640x480 --out bench/results/suite/stream
+    python -m bench.suite.streams --split tune --method cand=stream_fast,stream_iterations=6 --kinds pan,cut
+
+Per frame every method takes its turn (the order rotating frame by frame, so load changes on a shared machine
+hit all alike), once: a stream method cannot repeat a frame without changing its state. A stream method is
+timed on ``FlowStream.process(frame)`` (one frame's conversion, the solve and its checks), a single-pair one on
+``FlowEstimator.estimate(previous, frame)``, DIS on ``calc`` of the two 8-bit frames. Scores: the AEE of each
+pair with ground truth (not the pair across a scene cut), its mean over the pairs, per kind, and the AEE on
+the pairs right after a cut or exposure step over that of the stream's own preset solving single pairs
+(``event_ratio``; the stream presets' base: STREAM_BASE).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from flow_node.core.api import FlowEstimator
+from flow_node.core.config import FlowConfig
+from flow_node.core.metrics import aee
+from flow_node.pipeline.stream import FlowStream, StreamSettings
+
+from ..common import REPO, machine, write_json
+from .methods import DIS_MEDIUM, DIS_ULTRAFAST
+from .sequences import FRAMES, KINDS, Sequence, sequences
+
+RESULTS = REPO / "bench" / "results" / "suite" / "stream"
+PERIOD_NS = 33_333_333  # 30 Hz stamps
+# each stream preset's own single-pair solve (the preset with stream_levels 0), run beside it for event_ratio
+STREAM_BASE = {"stream_fast": "fastest", "stream_lite": "stream_lite/single"}
+DEFAULT_METHODS = {"stream_fast": ("stream_fast", {}), "stream_lite": ("stream_lite", {}), "realtime": ("realtime", {}),
+                   "fastest": ("fastest", {}), "stream_lite/single": ("stream_lite", {"stream_levels": 0})}
+
+
+class Runner:
+    """One method over one sequence: ``start()`` before its first frame, ``step(previous, frame, t)`` returns
+    the flow of the pair ending with ``frame`` (t its index), or None for the first frame."""
+
+    kind = "single"
+
+    def start(self) -> None: ...
+
+    def step(self, previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
+        raise NotImplementedError
+
+
+class StreamRunner(Runner):
+    """flow_node's FlowStream with ``config`` (a stream preset): state carried from frame to frame."""
+
+    kind = "stream"
+
+    def __init__(self, config: FlowConfig) -> None:
+        self.config = config
+        self.stream = FlowStream(StreamSettings(config=config))
+        self.stream.warmup((240, 320))
+
+    def start(self) -> None:
+        self.stream.reset("new sequence")  # the sequence's first frame starts a pair
+
+    def step(self, previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
+        out = self.stream.process(frame, (t + 1) * PERIOD_NS, "mono8")
+        return (np.zeros(frame.shape + (2,), np.float32), "first") if out is None else (out.flow, out.stats.stream)
+
+
+class PairRunner(Runner):
+    """flow_node solving every pair on its own (``FlowEstimator.estimate``)."""
+
+    def __init__(self, config: FlowConfig) -> None:
+        self.config = config
+        self.estimator = FlowEstimator(config)
+        self.estimator.warmup((240, 320))
+
+    def step(self, previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
+        return self.estimator.estimate(previous, frame).flow, ""
+
+
+class DisRunner(Runner):
+    """OpenCV DIS with a preset on the 8-bit frames."""
+
+    def __init__(self, preset: int) -> None:
+        self.algo = cv2.DISOpticalFlow_create(preset)
+
+    def step(self, previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
+        return self.algo.calc(previous, frame, None), ""
+
+
+def build(methods: Mapping[str, FlowConfig]) -> dict[str, Runner]:
+    """Runners for ``methods`` (a config with ``stream_levels`` > 0 runs as a stream, else pair by pair), then
+    DIS medium and ultrafast."""
+    out: dict[str, Runner] = {n: StreamRunner(c) if c.stream_levels else PairRunner(c) for n, c in methods.items()}
+    out[DIS_MEDIUM] = DisRunner(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+    out[DIS_ULTRAFAST] = DisRunner(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
+    return out
+
+
+def run_sequence(seq: Sequence, runners: Mapping[str, Runner]) -> dict[str, dict[str, list[Any]]]:
+    """Every runner over ``seq``, frame by frame in rotating order: per method the per-pair AEE (None without
+    ground truth), seconds and the stream's label (SolveStats.stream; '' for single pairs)."""
+    names = list(runners)
+    for r in runners.values():
+        r.start()
+    rows: dict[str, dict[str, list[Any]]] = {n: {"aee": [], "seconds": [], "stream": []} for n in names}
+    for n in names:  # the first frame: a stream starts its pair
+        if runners[n].kind == "stream":
+            runners[n].step(seq.frames[0], seq.frames[0], 0)
+    for t in range(1, len(seq.frames)):
+        k = t % len(names)
+        for n in names[k:] + names[:k]:
+            start = time.perf_counter()
+            flow, label = runners[n].step(seq.frames[t - 1], seq.frames[t], t)
+            seconds = time.perf_counter() - start
+            gt = seq.gt[t - 1]
+            rows[n]["aee"].append(None if gt is None else aee(np.asarray(flow, np.float32), gt))
+            rows[n]["seconds"].append(seconds)
+            rows[n]["stream"].append(label)
+    return rows
+
+
+def _mean(values: list[float | None]) -> float:
+    v = [x for x in values if x is not None]
+    return float(np.mean(v)) if v else float("nan")
+
+
+def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Sequence]) -> dict[str, Any]:
+    """Per method: mean AEE and seconds over every pair, per kind, time and AEE ratios against DIS, the stream
+    labels counted, and the event ratios (the pairs after a cut / the exposure step over the base preset's)."""
+    names = list(next(iter(per_seq.values())))
+    out: dict[str, Any] = {}
+    for n in names:
+        aees = [a for s in seqs for a in per_seq[s.name][n]["aee"]]
+        secs = [x for s in seqs for x in per_seq[s.name][n]["seconds"]]
+        labels = [x for s in seqs for x in per_seq[s.name][n]["stream"]]
+        out[n] = {"aee": _mean(aees), "seconds": float(np.mean(secs)),
+                  "per_kind": {s.kind: {"aee": _mean(per_seq[s.name][n]["aee"]),
+                                        "seconds": float(np.mean(per_seq[s.name][n]["seconds"]))} for s in seqs},
+                  "predicted": labels.count("predicted"),
+                  "fallbacks": sum(x.startswith("full") for x in labels)}
+    for n, m in out.items():
+        for ref in (DIS_MEDIUM, DIS_ULTRAFAST):
+            m[f"time_vs_{ref}"] = m["seconds"] / out[ref]["seconds"]
+            m[f"aee_vs_{ref}"] = m["aee"] / out[ref]["aee"]
+        base = STREAM_BASE.get(n)
+        if base in out:
+            m["event_ratio"] = {}
+            for s in (s for s in seqs if s.event > 0):
+                pairs = (s.event, s.event + 1) if s.kind == "cut" else (s.event - 1, s.event)  # index t-1 of pair t
+                m["event_ratio"][s.name] = [per_seq[s.name][n]["aee"][p] / per_seq[s.name][base]["aee"][p]
+                                            for p in pairs]
+    return out
+
+
+def run(methods: Mapping[str, FlowConfig], split: str, size: tuple[int, int], kinds: tuple[str, ...] = KINDS,
+        frames: int = FRAMES, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """The regime on one split and size: ``{"methods": summary, "per_sequence": {name: rows}, ...}``."""
+    runners = build(methods)
+    per_seq: dict[str, Any] = {}
+    seqs = []
+    started = time.time()
+    for seq in sequences(split, size, kinds, frames):
+        seqs.append(seq)
+        per_seq[seq.name] = run_sequence(seq, runners)
+        log(f"  {seq.name}: " + ", ".join(f"{n} {_mean(r['aee']):.3f}/{1000 * np.mean(r['seconds']):.1f}ms"
+                                          for n, r in per_seq[seq.name].items()))
+    return {"split": split, "size": list(size), "frames": frames, "machine": machine(),
+            "methods_config": {n: c.to_dict() for n, c in methods.items()}, "methods": summarise(per_seq, seqs),
+            "per_sequence": per_seq, "wall_seconds": time.time() - started}
+
+
+def markdown(res: dict[str, Any], command: str) -> str:
+    """A short table of a result: per method mean AEE, ms per frame, ratios, fallbacks, worst event ratio."""
+    w, h = res["size"]
+    lines = [f"# Stream regime, {res['split']} split, {w}x{h} ({res['frames']} frames per sequence)", "",
+             f"`{command}`", "",
+             "| method | mean AEE | ms/frame | time vs DIS medium | time vs DIS ultrafast | AEE vs DIS medium "
+             "| predicted / full | worst event ratio |", "|---|---|---|---|---|---|---|---|"]
+    for n, m in res["methods"].items():
+        ev = [r for rs in m.get("event_ratio", {}).values() for r in rs]
+        worst = f"{max(ev):.2f}" if ev else ""
+        lines.append(f"| {n} | {m['aee']:.3f} | {1000 * m['seconds']:.1f} | {m['time_vs_dis_medium']:.2f} | "
+                     f"{m['time_vs_dis_ultrafast']:.2f} | {m['aee_vs_dis_medium']:.2f} | "
+                     f"{m['predicted']} / {m['fallbacks']} | {worst} |")
+    kinds = list(next(iter(res["methods"].values()))["per_kind"])
+    lines += ["", "Mean AEE per kind:", "", "| method | " + " | ".join(kinds) + " |",
+              "|---|" + "---|" * len(kinds)]
+    for n, m in res["methods"].items():
+        lines.append(f"| {n} | " + " | ".join(f"{m['per_kind'][k]['aee']:.3f}" for k in kinds) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def parse_method(text: str) -> tuple[str, FlowConfig]:
+    """``NAME=PRESET[,key=value...]`` -> (name, config)."""
+    name, _, rest = text.partition("=")
+    preset, *assignments = rest.split(",")
+    return name, FlowConfig.preset(preset).with_overrides(assignments)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.suite.streams", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--split", choices=("tune", "report"), default="report")
+    ap.add_argument("--size", default="320x240", help="WIDTHxHEIGHT")
+    ap.add_argument("--kinds", default=",".join(KINDS), help=f"comma-separated subset of {', '.join(KINDS)}")
+    ap.add_argument("--frames", type=int, default=FRAMES)
+    ap.add_argument("--method", action="append", default=[], metavar="NAME=PRESET[,key=value...]",
+                    help=f"replaces the default methods ({', '.join(DEFAULT_METHODS)})")
+    ap.add_argument("--out", type=Path, default=None, help="directory for <split>_<size>.{json,md}")
+    args = ap.parse_args(argv)
+    w, h = (int(x) for x in args.size.split("x"))
+    methods = dict(parse_method(m) for m in args.method) or {
+        n: FlowConfig.preset(p).replace(**kw) for n, (p, kw) in DEFAULT_METHODS.items()}
+    res = run(methods, args.split, (w, h), tuple(args.kinds.split(",")), args.frames)
+    command = "python -m bench.suite.streams " + " ".join(argv if argv is not None else sys.argv[1:])
+    res["command"] = command
+    md = markdown(res, command)
+    print(md)
+    if args.out is not None:
+        write_json(args.out / f"{args.split}_{w}x{h}.json", res)
+        (args.out / f"{args.split}_{w}x{h}.md").write_text(md)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

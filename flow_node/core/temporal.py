@@ -1,0 +1,177 @@
+"""The stream stage: the previous pair's flow, carried to the new frame, starts the refinement on the finest
+one or two levels only (docs/engine.md, "The stream mode").
+
+In a stream consecutive flows are nearly the same. The previous pair's flow lives on the grid of its first
+frame; under constant velocity the point x moves on to x + f(x) and keeps its velocity there, so the
+prediction of the new pair's flow at x + f(x) is f(x) (:func:`predict`: a forward splat, the fastest point
+winning where several land on one pixel -- the nearer surface -- and the holes, disoccluded pixels and the
+border the motion brings in, filled by normalised convolution, densify.push_pull). The solver's other
+variables (the dual of the regulariser, and the extended models' w) are carried along the same way (holes:
+0): a primal-dual method restarted with zero duals first fits each pixel's data alone and needs tens of
+iterations to regularise that again, while with the carried duals a few iterations correct the prediction.
+The prediction replaces the coarse levels, the initialisation matcher and their warps:
+:func:`refine_prediction` refines it on the levels ``finest + cfg.stream_levels - 1`` down to the finest
+solved one, with ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` primal-dual iterations each.
+
+A per-frame check decides whether the prediction holds (:func:`prediction_fails`, :func:`result_fails`); when
+it does not, the caller runs the full single-pair solve (engine.estimate_pair) instead:
+
+* the previous flow itself was unreliable (its unexplained fraction above ``cfg.stream_max_unexplained``:
+  after a scene cut every flow is);
+* the pair spans a different interval than the previous one by more than ``cfg.stream_max_gap`` (a dropped run
+  of frames: the motion no longer continues; shorter gaps scale the prediction by the ratio);
+* the photometric stage found an exposure change between the frames (``normalise`` mode: it then compares
+  local contrast, a data term of another scale than the one the carried state was solved on);
+* the prediction's robust data cost on its start level -- the fraction of pixels whose warped residual
+  exceeds photometric.RESIDUAL_OUTLIER -- is above ``cfg.stream_max_predicted`` (a scene cut, a jump);
+* after the refinement, the result explains the pair worse than the previous pair's result by more than
+  ``cfg.stream_margin``, or is unreliable (``cfg.stream_max_unexplained``).
+
+Flows are channel-first (2, h, w) px of their grid; images grey float32 (h, w).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from .backends import Backend
+from .config import FlowConfig
+from .densify import push_pull
+from .engine import Judged, photometric_stage
+from .layout import interleaved_flow
+from .pyramid import Pyramid, make_pyramid, resize_state
+from .refine import SolveStats, finest_level, refine_levels
+from .solver import PDState
+
+PREDICTED = "predicted"  # SolveStats.stream of a pair solved from the prediction
+FULL = "full"  # ... of a pair the stream solved from scratch; followed by ": <reason>"
+
+# splat(flow (2, h, w), carried (C, h, w)) -> (flow, carried, weight (h, w)): densify.splat_forward (the numpy
+# reference) or a backend's kernel (numba_temporal.splat_numba)
+Splat = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class Prior:
+    """What a stream knows before a pair: the previous pair's solver ``state`` (solver.PDState on its finest
+    solved level: the flow v (2, h, w) px of that level on the grid of that pair's first frame, and the duals)
+    at this pair's resolution; that result's ``unexplained`` fraction (api.FlowResult); and this pair's
+    interval over the previous pair's (``interval_ratio``; 1 for evenly spaced stamps)."""
+
+    state: PDState
+    unexplained: float
+    interval_ratio: float = 1.0
+
+
+def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Splat) -> PDState:
+    """The previous pair's solver state carried to the new pair's first frame on a grid of ``shape``:
+    resampled to it (flow vectors rescaled), the flow multiplied by the interval ``ratio``, everything
+    splatted forward along the flow (``splat``), the flow's holes filled by normalised convolution
+    (densify.push_pull), the other variables' holes left at 0. A new PDState, float32."""
+    state = previous if previous.v.shape[1:] == shape else resize_state(previous, shape)
+    flow = state.v * np.float32(ratio) if ratio != 1.0 else state.v
+    others = [a for a in (state.y, state.w, state.z) if a is not None]
+    stacked = np.concatenate([a.reshape((-1,) + shape) for a in others])
+    values, carried, weight = splat(np.ascontiguousarray(flow, dtype=np.float32),
+                                    np.ascontiguousarray(stacked, dtype=np.float32))
+    ends = np.cumsum([a.size // (shape[0] * shape[1]) for a in others])[:-1]
+    moved = iter(part.reshape(a.shape) for part, a in zip(np.split(carried, ends), others, strict=True))
+    y = next(moved)
+    w = next(moved) if state.w is not None else None
+    z = next(moved) if state.z is not None else None
+    return PDState(push_pull(values, weight), y, w, z)
+
+
+def stream_span(pyr: Pyramid, cfg: FlowConfig) -> tuple[int, int]:
+    """(start, finest): the levels a predicted pair is refined on, coarse to fine -- ``cfg.stream_levels``
+    levels ending at the finest solved one (clamped to the pyramid)."""
+    finest = finest_level(pyr, cfg)
+    return min(pyr.coarsest, finest + max(cfg.stream_levels, 1) - 1), finest
+
+
+@lru_cache(maxsize=8)
+def stream_schedule(cfg: FlowConfig) -> FlowConfig:
+    """The settings of the refinement of a prediction: ``cfg`` with every level (finest included) at
+    ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` iterations and the pyramid cut below the levels it
+    visits (the shapes of the levels kept are the same). Derived, never written back; cached per config."""
+    levels = min(cfg.levels, cfg.finest_level + max(cfg.stream_levels, 1))
+    return cfg.replace(warps=cfg.stream_warps, iterations=cfg.stream_iterations, finest_warps=0,
+                       finest_iterations=0, levels=levels)
+
+
+def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: PDState,
+                      stats: SolveStats) -> PDState:
+    """Refine the ``predicted`` state (:func:`predict`, on the start level of :func:`stream_span`) down to
+    the finest solved level with :func:`stream_schedule`'s warps (``cfg`` is that schedule). Returns the state
+    on the finest solved level; iterations go to ``stats``."""
+    start, finest = stream_span(pyr, cfg)
+    stats.start_level = start
+    return refine_levels(pyr, cfg, backend, predicted, start, finest, stats, finest)
+
+
+def predicted_cost(n0: np.ndarray, n1: np.ndarray, predicted: np.ndarray, backend: Backend) -> float:
+    """The prediction's robust data cost: the fraction of pixels of the normalised pair (n0, n1: (H, W),
+    photometric.stage's second result) resampled to the prediction's grid (area average) whose warped residual
+    exceeds photometric.RESIDUAL_OUTLIER (the backend's reliability figure, sampled)."""
+    h, w = predicted.shape[1:]
+    if n0.shape != (h, w):
+        n0, n1 = (cv2.resize(n, (w, h), interpolation=cv2.INTER_AREA) for n in (n0, n1))
+    return backend.reliability(n0, n1, interleaved_flow(predicted, (h, w)))
+
+
+def prior_fails(cfg: FlowConfig, prior: Prior) -> str | None:
+    """Why the prior cannot start this pair (a full solve's reason), or None: an unreliable previous flow, or
+    an interval ratio beyond ``cfg.stream_max_gap`` either way."""
+    if prior.unexplained > cfg.stream_max_unexplained:
+        return f"previous flow unreliable ({prior.unexplained:.2f} unexplained)"
+    if not 1.0 / cfg.stream_max_gap <= prior.interval_ratio <= cfg.stream_max_gap:
+        return f"stamp gap ({prior.interval_ratio:.2f}x the previous pair's interval)"
+    return None
+
+
+def prediction_fails(cfg: FlowConfig, cost: float) -> str | None:
+    """Why the prediction is not refined (its data cost, :func:`predicted_cost`, above
+    ``cfg.stream_max_predicted``: a scene cut or a jump), or None."""
+    if cost > cfg.stream_max_predicted:
+        return f"prediction does not fit ({cost:.2f} unexplained)"
+    return None
+
+
+def result_fails(cfg: FlowConfig, prior: Prior, unexplained: float) -> str | None:
+    """Why the refined prediction is not kept, or None: it is unreliable (``cfg.stream_max_unexplained``) or
+    explains the pair worse than the previous result by more than ``cfg.stream_margin``."""
+    if unexplained > cfg.stream_max_unexplained or unexplained > prior.unexplained + cfg.stream_margin:
+        return f"refined prediction worse ({unexplained:.2f} unexplained, previous {prior.unexplained:.2f})"
+    return None
+
+
+def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, prior: Prior
+                       ) -> tuple[PDState, SolveStats, Judged] | str:
+    """The stream stage on one pair (grey float32 (H, W) in [0, 1]): the photometric stage, the prediction
+    from ``prior``, its check and its refinement -- (state on the finest solved level, stats, the Judged
+    pair) as engine.solve_pair returns them -- or the reason the prediction does not hold (the
+    caller then solves the pair in full). The result's own check (:func:`result_fails`) is the caller's, on
+    its reliability."""
+    reason = prior_fails(cfg, prior)
+    if reason is not None:
+        return reason
+    schedule = stream_schedule(cfg)
+    (s0, s1), judged = photometric_stage(i0, i1, cfg, backend)
+    normalised = judged.frames
+    if cfg.photometric == "normalise" and s0 is not normalised[0]:
+        # the stage hands the solver the normalised pair itself unless it found an exposure change between the
+        # frames (then: local contrast, a data term of another scale than the carried state was solved on)
+        return "exposure step"
+    pyr = make_pyramid(s0, s1, schedule)
+    start, _ = stream_span(pyr, schedule)
+    predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat)
+    reason = prediction_fails(cfg, predicted_cost(*normalised, predicted.v, backend))
+    if reason is not None:
+        return reason
+    stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes), stream=PREDICTED)
+    return refine_prediction(pyr, schedule, backend, predicted, stats), stats, judged

@@ -1,0 +1,129 @@
+"""The stream stage (core/temporal.py): the forward splat's numba kernel against the numpy reference
+(densify.splat_forward), the prediction, the checks that send a pair to the full solve, and that a single
+pair is solved as before."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
+from flow_node.core import FlowConfig, FlowEstimator
+from flow_node.core.densify import forward_propagate, splat_forward
+from flow_node.core.numba_temporal import splat_numba
+from flow_node.core.solver import PDState
+from flow_node.core.temporal import FULL, PREDICTED, Prior, predict, prior_fails, result_fails
+
+LUMA = np.array([0.299, 0.587, 0.114])
+
+
+def frames(scene: Scene, count: int) -> list[np.ndarray]:
+    return [(scene.render(t) @ LUMA).astype(np.float32) for t in range(count)]
+
+
+def pan(seed: int = 1, velocity: tuple[float, float] = (2.0, 1.0), size: tuple[int, int] = (160, 120)) -> Scene:
+    c = ((size[0] - 1) / 2, (size[1] - 1) / 2)
+    return Scene("pan", size, (Layer(Texture.random(np.random.default_rng(seed)), AffineMotion(c, velocity)),))
+
+
+def aee(flow: np.ndarray, gt: np.ndarray) -> float:
+    return float(np.linalg.norm(flow - gt, axis=-1).mean())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_numba_splat_equals_the_reference(seed: int) -> None:
+    """Random flows with many collisions (several pixels land on one), equal speeds (ties: the first source
+    pixel wins in both), half-integer targets (rounding half to even) and targets outside the grid; the
+    carried fields follow the flow's winners."""
+    rng = np.random.default_rng(seed)
+    flow = rng.normal(0.0, 4.0, (2, 37, 53)).astype(np.float32)
+    flow[:, :5] = np.float32(2.5)  # equal speeds, .5 targets
+    flow[:, 5:9] = np.round(flow[:, 5:9])
+    carried = rng.normal(0.0, 1.0, (5, 37, 53)).astype(np.float32)
+    ref = splat_forward(flow, carried)
+    got = splat_numba(flow, carried)
+    assert 0.2 < ref[2].mean() < 0.9  # holes and hits both present
+    for a, b in zip(got, ref, strict=True):
+        np.testing.assert_allclose(a, b, atol=1e-5, rtol=0)
+    np.testing.assert_array_equal(got[2], ref[2])
+    np.testing.assert_array_equal(ref[0], forward_propagate(flow)[0])  # the engine's one forward splat
+
+
+def test_prediction_of_a_steady_pan_is_exact_inside_and_filled_at_the_border() -> None:
+    v = np.empty((2, 40, 60), np.float32)
+    v[0], v[1] = 2.0, -1.0
+    y = np.random.default_rng(0).uniform(-1, 1, (2, 2, 40, 60)).astype(np.float32)
+    for splat in (splat_forward, splat_numba):
+        p = predict(PDState(v, y), (40, 60), 1.0, splat)
+        np.testing.assert_allclose(p.v, v, atol=1e-5)  # the holes (2 columns, 1 row) take the neighbours' flow
+        np.testing.assert_array_equal(p.y[:, :, :-1, 2:], y[:, :, 1:, :-2])  # the duals moved with the flow
+        assert not p.y[:, :, -1].any() and not p.y[:, :, :, :2].any()  # ... and 0 where nothing landed
+        half = predict(PDState(v, y), (20, 30), 2.0, splat)  # resampled (vectors halved), then doubled
+        np.testing.assert_allclose(half.v, v[:, :20, :30], atol=1e-5)
+
+
+def test_the_checks_name_their_reason() -> None:
+    cfg = FlowConfig(stream_levels=1)
+    flow = PDState(np.zeros((2, 8, 8), np.float32), np.zeros((2, 2, 8, 8), np.float32))
+    assert prior_fails(cfg, Prior(flow, 0.05)) is None
+    assert "unreliable" in prior_fails(cfg, Prior(flow, cfg.stream_max_unexplained + 0.01))
+    assert "stamp gap" in prior_fails(cfg, Prior(flow, 0.05, cfg.stream_max_gap + 0.1))
+    assert "stamp gap" in prior_fails(cfg, Prior(flow, 0.05, 0.9 / cfg.stream_max_gap))
+    assert result_fails(cfg, Prior(flow, 0.05), 0.05 + cfg.stream_margin - 0.001) is None
+    assert "worse" in result_fails(cfg, Prior(flow, 0.05), 0.05 + cfg.stream_margin + 0.001)
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_a_steady_stream_is_predicted_and_a_scene_cut_is_solved_in_full(backend: str) -> None:
+    cfg = FlowConfig.preset("stream_fast").replace(backend=backend)
+    scene, other = pan(1), pan(7, (-1.5, 0.5))
+    seq = frames(scene, 4)
+    est = FlowEstimator(cfg)
+    prev = est.estimate_next(seq[0], seq[1], None)
+    assert prev.stats.stream == "" and prev.state.v.shape == (2, 60, 80)  # finest_level 1 of 120x160
+    for t in (2, 3):
+        single = est.estimate_grey(seq[t - 1], seq[t])
+        res = est.estimate_next(seq[t - 1], seq[t], Prior(prev.state, prev.unexplained))
+        assert res.stats.stream == PREDICTED
+        # only the finest stream_levels solved levels ran, from the prediction; the pyramid stops there
+        assert res.stats.start_level == cfg.finest_level + cfg.stream_levels - 1 == len(res.stats.shapes) - 1
+        assert res.stats.iterations[:cfg.finest_level] == [0] * cfg.finest_level
+        assert res.stats.iterations[cfg.finest_level:] == [cfg.stream_warps * cfg.stream_iterations] * cfg.stream_levels
+        gt = scene.ground_truth(t)
+        assert aee(res.flow, gt) < max(0.1, 1.2 * aee(single.flow, gt))
+        prev = res
+    cut = frames(other, 1)[0]
+    res = est.estimate_next(seq[3], cut, Prior(prev.state, prev.unexplained))
+    # another scene: its grey-value distribution differs too (the stage sees an "exposure step"), or the
+    # prediction does not fit
+    assert res.stats.stream in (FULL + ": exposure step",) or res.stats.stream.startswith(
+        FULL + ": prediction does not fit")
+    assert res.stats.total_iterations == est.estimate_grey(seq[3], cut).stats.total_iterations
+
+
+def test_stream_mode_off_is_the_single_pair_solve() -> None:
+    """stream_levels 0 (every preset but the stream ones, and FlowConfig()): estimate_next is estimate_grey."""
+    seq = frames(pan(3), 3)
+    est = FlowEstimator(FlowConfig.preset("fastest").replace(backend="numpy"))  # numba: threads reorder sums
+    prev = est.estimate_next(seq[0], seq[1], None)
+    a = est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained))
+    b = est.estimate_grey(seq[1], seq[2])
+    np.testing.assert_array_equal(a.flow, b.flow)
+    assert a.stats.stream == b.stats.stream == ""
+    # the stream presets solve a single pair exactly as their base presets do
+    flows = [FlowEstimator(FlowConfig.preset(p).replace(backend="numpy")).estimate_grey(seq[0], seq[1]).flow
+             for p in ("stream_fast", "fastest")]
+    np.testing.assert_array_equal(*flows)
+
+
+def test_an_exposure_step_is_solved_in_full() -> None:
+    """photometric normalise: the stage compares local contrast on a pair with an exposure change, so the
+    carried state (solved on grey values) does not start it."""
+    scene = pan(5)
+    seq = frames(scene, 3)
+    est = FlowEstimator(FlowConfig.preset("stream_fast").replace(backend="numpy"))
+    prev = est.estimate_next(seq[0], seq[1], None)
+    stepped = np.clip(seq[2] * np.float32(1.3) - np.float32(0.04), 0.0, 1.0)
+    res = est.estimate_next(seq[1], stepped, Prior(prev.state, prev.unexplained))
+    assert res.stats.stream == FULL + ": exposure step"
+    assert est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained)).stats.stream == PREDICTED
