@@ -310,10 +310,10 @@ def test_stream_preset_predicts_pairs_and_reports_its_fallbacks() -> None:
     try:
         h.send_frame(image(mono8(before), "mono8", 1_000))
         h.send_pair(image(mono8(I0), "mono8", 2_000), image(mono8(I1), "mono8", 3_000))
-        assert h.node._stream.stream_totals.predicted == 1
+        assert h.node.stats.totals.predicted == 1
         assert aee(image_to_array(h.last("flow")), GT) < AEE_BOUND
         h.send_frame(image(mono8(other), "mono8", 4_000))
-        assert h.node._stream.stream_totals.fallbacks == 1
+        assert h.node.stats.totals.stream_fallbacks == 1
         values = wait_for(lambda: [v for v in ({kv.key: kv.value for kv in s.values}
                                                for _, s in h.received["diagnostics"])
                                    if v["stream fallbacks (full solves)"] == "1"], 5.0, "diagnostics")[-1]
