@@ -20,14 +20,14 @@ from typing import Any, Protocol
 import numpy as np
 
 from flow_node.core.api import FlowEstimator, to_grey
-from flow_node.core.config import PRESETS, FlowConfig
+from flow_node.core.config import GENERAL_PRESETS, FlowConfig
 from flow_node.core.initialise import to_u8
 
 from .data import Sample
 
 Output = Any  # np.ndarray flow, or (flow, confidence | None)
 
-PRESET_NAMES = tuple(PRESETS)  # quality, balanced, realtime, fastest
+PRESET_NAMES = GENERAL_PRESETS  # quality, balanced, realtime, fastest (joint and stream_*: --method)
 DEFAULT_NAME = "default"  # the plain FlowConfig()
 DIS_MEDIUM, DIS_ULTRAFAST = "dis_medium", "dis_ultrafast"
 PEER_NAMES = (DIS_ULTRAFAST, DIS_MEDIUM, "skimage_tvl1", "dualtvl1")
