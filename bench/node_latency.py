@@ -53,14 +53,25 @@ PRESETS = ("realtime", "quality")
 SHIFT = (2.0, 1.0)  # (u, v) px
 
 
-def frames(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two mono8 frames: a smooth texture and the same texture moved by SHIFT (frame1(x + SHIFT) = frame0(x))."""
-    rng = np.random.default_rng(1)
-    tex = cv2.GaussianBlur(rng.random((h, w)).astype(np.float32), (0, 0), 2.0)
-    tex = (tex - tex.min()) / (tex.max() - tex.min())
-    f0 = (tex * 255).round().astype(np.uint8)
-    f1 = np.roll(f0, (int(SHIFT[1]), int(SHIFT[0])), axis=(0, 1))
-    return f0, f1
+class Frames:
+    """The published frames: a smooth mono8 texture moved by SHIFT per frame (frame k+1 (x + SHIFT) = frame k
+    (x), the texture wrapping around): ``pan`` keeps moving (a stream, what the stream presets predict),
+    ``alternate`` goes back and forth between two frames (each pair's motion the reverse of the last)."""
+
+    def __init__(self, h: int, w: int, motion: str = "alternate") -> None:
+        rng = np.random.default_rng(1)
+        tex = cv2.GaussianBlur(rng.random((h, w)).astype(np.float32), (0, 0), 2.0)
+        tex = (tex - tex.min()) / (tex.max() - tex.min())
+        self.base, self.motion = (tex * 255).round().astype(np.uint8), motion
+
+    def frame(self, k: int) -> np.ndarray:
+        """Frame k (k >= 0)."""
+        steps = k if self.motion == "pan" else k % 2
+        return np.roll(self.base, (int(SHIFT[1]) * steps, int(SHIFT[0]) * steps), axis=(0, 1))
+
+    def sign(self, k: int) -> float:
+        """The true flow of the pair (k, k + 1) is sign(k) x SHIFT."""
+        return 1.0 if self.motion == "pan" or k % 2 == 0 else -1.0
 
 
 def image_msg(arr: np.ndarray, stamp_ns: int) -> Image:
@@ -134,30 +145,29 @@ class Rig:
         """Frames the node has handled (published or started a pair with)."""
         raise NotImplementedError
 
-    def closed_loop(self, f0: np.ndarray, f1: np.ndarray, n: int, timeout: float,
-                    engine: FlowEstimator) -> list[dict[str, float]]:
+    def closed_loop(self, seq: Frames, n: int, timeout: float, engine: FlowEstimator) -> list[dict[str, float]]:
         """n flows, one frame in flight at a time; per flow: latency, solve and in-node overhead (s), and the
         engine called directly on the same pair just before (same load conditions)."""
         out = []
         stamp = 1
         while not _wait(lambda: self.handled() >= 1, 2.0):  # best-effort input: resend the first frame
-            self.pub.publish(image_msg(f0, stamp))
+            self.pub.publish(image_msg(seq.frame(0), stamp))
         for k in range(n):
             stamp += 1
-            direct = engine.estimate(f0 if k % 2 == 0 else f1, f1 if k % 2 == 0 else f0).seconds
+            direct = engine.estimate(seq.frame(k), seq.frame(k + 1)).seconds
             before = self.count()
             t0 = time.perf_counter()
-            self.pub.publish(image_msg(f1 if k % 2 == 0 else f0, stamp))
+            self.pub.publish(image_msg(seq.frame(k + 1), stamp))
             if not _wait(lambda b=before: self.count() > b, timeout):
                 raise RuntimeError("no flow received (frame lost?)")
             t1, msg = self.got[-1]
             solve, overhead, publish = self.frame_times(k + 1, timeout)
-            sign = 1.0 if k % 2 == 0 else -1.0
+            sign = seq.sign(k)
             out.append({"engine": direct, "latency": t1 - t0, "solve": solve, "node_overhead": overhead,
                         "node_publish": publish, "aee": interior_aee(sign * image_to_array(msg))})
         return out
 
-    def open_loop(self, f0: np.ndarray, f1: np.ndarray, seconds: float, rate: float = 30.0) -> dict[str, float]:
+    def open_loop(self, seq: Frames, start_k: int, seconds: float, rate: float = 30.0) -> dict[str, float]:
         """Publish at ``rate`` Hz for ``seconds``; output rate, drops, fraction of the time spent solving. The
         node's totals (``node_outputs`` and their solve seconds ``node_solve_s``) include the frames still
         being solved when publishing stops."""
@@ -165,7 +175,7 @@ class Rig:
         start = time.perf_counter()
         k = 0
         while time.perf_counter() - start < seconds:
-            self.pub.publish(image_msg(f1 if k % 2 else f0, 10_000 + k))
+            self.pub.publish(image_msg(seq.frame(start_k + k), 10_000 + k))
             k += 1
             time.sleep(max(0.0, start + k / rate - time.perf_counter()))
         elapsed = time.perf_counter() - start
@@ -259,15 +269,15 @@ class ProcessRig(Rig):
         super().close()
 
 
-def run(preset: str, size: tuple[int, int], n: int) -> dict[str, Any]:
-    f0, f1 = frames(*size)
+def run(preset: str, size: tuple[int, int], n: int, motion: str = "alternate") -> dict[str, Any]:
+    seq = Frames(*size, motion)
     engine = FlowEstimator(FlowConfig.preset(preset))
     engine.warmup()
-    first = engine.estimate(f0, f1).seconds
+    first = engine.estimate(seq.frame(0), seq.frame(1)).seconds
     rig = ProcessRig(preset)
     try:
-        loop = rig.closed_loop(f0, f1, n, 30.0 * first + 10.0, engine)
-        tput = rig.open_loop(f0, f1, max(3.0, 4 * statistics.median(d["solve"] for d in loop)))
+        loop = rig.closed_loop(seq, n, 30.0 * first + 10.0, engine)
+        tput = rig.open_loop(seq, n + 1, max(3.0, 4 * statistics.median(d["solve"] for d in loop)))
         backend = rig.backend
     finally:
         rig.close()
@@ -275,7 +285,7 @@ def run(preset: str, size: tuple[int, int], n: int) -> dict[str, Any]:
     eng = med["engine"]
     return {
         "preset": preset, "config": FlowConfig.preset(preset).to_dict(), "width": size[1], "height": size[0],
-        "frames": n, "backend": backend, "node": "own process",
+        "frames": n, "motion": motion, "backend": backend, "node": "own process",
         "engine_solve_median_s": eng,
         "node_solve_median_s": med["solve"],
         "latency_median_s": med["latency"],
@@ -297,11 +307,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=5, help="flows per case in the closed loop (default 5)")
     ap.add_argument("--out", default="bench/results/node/node_latency.json")
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
+    ap.add_argument("--motion", choices=("alternate", "pan"), default="alternate",
+                    help="frames back and forth between two (default) or a steady pan (a stream: stream presets)")
     args = ap.parse_args(argv)
     results = []
     for preset in args.presets:
         for size in SIZES:
-            r = run(preset, size, args.frames)
+            r = run(preset, size, args.frames, args.motion)
             results.append(r)
             tp = r["throughput"]
             print(f"{preset:9s} {r['width']}x{r['height']} {r['backend']}: "
