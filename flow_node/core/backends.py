@@ -10,7 +10,7 @@ from typing import NamedTuple
 
 from .census import CensusForm, LevelSignature, census_form, level_signature
 from .colour import ColourForm, colour_form
-from .confidence import Confidence, confidence
+from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .errors import ConfigError
 from .fusion import Fuse, fuse
 from .initialise import Consistent, forward_backward_consistent
@@ -49,6 +49,7 @@ class Backend(NamedTuple):
     threads: int = 1
     on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
     colour_form: ColourForm = colour_form
+    confidence_at: ConfidenceAt = confidence_at  # the confidence at pixel points only (the fits' samples)
 
     def running(self) -> AbstractContextManager[object]:
         """The context each estimate runs in: the backend's kernels on its ``threads``, bound to the calling
@@ -110,4 +111,5 @@ def select_backend(name: str, threads: int = 0) -> Backend:
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
                    numba_census.level_signature_numba, numba_census.census_form_numba,
                    numba_confidence.confidence_numba, used,
-                   numba_backend.thread_count, numba_census.colour_form_numba)
+                   numba_backend.thread_count, numba_census.colour_form_numba,
+                   confidence_at=numba_confidence.confidence_at_numba)
