@@ -255,3 +255,10 @@ def test_fits_take_the_confidence_at_their_samples_alone() -> None:
     for field in ("expansion", "divergence", "ttc_frames", "support"):  # NaN where unsupported: array_equal
         np.testing.assert_array_equal(region_ttc(out.flow, at).grid(field), region_ttc(out.flow, conf).grid(field))
     assert focus_of_expansion(out.flow, at) == focus_of_expansion(out.flow, conf)
+    # the mask needs the whole map: computed first, the dominant motion reads it (no points computed besides)
+    calls: list[int] = []
+    b = MotionAnalysis(out.flow, out.confidence, 0.1, confidence_at=lambda ys, xs: calls.append(ys.size) or at(ys, xs))
+    np.testing.assert_array_equal(b.moving_mask, ref.moving_mask)
+    assert b.dominant == ref.dominant and calls == []
+    c = MotionAnalysis(out.flow, out.confidence, 0.1, confidence_at=lambda ys, xs: calls.append(ys.size) or at(ys, xs))
+    assert c.dominant == ref.dominant and c.foe == ref.foe and len(calls) == 1  # one grid, computed once

@@ -141,7 +141,8 @@ class MotionAnalysis:
     @cached_property
     def moving_mask(self) -> np.ndarray:
         """:func:`~flow_node.pipeline.motion.moving_mask` against :attr:`dominant`, (H, W) uint8 0/255."""
-        return moving_mask(self.flow, self.confidence, self.dominant, self.settings.mask)
+        conf = self.confidence  # the map first: the mask needs it per pixel, the dominant motion reads it then
+        return moving_mask(self.flow, conf, self.dominant, self.settings.mask)
 
     @property
     def moving_fraction(self) -> float:
