@@ -3,13 +3,15 @@
 
 The reference chains a dozen whole-image passes with temporaries (the sampling maps, an OpenCV remap of
 frame 1's (h, w, 3) planes, their difference summed over the last axis, the gradient magnitude, two box
-means, the division, the mask); here one pass writes, per pixel, the residual (frame 1's planes sampled
+means, the division, the mask); here frame 1's planes are written once, then one pass writes, per pixel,
+the residual (frame 0's planes computed in place, frame 1's sampled
 bilinearly as OpenCV's remap samples them: inside as in numba_fusion, outside the image at the clamped
 position, as BORDER_REPLICATE does) and the gradient magnitude of frame 0 side by side, one OpenCV box
 filter averages both, and one pass turns them into the confidence (0 where x + f leaves the image). The
-planes (I, dI/dx, dI/dy) and the box filter stay OpenCV's. Same result as the reference up to float32
-rounding (test_confidence_numba.py). Rows run in parallel on images of numba_backend.PARALLEL_MIN_PIXELS or
-more.
+box filter stays OpenCV's. :func:`confidence_at_numba` computes the same at given pixels alone (the
+derived motion outputs' samples): the box of each point summed from its 25 pixels' terms. Same result as
+the reference up to float32 rounding (test_confidence_numba.py). Rows (points) run in parallel on images
+of numba_backend.LINEARISE_PARALLEL_MIN_PIXELS or more (as many terms).
 """
 
 from __future__ import annotations
@@ -50,15 +52,17 @@ def _planes_row(out, img, i):  # noqa: ANN001, ANN202
 
 
 @njit(**_JIT)
-def _terms_row(out, s0, s1, flat1, flow, i):  # noqa: ANN001, ANN202
+def _terms_row(out, i0, s1, flat1, flow, i):  # noqa: ANN001, ANN202
     """Row i of the two box inputs, interleaved: out[..., 0] = |I1(x + f) - I0(x)|_1 over the 3 planes of
-    s0, s1 (h, w, 3), I1 sampled bilinearly at x + f clamped into the image (fusion.warp_residual's remap
+    frame i0 (h, w; its planes computed here, :func:`_plane_at`) and s1 (h, w, 3), I1 sampled bilinearly
+    at x + f clamped into the image (fusion.warp_residual's remap
     with BORDER_REPLICATE; ``flat1`` is s1 flat, read at offsets computed once per pixel); out[..., 1] =
     |dI0/dx| + |dI0/dy|. ``flow`` (h, w, 2)."""
-    h, w = s0.shape[0], s0.shape[1]
+    h, w = i0.shape
     right, bottom = _F32(w - 1), _F32(h - 1)
     y_row = _F32(i)
     for j in range(w):
+        p0 = _plane_at(i0, i, j)
         x = min(max(_F32(j) + flow[i, j, 0], _F32(0)), right)
         y = min(max(y_row + flow[i, j, 1], _F32(0)), bottom)
         xa, ya = int(x), int(y)  # x, y >= 0: truncation is floor
@@ -71,9 +75,9 @@ def _terms_row(out, s0, s1, flat1, flow, i):  # noqa: ANN001, ANN202
         for c in range(3):
             top = flat1[o00 + c] + ax * (flat1[o01 + c] - flat1[o00 + c])
             bottom_row = flat1[o10 + c] + ax * (flat1[o11 + c] - flat1[o10 + c])
-            r += abs(top + ay * (bottom_row - top) - s0[i, j, c])
+            r += abs(top + ay * (bottom_row - top) - p0[c])
         out[i, j, 0] = r
-        out[i, j, 1] = abs(s0[i, j, 1]) + abs(s0[i, j, 2])
+        out[i, j, 1] = abs(p0[1]) + abs(p0[2])
 
 
 @njit(**_JIT)
@@ -141,11 +145,11 @@ def planes_kernel(out, img):  # noqa: ANN001, ANN201
 
 
 @njit(parallel=True, **_JIT)
-def terms_kernel(out, s0, s1, flow):  # noqa: ANN001, ANN201
+def terms_kernel(out, i0, s1, flow):  # noqa: ANN001, ANN201
     """:func:`_terms_row` over every row of ``out``."""
     flat1 = s1.reshape(-1)
     for i in prange(out.shape[0]):
-        _terms_row(out, s0, s1, flat1, flow, i)
+        _terms_row(out, i0, s1, flat1, flow, i)
 
 
 @njit(parallel=True, **_JIT)
@@ -161,13 +165,12 @@ def confidence_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.nda
     flow = np.ascontiguousarray(flow, dtype=_F32)
     h, w = flow.shape[:2]
     # the temporaries are the calling thread's scratch (fresh ~1 MB arrays cost page faults every frame)
-    s0, s1 = scratch("confidence_s0", (h, w, 3)), scratch("confidence_s1", (h, w, 3))
+    s1 = scratch("confidence_s1", (h, w, 3))  # frame 0's planes are computed where they are used
     boxed = scratch("confidence_boxed", (h, w, 2))
     conf = np.empty((h, w), _F32)
     with nb.thread_count(nb.threads() if h * w >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
-        planes_kernel(s0, np.ascontiguousarray(i0, dtype=_F32))
         planes_kernel(s1, np.ascontiguousarray(i1, dtype=_F32))
-        terms_kernel(boxed, s0, s1, flow)
+        terms_kernel(boxed, np.ascontiguousarray(i0, dtype=_F32), s1, flow)
         cv2.boxFilter(boxed, -1, (CONFIDENCE_WINDOW, CONFIDENCE_WINDOW), dst=boxed, borderType=cv2.BORDER_REFLECT)
         confidence_kernel(conf, boxed, flow, _F32(1.0 / CONFIDENCE_SCALE_PX))
     return conf
