@@ -185,7 +185,8 @@ def medoid_offset(rest: np.ndarray, keep: np.ndarray, candidates: int = START_CA
     equally large. Shape (..., 2); 0 where nothing is kept."""
     idx, ref = _spread(rest.shape[-2], candidates)
     cand, other = rest[..., idx, :], rest[..., ref, :]  # (..., c, 2), (..., r, 2)
-    d = np.hypot(other[..., None, :, 0] - cand[..., :, None, 0], other[..., None, :, 1] - cand[..., :, None, 1])
+    dx, dy = other[..., None, :, 0] - cand[..., :, None, 0], other[..., None, :, 1] - cand[..., :, None, 1]
+    d = dx * dx + dy * dy  # squared: the median by rank and the least of them are the distances' (no root)
     score = np.where(keep[..., idx], masked_median(d, np.broadcast_to(keep[..., None, ref], d.shape)), np.inf)
     best = np.argmin(np.nan_to_num(score, nan=np.inf), axis=-1)
     out = np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]
