@@ -8,10 +8,11 @@ MotionAnalysis of the pair, what the topic needs of it (the homography, the mask
 dominant motion; the flag the mask) and the rclpy message (flow_node.pipeline.motion_msgs with the node's
 RclpyKit), publishing excluded (it depends on the subscribers and the middleware: the mask and the
 divergence are images like ~/magnitude). "all" is every topic at once (the dominant motion shared). The
-confidence they take (all but the divergence) is reported on its own, and with each topic ("+conf": the
-median ratio of topic + confidence, what a topic costs when ~/confidence is not subscribed): the node
-computes it once per pair for every consumer (with the estimator's backend: FlowEstimator.confidence, as
-the stream's outputs do), and not at all when ~/confidence is subscribed anyway. Pairs from
+confidence they take (all but the divergence) is reported on its own; each topic is timed twice: with the
+confidence map given (~/confidence subscribed anyway: the node computes it once per pair for every
+consumer) and without it ("+conf", what a topic costs when ~/confidence is not subscribed: as the node's
+MotionAnalysis.of, the fits take the confidence at their samples alone, FlowEstimator.confidence_at, and
+the mask computes the whole map, FlowEstimator.confidence; both with the estimator's backend). Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
 best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
@@ -24,6 +25,7 @@ import argparse
 import math
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -47,11 +49,13 @@ CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
 NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "all")
 
 
-def topic_time(flow: np.ndarray, conf: np.ndarray, names: tuple[str, ...]) -> float:
-    """Seconds the node's worker spends on ``names`` for one pair, the confidence given (module docstring)."""
+def topic_time(flow: np.ndarray, conf: np.ndarray | Callable[[], np.ndarray], names: tuple[str, ...],
+               confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> float:
+    """Seconds the node's worker spends on ``names`` for one pair, the confidence given or computed as
+    needed (``conf`` a function, ``confidence_at`` its values at points; module docstring)."""
     header = Header(frame_id="camera")
     start = time.perf_counter()
-    a = MotionAnalysis(flow, conf, 0.1)
+    a = MotionAnalysis(flow, conf, 0.1, confidence_at=confidence_at)
     detected = MotionDetector().update(a.moving_fraction) if "motion/detected" in names else None
     for _ in motion_messages(RclpyKit(), header, a, detected, names):
         pass
@@ -59,7 +63,8 @@ def topic_time(flow: np.ndarray, conf: np.ndarray, names: tuple[str, ...]) -> fl
 
 
 def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: FlowResult, conf: np.ndarray) -> float:
-    """Seconds of one run of ``name``: the engine on the pair, the confidence, a topic or "all"."""
+    """Seconds of one run of ``name``: the engine on the pair, the confidence, a topic or "all" (with the
+    confidence given, or with "+conf" computed as needed)."""
     start = time.perf_counter()
     if name == "engine":
         est.estimate(f0, f1)
@@ -67,7 +72,12 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
     if name == "confidence":
         est.confidence(*res.frames, res.flow)
         return time.perf_counter() - start
-    return topic_time(res.flow, conf, tuple(MOTION_TOPICS) if name == "all" else (name,))
+    topic = name.removesuffix("+conf")
+    names = tuple(MOTION_TOPICS) if topic == "all" else (topic,)
+    if topic == name:
+        return topic_time(res.flow, conf, names)
+    return topic_time(res.flow, lambda: est.confidence(*res.frames, res.flow), names,
+                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs))
 
 
 def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[dict[str, Any]]:
@@ -83,7 +93,7 @@ def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[d
             conf = est.confidence(*res.frames, res.flow)
             times: dict[str, float] = {}
             for _ in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike
-                for name in ("engine", "confidence", *MOTION_TOPICS, "all"):
+                for name in ("engine", "confidence", *MOTION_TOPICS, "all", *(f"{t}+conf" for t in NEEDS_CONFIDENCE)):
                     times[name] = min(times.get(name, math.inf), _time(name, f0, f1, est, res, conf))
             row: dict[str, Any] = {"kind": kind} | {f"{name}_s": t for name, t in times.items()}
             rows.append(row)
@@ -96,12 +106,13 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Median over the pairs of each topic's time / the engine's, and of the times themselves (ms)."""
     engine = np.array([r["engine_s"] for r in rows])
     out: dict[str, Any] = {"engine_ms_median": 1e3 * float(np.median(engine))}
-    conf = np.array([r["confidence_s"] for r in rows])
     for name in (*MOTION_TOPICS, "all", "confidence"):
         t = np.array([r[f"{name}_s"] for r in rows])
         out[name] = {"ratio_median": float(np.median(t / engine)), "ms_median": 1e3 * float(np.median(t))}
         if name in NEEDS_CONFIDENCE:  # what the topic costs when ~/confidence is not subscribed anyway
-            out[name]["with_confidence_ratio_median"] = float(np.median((t + conf) / engine))
+            tc = np.array([r[f"{name}+conf_s"] for r in rows])
+            out[name] |= {"with_confidence_ratio_median": float(np.median(tc / engine)),
+                          "with_confidence_ms_median": 1e3 * float(np.median(tc))}
     return out
 
 

@@ -1,7 +1,8 @@
 """The numba confidence (numba_confidence.confidence_numba) against the numpy reference
 (confidence.confidence), the oracle: random frames and flows that leave the image in places, and a pair
 rendered exactly with the realtime preset's flow; rows run serially and in parallel; the backends' wiring
-(Backend.confidence, FlowEstimator.confidence, the stream's FlowOutput.confidence)."""
+(Backend.confidence, FlowEstimator.confidence, the stream's FlowOutput.confidence); the same for the
+confidence at points only (numba_confidence.confidence_at_numba against confidence.confidence_at)."""
 
 from __future__ import annotations
 
@@ -14,9 +15,10 @@ from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator, numba_backend
 from flow_node.core.backends import NUMPY, select_backend
-from flow_node.core.confidence import confidence
+from flow_node.core.confidence import confidence, confidence_at
 from flow_node.core.config import FlowConfig
-from flow_node.core.numba_confidence import confidence_numba
+from flow_node.core.errors import InputError
+from flow_node.core.numba_confidence import confidence_at_numba, confidence_numba
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 
 # The kernels sample bilinearly at the exact position, as OpenCV 5's remap (the reference's) does; OpenCV 4.x (the
@@ -84,3 +86,64 @@ def test_backends_and_stream_use_their_confidence() -> None:
         assert out.backend == backend
         conf = out.confidence()
         assert_matches(conf, confidence(*out.frames, out.flow))
+
+
+# ------------------------------------------------------------------ the confidence at points only (the fits')
+def border_and_grid(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Every pixel of the first and last two rows and columns (the reflected box's border cases) and a
+    regular grid inside, as (ys, xs) int arrays."""
+    h, w = shape
+    ys, xs = np.mgrid[0:h, 0:w]
+    keep = (ys < 2) | (ys >= h - 2) | (xs < 2) | (xs >= w - 2) | ((ys % 5 == 2) & (xs % 7 == 3))
+    return ys[keep], xs[keep]
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (3, 7), (37, 53), (120, 160)])
+def test_confidence_at_points_matches_the_map(shape, rows) -> None:
+    rng = np.random.default_rng(3)
+    i0, i1 = (rng.random(shape, dtype=np.float32) for _ in range(2))
+    flow = rng.normal(0.0, 4.0, shape + (2,)).astype(np.float32)
+    ys, xs = border_and_grid(shape)
+    out = confidence_at_numba(i0, i1, flow, ys, xs)
+    assert out.dtype == np.float32 and out.shape == ys.shape
+    ref = confidence_at(i0, i1, flow, ys, xs)
+    np.testing.assert_array_equal(ref, confidence(i0, i1, flow)[ys, xs])  # the reference is the map's
+    assert np.array_equal(out == 0, ref == 0)
+    assert_matches(out, ref)
+    # against the numba map the only difference is the box's summation order: float32 rounding
+    np.testing.assert_allclose(out, confidence_numba(i0, i1, flow)[ys, xs], rtol=0, atol=1e-5)
+    grid = np.mgrid[0:shape[0], 0:shape[1]]  # any shape of points: here (H, W), every pixel
+    np.testing.assert_allclose(confidence_at_numba(i0, i1, flow, *grid), confidence_numba(i0, i1, flow), atol=1e-5)
+
+
+@pytest.mark.parametrize("kind", ["pan", "approach"])
+def test_confidence_at_points_of_a_rendered_pair(kind) -> None:
+    i0, i1, flow = rendered_pair(kind)
+    ys, xs = border_and_grid(flow.shape[:2])
+    assert_matches(confidence_at_numba(i0, i1, flow, ys, xs), confidence_at(i0, i1, flow, ys, xs))
+
+
+@pytest.mark.parametrize("at", [confidence_at, confidence_at_numba])
+def test_confidence_at_rejects_points_outside_or_not_integer(at) -> None:
+    i0 = np.zeros((6, 8), np.float32)
+    flow = np.zeros((6, 8, 2), np.float32)
+    for ys, xs in (([6], [0]), ([0], [8]), ([-1], [0]), ([0, 1], [0]), (np.array([0.0]), np.array([1.0]))):
+        with pytest.raises(InputError, match="confidence_at"):
+            at(i0, i0, flow, np.asarray(ys), np.asarray(xs))
+
+
+def test_backends_and_outputs_compute_points_alone() -> None:
+    assert NUMPY.confidence_at is confidence_at and select_backend("numba").confidence_at is confidence_at_numba
+    i0, i1, _ = rendered_pair("pan")
+    stream = FlowStream(StreamSettings(config=FlowConfig.preset("realtime").replace(backend="numba")))
+    stream.process((255 * i0).astype(np.uint8), 0)
+    out = stream.process((255 * i1).astype(np.uint8), 100_000_000)
+    ys, xs = border_and_grid(out.flow.shape[:2])
+    at = out.confidence_at(ys, xs)
+    assert not out.confidence_computed  # the points alone, not the map
+    assert_matches(at, confidence_at(*out.frames, out.flow, ys, xs))
+    np.testing.assert_array_equal(out.confidence_at(ys, xs), at)
+    np.testing.assert_array_equal(FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba"))
+                                  .confidence_at(*out.frames, out.flow, ys, xs), at)
+    conf = out.confidence()
+    np.testing.assert_array_equal(out.confidence_at(ys, xs), conf[ys, xs])  # once computed: read from the map

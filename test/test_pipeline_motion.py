@@ -225,3 +225,40 @@ def test_rendered_pairs_through_realtime() -> None:
     assert truth.ttc_frames is not None and 10 <= truth.ttc_frames <= 200
     assert np.nanmedian(np.abs(a.ttc.grid() / truth.ttc_frames - 1.0)) < 0.15
     assert a.moving_fraction < 0.01
+
+
+# ------------------------------------------------------- the fits with the confidence at their samples alone
+def test_fits_take_the_confidence_at_their_samples_alone() -> None:
+    from flow_node.bag.motion_scenes import motion_scene
+    from flow_node.bag.scenes import render_grey_pair
+    from flow_node.pipeline.stream import FlowStream, StreamSettings
+
+    scene, _ = motion_scene("rotation", (256, 192), np.random.default_rng(7), object_share=0.25)
+    i0, i1, _ = render_grey_pair(scene)
+    stream = FlowStream(StreamSettings(config=FlowConfig.preset("realtime")))
+    stream.process((255 * i0).astype(np.uint8), 0)
+    out = stream.process((255 * i1).astype(np.uint8), 100_000_000)
+    a = MotionAnalysis.of(out)
+    d, ttc, foe = a.dominant, a.ttc, a.foe
+    assert d is not None and not out.confidence_computed  # the fits read the points, not the map
+    ref = MotionAnalysis(out.flow, out.confidence(), 0.1)  # the map given: the fits read it
+    assert ref.dominant is not None
+    assert abs(d.tx - ref.dominant.tx) < 1e-4 and abs(d.rotation_deg - ref.dominant.rotation_deg) < 1e-4
+    assert abs(d.inlier_share - ref.dominant.inlier_share) < 1e-4
+    np.testing.assert_allclose(ttc.grid("expansion"), ref.ttc.grid("expansion"), rtol=0, atol=1e-6)
+    assert (foe is None) == (ref.foe is None)
+    np.testing.assert_array_equal(a.moving_mask, ref.moving_mask)  # the mask: the whole map (now computed)
+    # the weights as a function of the points read from the map: the very same fits
+    conf = out.confidence()
+    at = lambda ys, xs: conf[ys, xs]  # noqa: E731
+    assert dominant_motion(out.flow, at) == dominant_motion(out.flow, conf)
+    for field in ("expansion", "divergence", "ttc_frames", "support"):  # NaN where unsupported: array_equal
+        np.testing.assert_array_equal(region_ttc(out.flow, at).grid(field), region_ttc(out.flow, conf).grid(field))
+    assert focus_of_expansion(out.flow, at) == focus_of_expansion(out.flow, conf)
+    # the mask needs the whole map: computed first, the dominant motion reads it (no points computed besides)
+    calls: list[int] = []
+    b = MotionAnalysis(out.flow, out.confidence, 0.1, confidence_at=lambda ys, xs: calls.append(ys.size) or at(ys, xs))
+    np.testing.assert_array_equal(b.moving_mask, ref.moving_mask)
+    assert b.dominant == ref.dominant and calls == []
+    c = MotionAnalysis(out.flow, out.confidence, 0.1, confidence_at=lambda ys, xs: calls.append(ys.size) or at(ys, xs))
+    assert c.dominant == ref.dominant and c.foe == ref.foe and len(calls) == 1  # one grid, computed once

@@ -154,6 +154,7 @@ class FlowEstimator:
             warm_fusion(self._backend)
             self._backend.splat(np.zeros((2,) + shape, np.float32), np.zeros((4,) + shape, np.float32))  # stream
         self.confidence(f0, f1, np.zeros(shape + (2,), np.float32))
+        self.confidence_at(f0, f1, np.zeros(shape + (2,), np.float32), np.zeros(1, np.int64), np.zeros(1, np.int64))
         return time.perf_counter() - start
 
     def confidence(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
@@ -162,6 +163,13 @@ class FlowEstimator:
         backend on its threads."""
         with self._backend.running():
             return self._backend.confidence(i0, i1, flow)
+
+    def confidence_at(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray,
+                      xs: np.ndarray) -> np.ndarray:
+        """:meth:`confidence` at the pixels (ys, xs) only (integer arrays of one shape, inside the image):
+        float32 of that shape (:func:`flow_node.core.confidence.confidence_at`), with this backend."""
+        with self._backend.running():
+            return self._backend.confidence_at(i0, i1, flow, ys, xs)
 
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
                  channel_order: str = "rgb", mask: MaskInput = None) -> FlowResult:

@@ -12,7 +12,7 @@ import numpy as np
 
 from .census import CensusForm, LevelSignature, census_form, level_signature
 from .colour import ColourForm, colour_form
-from .confidence import Confidence, confidence
+from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .densify import splat_forward
 from .errors import ConfigError
 from .fusion import Fuse, fuse
@@ -53,6 +53,7 @@ class Backend(NamedTuple):
     on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
     colour_form: ColourForm = colour_form
     splat: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] = splat_forward
+    confidence_at: ConfidenceAt = confidence_at  # the confidence at pixel points only (the fits' samples)
 
     def running(self) -> AbstractContextManager[object]:
         """The context each estimate runs in: the backend's kernels on its ``threads``, bound to the calling
@@ -115,4 +116,4 @@ def select_backend(name: str, threads: int = 0) -> Backend:
                    numba_census.level_signature_numba, numba_census.census_form_numba,
                    numba_confidence.confidence_numba, used,
                    numba_backend.thread_count, numba_census.colour_form_numba,
-                   splat=numba_temporal.splat_numba)
+                   splat=numba_temporal.splat_numba, confidence_at=numba_confidence.confidence_at_numba)

@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .errors import InputError
 from .fusion import box_mean, planes, warp_residual
 
 CONFIDENCE_WINDOW = 5
@@ -20,6 +21,10 @@ CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confiden
 # confidence(i0, i1, flow) -> (H, W) float32 in [0, 1]: a backend's field (backends.Backend.confidence);
 # :func:`confidence` is the numpy reference, numba_confidence.confidence_numba the numba kernels
 Confidence = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+# confidence_at(i0, i1, flow, ys, xs) -> float32 of ys' shape: the same confidence at integer pixel points only
+# (what the derived motion outputs' fits read); :func:`confidence_at` is the reference, a backend's field
+# (backends.Backend.confidence_at) may compute the points alone (numba_confidence.confidence_at_numba)
+ConfidenceAt = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 
 def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
@@ -40,3 +45,20 @@ def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
     conf = 1.0 / (1.0 + (err / CONFIDENCE_SCALE_PX) ** 2)
     conf[~inside] = 0.0
     return conf.astype(np.float32, copy=False)
+
+
+def confidence_at(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """:func:`confidence` at the pixels (ys, xs) (integer arrays of one shape, rows and columns inside the
+    image): float32 of that shape. The reference: the whole map, read at the points (the oracle of
+    numba_confidence.confidence_at_numba, which computes the points alone)."""
+    check_points(flow.shape[:2], ys, xs)
+    return confidence(i0, i1, flow)[ys, xs]
+
+
+def check_points(shape: tuple[int, ...], ys: np.ndarray, xs: np.ndarray) -> None:
+    """InputError unless (ys, xs) are integer arrays of one shape, every point inside an image of ``shape``."""
+    h, w = shape[:2]
+    ys, xs = np.asarray(ys), np.asarray(xs)
+    if ys.shape != xs.shape or not (np.issubdtype(ys.dtype, np.integer) and np.issubdtype(xs.dtype, np.integer)) \
+            or (ys.size and (ys.min() < 0 or ys.max() >= h or xs.min() < 0 or xs.max() >= w)):
+        raise InputError(f"confidence_at: points must be integer pixel rows and columns inside the {h}x{w} image")

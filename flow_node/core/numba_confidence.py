@@ -3,13 +3,15 @@
 
 The reference chains a dozen whole-image passes with temporaries (the sampling maps, an OpenCV remap of
 frame 1's (h, w, 3) planes, their difference summed over the last axis, the gradient magnitude, two box
-means, the division, the mask); here one pass writes, per pixel, the residual (frame 1's planes sampled
+means, the division, the mask); here frame 1's planes are written once, then one pass writes, per pixel,
+the residual (frame 0's planes computed in place, frame 1's sampled
 bilinearly as OpenCV's remap samples them: inside as in numba_fusion, outside the image at the clamped
 position, as BORDER_REPLICATE does) and the gradient magnitude of frame 0 side by side, one OpenCV box
 filter averages both, and one pass turns them into the confidence (0 where x + f leaves the image). The
-planes (I, dI/dx, dI/dy) and the box filter stay OpenCV's. Same result as the reference up to float32
-rounding (test_confidence_numba.py). Rows run in parallel on images of numba_backend.PARALLEL_MIN_PIXELS or
-more.
+box filter stays OpenCV's. :func:`confidence_at_numba` computes the same at given pixels alone (the
+derived motion outputs' samples): the box of each point summed from its 25 pixels' terms. Same result as
+the reference up to float32 rounding (test_confidence_numba.py). Rows (points) run in parallel on images
+of numba_backend.LINEARISE_PARALLEL_MIN_PIXELS or more (as many terms).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import numba_backend as nb
-from .confidence import CONFIDENCE_SCALE_PX, CONFIDENCE_WINDOW
+from .confidence import CONFIDENCE_SCALE_PX, CONFIDENCE_WINDOW, check_points
 from .workspace import scratch
 
 _F32 = np.float32
@@ -29,33 +31,38 @@ _EPS = _F32(1e-3)  # confidence.confidence: the gradient floor of the division
 
 
 @njit(**_JIT)
-def _planes_row(out, img, i):  # noqa: ANN001, ANN202
-    """Row i of fusion.planes(img) into ``out`` (h, w, 3): I, dI/dx, dI/dy as 3x3 Sobel / 8 with the
-    border replicated (fusion._grad)."""
+def _plane_at(img, i, j):  # noqa: ANN001, ANN202
+    """fusion.planes(img) at pixel (i, j): I, dI/dx, dI/dy as 3x3 Sobel / 8 with the border replicated
+    (fusion._grad)."""
     h, w = img.shape
     up, down = max(i - 1, 0), min(i + 1, h - 1)
-    eighth = _F32(0.125)
-    for j in range(w):
-        left, right = max(j - 1, 0), min(j + 1, w - 1)
-        dx = (img[up, right] - img[up, left]) + _F32(2) * (img[i, right] - img[i, left]) \
-            + (img[down, right] - img[down, left])
-        dy = (img[down, left] - img[up, left]) + _F32(2) * (img[down, j] - img[up, j]) \
-            + (img[down, right] - img[up, right])
-        out[i, j, 0] = img[i, j]
-        out[i, j, 1] = dx * eighth
-        out[i, j, 2] = dy * eighth
+    left, right = max(j - 1, 0), min(j + 1, w - 1)
+    dx = (img[up, right] - img[up, left]) + _F32(2) * (img[i, right] - img[i, left]) \
+        + (img[down, right] - img[down, left])
+    dy = (img[down, left] - img[up, left]) + _F32(2) * (img[down, j] - img[up, j]) \
+        + (img[down, right] - img[up, right])
+    return img[i, j], dx * _F32(0.125), dy * _F32(0.125)
 
 
 @njit(**_JIT)
-def _terms_row(out, s0, s1, flat1, flow, i):  # noqa: ANN001, ANN202
+def _planes_row(out, img, i):  # noqa: ANN001, ANN202
+    """Row i of fusion.planes(img) into ``out`` (h, w, 3) (:func:`_plane_at`)."""
+    for j in range(img.shape[1]):
+        out[i, j, 0], out[i, j, 1], out[i, j, 2] = _plane_at(img, i, j)
+
+
+@njit(**_JIT)
+def _terms_row(out, i0, s1, flat1, flow, i):  # noqa: ANN001, ANN202
     """Row i of the two box inputs, interleaved: out[..., 0] = |I1(x + f) - I0(x)|_1 over the 3 planes of
-    s0, s1 (h, w, 3), I1 sampled bilinearly at x + f clamped into the image (fusion.warp_residual's remap
+    frame i0 (h, w; its planes computed here, :func:`_plane_at`) and s1 (h, w, 3), I1 sampled bilinearly
+    at x + f clamped into the image (fusion.warp_residual's remap
     with BORDER_REPLICATE; ``flat1`` is s1 flat, read at offsets computed once per pixel); out[..., 1] =
     |dI0/dx| + |dI0/dy|. ``flow`` (h, w, 2)."""
-    h, w = s0.shape[0], s0.shape[1]
+    h, w = i0.shape
     right, bottom = _F32(w - 1), _F32(h - 1)
     y_row = _F32(i)
     for j in range(w):
+        p0 = _plane_at(i0, i, j)
         x = min(max(_F32(j) + flow[i, j, 0], _F32(0)), right)
         y = min(max(y_row + flow[i, j, 1], _F32(0)), bottom)
         xa, ya = int(x), int(y)  # x, y >= 0: truncation is floor
@@ -68,24 +75,65 @@ def _terms_row(out, s0, s1, flat1, flow, i):  # noqa: ANN001, ANN202
         for c in range(3):
             top = flat1[o00 + c] + ax * (flat1[o01 + c] - flat1[o00 + c])
             bottom_row = flat1[o10 + c] + ax * (flat1[o11 + c] - flat1[o10 + c])
-            r += abs(top + ay * (bottom_row - top) - s0[i, j, c])
+            r += abs(top + ay * (bottom_row - top) - p0[c])
         out[i, j, 0] = r
-        out[i, j, 1] = abs(s0[i, j, 1]) + abs(s0[i, j, 2])
+        out[i, j, 1] = abs(p0[1]) + abs(p0[2])
+
+
+@njit(**_JIT)
+def _ratio(r_box, g_box, inv_scale):  # noqa: ANN001, ANN202
+    """The confidence 1 / (1 + e^2) of box means r_box (residual) and g_box (gradient magnitude),
+    e = r_box / (g_box + 1e-3) / scale, as g^2 / (g^2 + r^2): one division."""
+    g = g_box + _EPS
+    r = r_box * inv_scale
+    return g * g / (g * g + r * r)
+
+
+@njit(**_JIT)
+def _inside(flow, i, j, right, bottom):  # noqa: ANN001, ANN202
+    """Whether x + f of pixel (i, j) stays in the image [0, right] x [0, bottom] (operators.warp_maps' test)."""
+    x, y = _F32(j) + flow[i, j, 0], _F32(i) + flow[i, j, 1]
+    return (x >= 0) & (x <= right) & (y >= 0) & (y <= bottom)
 
 
 @njit(**_JIT)
 def _confidence_row(conf, boxed, flow, inv_scale, i):  # noqa: ANN001, ANN202
-    """Row i of the confidence 1 / (1 + e^2), e = box(residual) / (box(gradient) + 1e-3) / scale (as
-    g^2 / (g^2 + r^2): one division), and 0 where x + f leaves the image (operators.warp_maps' test)."""
+    """Row i of the confidence (:func:`_ratio` of the box means), 0 where x + f leaves the image."""
     h, w = conf.shape
     right, bottom = _F32(w - 1), _F32(h - 1)
-    y_row = _F32(i)
     for j in range(w):
-        x, y = _F32(j) + flow[i, j, 0], y_row + flow[i, j, 1]
-        g = boxed[i, j, 1] + _EPS
-        r = boxed[i, j, 0] * inv_scale
-        c = g * g / (g * g + r * r)
-        conf[i, j] = c if (x >= 0) & (x <= right) & (y >= 0) & (y <= bottom) else _F32(0)
+        c = _ratio(boxed[i, j, 0], boxed[i, j, 1], inv_scale)
+        conf[i, j] = c if _inside(flow, i, j, right, bottom) else _F32(0)
+
+
+@njit(**_JIT)
+def _terms_at(i0, i1, flow, i, j):  # noqa: ANN001, ANN202
+    """:func:`_terms_row`'s two values at pixel (i, j) alone, the planes of frames i0, i1 (h, w) computed
+    at the taps (:func:`_plane_at`): the residual over the 3 planes and |dI0/dx| + |dI0/dy|."""
+    h, w = i0.shape
+    x = min(max(_F32(j) + flow[i, j, 0], _F32(0)), _F32(w - 1))
+    y = min(max(_F32(i) + flow[i, j, 1], _F32(0)), _F32(h - 1))
+    xa, ya = int(x), int(y)  # x, y >= 0: truncation is floor
+    ax, ay = x - _F32(xa), y - _F32(ya)
+    xb, yb = min(xa + 1, w - 1), min(ya + 1, h - 1)  # the far taps clamped (their weight is 0 there)
+    p0 = _plane_at(i0, i, j)
+    t00, t01, t10, t11 = _plane_at(i1, ya, xa), _plane_at(i1, ya, xb), _plane_at(i1, yb, xa), _plane_at(i1, yb, xb)
+    r = _F32(0)
+    for c in range(3):
+        top = t00[c] + ax * (t01[c] - t00[c])
+        bottom_row = t10[c] + ax * (t11[c] - t10[c])
+        r += abs(top + ay * (bottom_row - top) - p0[c])
+    return r, abs(p0[1]) + abs(p0[2])
+
+
+@njit(**_JIT)
+def _reflect(k, n):  # noqa: ANN001, ANN202
+    """Index k folded into [0, n) as OpenCV's BORDER_REFLECT does (fedcba|abcdef|fedcba)."""
+    if n == 1:
+        return 0
+    while k < 0 or k >= n:
+        k = -k - 1 if k < 0 else 2 * n - k - 1
+    return k
 
 
 # One driver per row function, written out (not built by a factory: numba_fusion says why).
@@ -97,11 +145,11 @@ def planes_kernel(out, img):  # noqa: ANN001, ANN201
 
 
 @njit(parallel=True, **_JIT)
-def terms_kernel(out, s0, s1, flow):  # noqa: ANN001, ANN201
+def terms_kernel(out, i0, s1, flow):  # noqa: ANN001, ANN201
     """:func:`_terms_row` over every row of ``out``."""
     flat1 = s1.reshape(-1)
     for i in prange(out.shape[0]):
-        _terms_row(out, s0, s1, flat1, flow, i)
+        _terms_row(out, i0, s1, flat1, flow, i)
 
 
 @njit(parallel=True, **_JIT)
@@ -117,13 +165,49 @@ def confidence_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.nda
     flow = np.ascontiguousarray(flow, dtype=_F32)
     h, w = flow.shape[:2]
     # the temporaries are the calling thread's scratch (fresh ~1 MB arrays cost page faults every frame)
-    s0, s1 = scratch("confidence_s0", (h, w, 3)), scratch("confidence_s1", (h, w, 3))
+    s1 = scratch("confidence_s1", (h, w, 3))  # frame 0's planes are computed where they are used
     boxed = scratch("confidence_boxed", (h, w, 2))
     conf = np.empty((h, w), _F32)
     with nb.thread_count(nb.threads() if h * w >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
-        planes_kernel(s0, np.ascontiguousarray(i0, dtype=_F32))
         planes_kernel(s1, np.ascontiguousarray(i1, dtype=_F32))
-        terms_kernel(boxed, s0, s1, flow)
+        terms_kernel(boxed, np.ascontiguousarray(i0, dtype=_F32), s1, flow)
         cv2.boxFilter(boxed, -1, (CONFIDENCE_WINDOW, CONFIDENCE_WINDOW), dst=boxed, borderType=cv2.BORDER_REFLECT)
         confidence_kernel(conf, boxed, flow, _F32(1.0 / CONFIDENCE_SCALE_PX))
     return conf
+
+
+@njit(parallel=True, **_JIT)
+def confidence_at_kernel(out, i0, i1, flow, ys, xs, inv_scale):  # noqa: ANN001, ANN201
+    """The confidence at the points (ys[n], xs[n]) into ``out`` (n,): the CONFIDENCE_WINDOW box means of
+    :func:`_terms_at` (borders reflected, as the box filter's), :func:`_ratio`, 0 where x + f leaves."""
+    h, w = i0.shape
+    half, area = CONFIDENCE_WINDOW // 2, _F32(CONFIDENCE_WINDOW * CONFIDENCE_WINDOW)
+    right, bottom = _F32(w - 1), _F32(h - 1)
+    for n in prange(ys.size):
+        i, j = ys[n], xs[n]
+        r_sum, g_sum = _F32(0), _F32(0)
+        for di in range(-half, half + 1):
+            q = _reflect(i + di, h)
+            for dj in range(-half, half + 1):
+                r, g = _terms_at(i0, i1, flow, q, _reflect(j + dj, w))
+                r_sum += r
+                g_sum += g
+        c = _ratio(r_sum / area, g_sum / area, inv_scale)
+        out[n] = c if _inside(flow, i, j, right, bottom) else _F32(0)
+
+
+def confidence_at_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray,
+                        xs: np.ndarray) -> np.ndarray:
+    """confidence.confidence_at with :func:`confidence_at_kernel`: the confidence at the pixels (ys, xs)
+    (integer arrays of one shape, inside the image) alone, ~25 x 5 plane evaluations per point instead of
+    whole-image passes; float32 of ys' shape, the full map's values up to float32 rounding."""
+    flow = np.ascontiguousarray(flow, dtype=_F32)
+    h, w = flow.shape[:2]
+    check_points((h, w), ys, xs)
+    yi, xi = (np.ascontiguousarray(np.ravel(a), dtype=np.int64) for a in (ys, xs))
+    out = np.empty(yi.size, _F32)
+    work = yi.size * CONFIDENCE_WINDOW * CONFIDENCE_WINDOW
+    with nb.thread_count(nb.threads() if work >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
+        confidence_at_kernel(out, np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32),
+                             flow, yi, xi, _F32(1.0 / CONFIDENCE_SCALE_PX))
+    return out.reshape(np.shape(ys))

@@ -34,7 +34,7 @@ from .expansion import (
     region_ttc,
 )
 from .motion import DominantMotion, Hysteresis, MaskThreshold, dominant_motion, moving_fraction, moving_mask
-from .robust import SAMPLES, check_flow, check_flow_shape
+from .robust import SAMPLES, Weights, check_flow, check_flow_shape
 from .stream import FlowOutput
 
 
@@ -70,14 +70,19 @@ class MotionAnalysis:
     ``interval_s`` is the pair's interval in seconds (newer stamp - earlier stamp; None or <= 0: times in
     seconds are None). Every attribute is computed on first access and cached; ``confidence`` may be given
     as a function that computes it, called on first use (the divergence alone does not need it).
+    ``confidence_at`` (optional; ``FlowOutput.confidence_at``) gives the confidence at integer pixel points
+    (ys, xs) alone: the fits (dominant motion, TTC, focus of expansion) read it only at their ~1000 samples,
+    so while the map is not computed anyway (given, or for the moving mask) they take it there instead.
     """
 
     def __init__(self, flow: np.ndarray, confidence: np.ndarray | Callable[[], np.ndarray],
-                 interval_s: float | None = None, settings: MotionSettings | None = None) -> None:
+                 interval_s: float | None = None, settings: MotionSettings | None = None,
+                 confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
         check_flow_shape(flow)
         if not callable(confidence):
             check_flow(flow, confidence)
-        self.flow, self._confidence = flow, confidence
+        self.flow, self._confidence, self._confidence_at = flow, confidence, confidence_at
+        self._at_points: dict[tuple[tuple[int, ...], bytes, bytes], np.ndarray] = {}
         self.interval_s = interval_s if interval_s is not None and interval_s > 0.0 else None
         self.settings = settings if settings is not None else MotionSettings()
 
@@ -88,17 +93,34 @@ class MotionAnalysis:
         check_flow(self.flow, conf)
         return conf
 
+    @property
+    def weights(self) -> Weights:
+        """What the fits weigh their samples by: the confidence map when it is at hand (given, or computed
+        already), else its values at the samples alone (``confidence_at``, each set of points once)."""
+        if self._confidence_at is None or not callable(self._confidence) or "confidence" in self.__dict__:
+            return self.confidence
+        return self._points
+
+    def _points(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """``confidence_at`` at (ys, xs), cached per set of points (the dominant motion and the focus of
+        expansion sample the same grid)."""
+        key = (ys.shape, ys.tobytes(), xs.tobytes())
+        if key not in self._at_points and self._confidence_at is not None:  # weights: only when it is given
+            self._at_points[key] = self._confidence_at(ys, xs)
+        return self._at_points[key]
+
     @classmethod
     def of(cls, out: FlowOutput, settings: MotionSettings | None = None) -> MotionAnalysis:
         """The analysis of a stream's output: its flow in px/frame (``frame_flow`` when ``flow`` is in
-        px/s), its confidence (computed on first use, if it was not already) and its pair's interval."""
+        px/s), its confidence (computed on first use, if it was not already; at the fits' samples alone
+        while only fits need it) and its pair's interval."""
         flow = out.flow if out.frame_flow is None else out.frame_flow
-        return cls(flow, out.confidence, (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings)
+        return cls(flow, out.confidence, (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings, out.confidence_at)
 
     @cached_property
     def dominant(self) -> DominantMotion | None:
         """:func:`~flow_node.pipeline.motion.dominant_motion` (None without confident flow)."""
-        return dominant_motion(self.flow, self.confidence, self.settings.mask, self.settings.samples)
+        return dominant_motion(self.flow, self.weights, self.settings.mask, self.settings.samples)
 
     @cached_property
     def divergence(self) -> np.ndarray:
@@ -108,18 +130,19 @@ class MotionAnalysis:
     @cached_property
     def ttc(self) -> TimeToContact:
         """:func:`~flow_node.pipeline.expansion.region_ttc` on the settings' grid."""
-        return region_ttc(self.flow, self.confidence, self.interval_s, self.settings.grid,
+        return region_ttc(self.flow, self.weights, self.interval_s, self.settings.grid,
                           self.settings.region_samples)
 
     @cached_property
     def foe(self) -> FocusOfExpansion | None:
         """:func:`~flow_node.pipeline.expansion.focus_of_expansion` (None for a pan or no motion)."""
-        return focus_of_expansion(self.flow, self.confidence, self.settings.samples)
+        return focus_of_expansion(self.flow, self.weights, self.settings.samples)
 
     @cached_property
     def moving_mask(self) -> np.ndarray:
         """:func:`~flow_node.pipeline.motion.moving_mask` against :attr:`dominant`, (H, W) uint8 0/255."""
-        return moving_mask(self.flow, self.confidence, self.dominant, self.settings.mask)
+        conf = self.confidence  # the map first: the mask needs it per pixel, the dominant motion reads it then
+        return moving_mask(self.flow, conf, self.dominant, self.settings.mask)
 
     @property
     def moving_fraction(self) -> float:

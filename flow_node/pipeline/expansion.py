@@ -28,7 +28,8 @@ from .robust import (
     SAMPLES,
     START_CONFIDENCE,
     TUKEY_ITERATIONS,
-    check_flow,
+    Weights,
+    check_weights,
     huber_weight,
     median_slopes,
     medoid_offset,
@@ -37,6 +38,7 @@ from .robust import (
     sample_flow,
     sample_step,
     tukey_weight,
+    weights_at,
 )
 
 REGION_GRID = (3, 3)  # rows x columns of TTC regions; the centre cell is the central region
@@ -134,7 +136,7 @@ def _affine_start(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.ndarray
     return coef
 
 
-def region_ttc(flow: np.ndarray, confidence: np.ndarray, interval_s: float | None = None,
+def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None = None,
                grid: tuple[int, int] = REGION_GRID, samples: int = REGION_SAMPLES) -> TimeToContact:
     """Divergence, expansion and time to contact per cell of a ``grid`` (rows, cols) over the image.
 
@@ -144,12 +146,13 @@ def region_ttc(flow: np.ndarray, confidence: np.ndarray, interval_s: float | Non
     weights on the endpoint residual px, each cell with its own robust scale; all cells at once), so an
     object crossing part of a cell does not move its figure. divergence = a1 + b2 (1/frame), expansion =
     sqrt(det(I + J)) - 1 with J = [[a1, a2], [b1, b2]], TTC = 1 / expansion frames (see the module
-    docstring); ``interval_s`` (the pair's, seconds) gives TTC in seconds.
+    docstring); ``interval_s`` (the pair's, seconds) gives TTC in seconds. ``confidence`` may be given as
+    its values at the samples (:data:`~flow_node.pipeline.robust.Weights`).
     """
-    check_flow(flow, confidence)
+    check_weights(flow, confidence)
     rows, cols = grid
     count = rows * cols
-    bounds = np.array(region_bounds(confidence.shape, grid), np.float64)  # (R, 4)
+    bounds = np.array(region_bounds(flow.shape[:2], grid), np.float64)  # (R, 4)
     k = max(2, int(round(math.sqrt(samples / count))))
     t = np.linspace(0.0, 1.0, k)
     xi = np.rint(bounds[:, 0:1] + t * (bounds[:, 2:3] - 1 - bounds[:, 0:1])).astype(np.int64)  # (R, k)
@@ -157,7 +160,7 @@ def region_ttc(flow: np.ndarray, confidence: np.ndarray, interval_s: float | Non
     px = np.broadcast_to(xi[:, None, :], (count, k, k)).reshape(count, -1)  # (R, k^2)
     py = np.broadcast_to(yi[:, :, None], (count, k, k)).reshape(count, -1)
     uv = flow[py, px].astype(np.float64)  # (R, k^2, 2)
-    conf = np.clip(confidence[py, px].astype(np.float64), 0.0, 1.0)
+    conf = weights_at(confidence, py, px)
     half = np.maximum(1.0, (bounds[:, 2:4] - bounds[:, 0:2]) / 2.0)  # (R, 2) px
     mid = (bounds[:, 0:2] + bounds[:, 2:4] - 1) / 2.0
     X, Y = (px - mid[:, 0:1]) / half[:, 0:1], (py - mid[:, 1:2]) / half[:, 1:2]
@@ -200,19 +203,19 @@ FOE_MIN_ISOTROPY = 0.05  # smallest / largest eigenvalue of the lines' normal ma
 FOE_MAX_DISTANCE = 4.0  # image diagonals from the centre beyond which a focus is not reported
 
 
-def focus_of_expansion(flow: np.ndarray, confidence: np.ndarray, samples: int = SAMPLES) -> FocusOfExpansion | None:
+def focus_of_expansion(flow: np.ndarray, confidence: Weights, samples: int = SAMPLES) -> FocusOfExpansion | None:
     """The least-squares intersection of the flow lines of ``flow`` (H, W, 2) px/frame, weighted by
     ``confidence`` (H, W) and by |flow|^2 (a longer vector has a better-known direction), made robust by
     Huber IRLS on the point-line distance (px). Each sample x with flow f gives the line x + t f; the focus
     p minimises sum w (n . (p - x))^2 with n = (-f_y, f_x). None when the lines are nearly parallel (a pan,
     no finite focus), the focus lies more than FOE_MAX_DISTANCE diagonals away, or nothing moves. Computed
-    on the flow as it is: an image rotation moves it (the lines of a rotation do not meet)."""
-    check_flow(flow, confidence)
+    on the flow as it is: an image rotation moves it (the lines of a rotation do not meet). ``confidence``
+    may be given as its values at the samples (:data:`~flow_node.pipeline.robust.Weights`)."""
     s = sample_flow(flow, confidence, sample_step(flow.shape, samples))
     nx, ny = -s.v, s.u
     length = np.hypot(nx, ny)
     weight = s.w.copy()
-    h, w = confidence.shape
+    h, w = flow.shape[:2]
     p = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
     spread = MIN_SCALE_PX
     for _ in range(4):

@@ -25,7 +25,9 @@ from .robust import (
     SAMPLES,
     START_CONFIDENCE,
     Samples,
+    Weights,
     check_flow,
+    check_weights,
     fit_robust,
     median_slopes,
     medoid_offset,
@@ -182,7 +184,7 @@ class _Frame:
         return hp / hp[2, 2]
 
 
-def dominant_motion(flow: np.ndarray, confidence: np.ndarray, threshold: MaskThreshold | None = None,
+def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThreshold | None = None,
                     samples: int = SAMPLES) -> DominantMotion | None:
     """The dominant motion of ``flow`` (H, W, 2) px/frame weighted by ``confidence`` (H, W) in [0, 1].
 
@@ -192,9 +194,10 @@ def dominant_motion(flow: np.ndarray, confidence: np.ndarray, threshold: MaskThr
     IRLS (biweight) on the endpoint error in px; where that fails, the similarity stands in for it. The
     similarity gives tx, ty, rotation and scale; the homography the inlier share (within ``threshold``,
     default :class:`MaskThreshold`) and what :func:`moving_mask` compares against. None when fewer than 8
-    samples have confidence > 0 or the similarity has no support.
+    samples have confidence > 0 or the similarity has no support. ``confidence`` may be given as its values
+    at the samples (:data:`~flow_node.pipeline.robust.Weights`).
     """
-    check_flow(flow, confidence)
+    check_weights(flow, confidence)
     threshold = threshold if threshold is not None else MaskThreshold()
     s = sample_flow(flow, confidence, sample_step(flow.shape, samples))
     w = s.w.ravel()

@@ -47,6 +47,25 @@ def check_flow(flow: np.ndarray, confidence: np.ndarray) -> None:
         raise InputError(f"confidence: expected shape {flow.shape[:2]}, got {confidence.shape}")
 
 
+# What the fits weigh samples by: the confidence (H, W) in [0, 1], or a function giving it at integer pixel
+# points (ys, xs) -> an array of their shape (e.g. FlowOutput.confidence_at: the points alone, not the map)
+Weights = np.ndarray | Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def check_weights(flow: np.ndarray, confidence: Weights) -> None:
+    """:func:`check_flow`, or only the flow's shape when ``confidence`` is a function of the points."""
+    if callable(confidence):
+        check_flow_shape(flow)
+    else:
+        check_flow(flow, confidence)
+
+
+def weights_at(confidence: Weights, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """The confidence at the pixels (ys, xs) (integer arrays of one shape) as float64 in [0, 1]."""
+    c = confidence(ys, xs) if callable(confidence) else confidence[ys, xs]
+    return np.clip(np.asarray(c, np.float64), 0.0, 1.0)
+
+
 def sample_step(shape: tuple[int, ...], samples: int = SAMPLES) -> int:
     """The grid step (px, >= 1) that leaves about ``samples`` points of an image of ``shape`` (H, W, ...)."""
     return max(1, int(round(math.sqrt(shape[0] * shape[1] / max(1, samples)))))
@@ -64,15 +83,16 @@ class Samples:
     w: np.ndarray
 
 
-def sample_flow(flow: np.ndarray, confidence: np.ndarray, step: int) -> Samples:
+def sample_flow(flow: np.ndarray, confidence: Weights, step: int) -> Samples:
     """Every ``step``-th pixel in both directions (offset step // 2, so the grid is centred), of flow (H, W, 2)
-    px/frame and confidence (H, W) in [0, 1]."""
-    check_flow(flow, confidence)
-    h, w = confidence.shape
+    px/frame and confidence (H, W) in [0, 1] (or its values at the points: :data:`Weights`)."""
+    check_weights(flow, confidence)
+    h, w = flow.shape[:2]
     o = step // 2
-    ys, xs = np.mgrid[o:h:step, o:w:step].astype(np.float64)
+    yi, xi = np.mgrid[o:h:step, o:w:step]
     sub = flow[o::step, o::step].astype(np.float64)
-    return Samples(xs, ys, sub[..., 0], sub[..., 1], np.clip(confidence[o::step, o::step].astype(np.float64), 0.0, 1.0))
+    return Samples(xi.astype(np.float64), yi.astype(np.float64), sub[..., 0], sub[..., 1],
+                   weights_at(confidence, yi, xi))
 
 
 def masked_quantile(values: np.ndarray, keep: np.ndarray, q: float = 0.5) -> np.ndarray:
@@ -165,7 +185,8 @@ def medoid_offset(rest: np.ndarray, keep: np.ndarray, candidates: int = START_CA
     equally large. Shape (..., 2); 0 where nothing is kept."""
     idx, ref = _spread(rest.shape[-2], candidates)
     cand, other = rest[..., idx, :], rest[..., ref, :]  # (..., c, 2), (..., r, 2)
-    d = np.hypot(other[..., None, :, 0] - cand[..., :, None, 0], other[..., None, :, 1] - cand[..., :, None, 1])
+    dx, dy = other[..., None, :, 0] - cand[..., :, None, 0], other[..., None, :, 1] - cand[..., :, None, 1]
+    d = dx * dx + dy * dy  # squared: the median by rank and the least of them are the distances' (no root)
     score = np.where(keep[..., idx], masked_median(d, np.broadcast_to(keep[..., None, ref], d.shape)), np.inf)
     best = np.argmin(np.nan_to_num(score, nan=np.inf), axis=-1)
     out = np.take_along_axis(cand, best[..., None, None], axis=-2)[..., 0, :]

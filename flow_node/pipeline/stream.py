@@ -39,7 +39,7 @@ import cv2
 import numpy as np
 
 from ..core.api import FlowEstimator, to_grey, to_planes
-from ..core.confidence import Confidence, confidence
+from ..core.confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from ..core.config import FlowConfig
 from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
@@ -142,6 +142,7 @@ class FlowOutput:
     frames: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     frame_flow: np.ndarray | None = field(default=None, repr=False)  # px/frame when ``flow`` is not (units)
     confidence_of: Confidence = field(default=confidence, repr=False)
+    confidence_at_of: ConfidenceAt = field(default=confidence_at, repr=False)  # the same at points only
     _confidence: np.ndarray | None = field(default=None, repr=False)
     _magnitude: np.ndarray | None = field(default=None, repr=False)
     _color: np.ndarray | None = field(default=None, repr=False)
@@ -170,6 +171,16 @@ class FlowOutput:
             flow = self.flow if self.frame_flow is None else self.frame_flow
             self._confidence = self.confidence_of(self.frames[0], self.frames[1], flow)
         return self._confidence
+
+    def confidence_at(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """:meth:`confidence` at the pixels (ys, xs) (integer arrays of one shape): read from the map when it
+        is computed already, else computed at the points alone (``confidence_at_of``; not cached)."""
+        if self._confidence is not None:
+            return self._confidence[ys, xs]
+        if self.frames is None:
+            raise ValueError("this output keeps no frames; the confidence cannot be computed")
+        flow = self.flow if self.frame_flow is None else self.frame_flow
+        return self.confidence_at_of(self.frames[0], self.frames[1], flow, ys, xs)
 
     def color(self) -> np.ndarray:
         """Middlebury colour coding, (H, W, 3) uint8 in B, G, R order (bgr8), cached."""
@@ -378,5 +389,6 @@ class FlowStream:
         self._prev_unexplained, self._prev_interval = result.unexplained, interval
         out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,
-                         result.frames, confidence_of=self._estimator.confidence)
+                         result.frames, confidence_of=self._estimator.confidence,
+                         confidence_at_of=self._estimator.confidence_at)
         return out.in_units(s.flow_units)
