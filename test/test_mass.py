@@ -10,7 +10,7 @@ from synth import texture
 
 from flow_node.core.api import FlowEstimator
 from flow_node.core.bregman import bregman
-from flow_node.core.config import MODELS, FlowConfig
+from flow_node.core.config import MASS_SCHEDULE, MODELS, FlowConfig
 from flow_node.core.errors import ConfigError
 from flow_node.core.models import MODEL_SPECS, apply_a, apply_a_adjoint, energy, mass_residual
 from flow_node.core.numba_backend import solve_numba
@@ -122,6 +122,11 @@ def test_config_constraint_rules() -> None:
     assert cfg.photometric == "density"
     assert FlowConfig().with_overrides(["constraint=mass"]).photometric == "density"
     assert FlowConfig().replace(constraint="mass", photometric="none").photometric == "none"
+    # the fine pyramid comes with the constraint unless given; re-selecting mass keeps what was set
+    assert {k: getattr(cfg, k) for k in MASS_SCHEDULE} == MASS_SCHEDULE != {k: getattr(FlowConfig(), k)
+                                                                            for k in MASS_SCHEDULE}
+    assert FlowConfig().replace(constraint="mass", warps=4).warps == 4
+    assert cfg.replace(constraint="mass", levels=5).replace(constraint="mass").levels == 5
     with pytest.raises(ConfigError, match="constraint 'mass' needs photometric"):
         FlowConfig(constraint="mass")
     with pytest.raises(ConfigError, match="constraint 'mass' needs photometric"):

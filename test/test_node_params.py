@@ -112,7 +112,7 @@ def test_model_brings_its_calibrated_weights(harness: Harness) -> None:
 
 
 def test_mass_constraint_brings_the_density_mode(harness: Harness) -> None:
-    """Setting `constraint` to mass alone also sets photometric=density (config.implied_photometric); the node
+    """Setting `constraint` to mass alone also sets photometric=density (config.implied_by_constraint); the node
     then estimates with the mass-preservation data term; mass with a photometric mode that changes mass is
     refused with the reason."""
     results = harness.set_params(constraint="mass")

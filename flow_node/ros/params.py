@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from ..core.config import PRESETS, FlowConfig, field_names, fields_info, implied_photometric, implied_weights
+from ..core.config import PRESETS, FlowConfig, field_names, fields_info, implied_by_constraint, implied_weights
 from ..core.errors import ConfigError
 from ..core.settings import fields_info as settings_fields_info
 from ..core.settings import from_flat
@@ -154,7 +154,7 @@ def declared_defaults(preset: str) -> dict[str, Any]:
 def expand_preset(given: list[tuple[str, Any]], model: str, constraint: str) -> list[tuple[str, Any]]:
     """What a set of parameters ``given`` (name, value) implies besides itself: a ``preset`` its group, a new
     model without weights its calibrated ones (config.implied_weights; ``model`` is the current one), the
-    mass constraint its density photometric mode (config.implied_photometric; ``constraint`` the current
+    mass constraint its density mode and fine pyramid (config.implied_by_constraint; ``constraint`` the current
     one); values given in the same call win. An unknown preset implies nothing (validation rejects it with
     the reason)."""
     specs, names = specs_by_name(), {name for name, _ in given}
@@ -168,7 +168,7 @@ def expand_preset(given: list[tuple[str, Any]], model: str, constraint: str) -> 
             out += [(k, coerce(specs[k], v)) for k, v in group.items() if k not in names]
     implied = dict(out)
     return (out[len(given):] + list(implied_weights(model, implied).items())
-            + list(implied_photometric(constraint, implied).items()))
+            + list(implied_by_constraint(constraint, implied).items()))
 
 
 def _yaml_value(value: Any) -> str:
