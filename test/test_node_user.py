@@ -66,7 +66,7 @@ def test_default_is_the_node_preset_that_keeps_up() -> None:
         node = FlowNode("flow_defaults", parameter_overrides=[Parameter("warmup", value=False),
                                                               Parameter("backend", value="numpy")], context=ctx)
         try:
-            assert NODE_PRESET == "fastest"  # docs/node.md, "Defaults": keeps up with 30 Hz VGA on 2 cores
+            assert NODE_PRESET == "stream_fast"  # docs/node.md, "Defaults": keeps up with 30 Hz VGA on 2 cores
             assert node.get_parameter("preset").value == NODE_PRESET
             assert node.settings.config == FlowConfig.preset(NODE_PRESET).replace(backend="numpy")
             assert node.get_parameter("flow_units").value == "px/frame"
@@ -83,7 +83,7 @@ def statuses(h: Harness) -> list[DiagnosticStatus]:
 
 def test_solver_slower_than_the_camera_warns() -> None:
     """A solve of ~0.2 s against frames every 50 ms: diagnostics WARN with both times, not OK."""
-    # finest_iterations 0 (= iterations): the default preset (fastest) sets its own for the finest level
+    # finest_iterations 0 (= iterations): the default preset (stream_fast) sets its own for the finest level
     slow = {"preset": "", "levels": 1, "warps": 4, "iterations": 1500, "finest_iterations": 0, "median_filter": 0,
             "diagnostics_period": 0.5}
     h = Harness("/t_slow", slow, name="flow_slow", color=False)

@@ -40,10 +40,10 @@ class ParamSpec:
 # the solver mid-stream, and numba's thread pool size is fixed once started. No preset sets them.
 READ_ONLY_FIELDS = frozenset({"backend", "threads"})
 
-# The node's default preset: started without a params file it keeps up with a 30 Hz VGA camera on 2 cores
-# (~16 ms per VGA pair; since issue 11's re-tune `realtime` solves at full resolution, ~0.1 s per VGA pair,
-# and FlowConfig's plain defaults take ~0.3 s); docs/node.md, "Defaults".
-NODE_PRESET = "fastest"
+# The node's default preset: started without a params file it keeps up with a 30 Hz VGA camera on 2 cores.
+# stream_fast solves a single pair, and every pair its checks reject, as fastest does, and the pairs of a
+# steady stream from the previous pair's state (docs/node.md, "Defaults"; docs/engine.md, "The stream mode").
+NODE_PRESET = "stream_fast"
 
 # The derived outputs' settings (MotionSettings' fields, nested ones flattened) are parameters under this
 # prefix: motion.samples, motion.mask.abs_px, motion.detector.on_frames, ...
