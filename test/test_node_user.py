@@ -111,7 +111,7 @@ def diagnostics_of(name: str, timeout: float = 30.0) -> DiagnosticStatus:
     got: list[DiagnosticStatus] = []
     node.create_subscription(DiagnosticArray, "/diagnostics",
                              lambda m: got.extend(s for s in m.status if s.name == f"{name}: optical flow"
-                                                  and s.message != "warming up the engine"), 10)
+                                                  and not s.message.startswith("warming up the engine")), 10)
     executor = SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
     try:
