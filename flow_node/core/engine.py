@@ -11,7 +11,7 @@ initialisation  (i0, i1, cfg, initial, previous) -> [Candidate]                 
 refinement      (pyramid, cfg, backend, state, first, last, stats, finest) -> state  ``core/refine.py``
 fusion          (i0, i1, [flow]) -> (flow, choice), a backend field                  ``core/fusion.py``
 output layout   (2, h, w) -> (H, W, 2) at the input size                             ``core/layout.py``
-(stream)        (i0, i1, cfg, backend, prior) -> (state, stats, normalised) | reason ``core/temporal.py``
+(stream)        (i0, i1, cfg, backend, prior) -> (state, stats, Judged) | reason     ``core/temporal.py``
 (confidence)    (i0, i1, flow) -> (H, W) in [0, 1], on demand                        ``core/confidence.py``
 ==============  ===================================================================  =======================
 

@@ -114,14 +114,16 @@ def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted
     return refine_levels(pyr, cfg, backend, predicted, start, finest, stats, finest)
 
 
-def predicted_cost(n0: np.ndarray, n1: np.ndarray, predicted: np.ndarray, backend: Backend) -> float:
-    """The prediction's robust data cost: the fraction of pixels of the normalised pair (n0, n1: (H, W),
-    photometric.stage's second result) resampled to the prediction's grid (area average) whose warped residual
-    exceeds photometric.RESIDUAL_OUTLIER (the backend's reliability figure, sampled)."""
+def predicted_cost(judged: Judged, predicted: np.ndarray) -> float:
+    """The prediction's robust data cost: the fraction of sampled pixels of the judged pair (the photometric
+    stage's frames, resampled to the prediction's grid by area average) that the prediction (2, h, w) does not
+    explain, by the stage's own judge (grey-value residuals above photometric.RESIDUAL_OUTLIER, or census
+    signatures with the census data term)."""
     h, w = predicted.shape[1:]
+    n0, n1 = judged.frames
     if n0.shape != (h, w):
         n0, n1 = (cv2.resize(n, (w, h), interpolation=cv2.INTER_AREA) for n in (n0, n1))
-    return backend.reliability(n0, n1, interleaved_flow(predicted, (h, w)))
+    return judged.judge(n0, n1, interleaved_flow(predicted, (h, w)))
 
 
 def prior_fails(cfg: FlowConfig, prior: Prior) -> str | None:
@@ -170,7 +172,7 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
     pyr = make_pyramid(s0, s1, schedule)
     start, _ = stream_span(pyr, schedule)
     predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat)
-    reason = prediction_fails(cfg, predicted_cost(*normalised, predicted.v, backend))
+    reason = prediction_fails(cfg, predicted_cost(judged, predicted.v))
     if reason is not None:
         return reason
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes), stream=PREDICTED)

@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from .errors import InputError
+from .operators import warp_maps
 
 VALID_LEVEL = 0.999  # a shrunk binary mask (the stream's input_scale) is valid where its area mean reaches this
 FILL_SIGMA0 = 1.0  # px: first blur of the fill; doubled until every invalid pixel has valid neighbours
@@ -119,9 +120,7 @@ def data_weight(valid0: np.ndarray, valid1: np.ndarray, flow0: np.ndarray) -> np
     """The data term's per-pixel weight of one warp around flow0 (2, h, w) px on a level whose masks are
     valid0, valid1 (h, w) float32 in [0, 1] (:func:`mask_levels`): trust(valid0(x)) * trust(valid1 sampled
     bilinearly at x + flow0(x)) (outside the image frame 1 counts as invalid). -> (h, w) float32 in [0, 1]."""
-    h, w = valid0.shape
-    map_x = (np.arange(w, dtype=np.float32)[None, :] + flow0[0]).astype(np.float32)
-    map_y = (np.arange(h, dtype=np.float32)[:, None] + flow0[1]).astype(np.float32)
+    map_x, map_y, _ = warp_maps(flow0)
     sampled = cv2.remap(valid1, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
     return trust(valid0) * trust(sampled)
 

@@ -14,8 +14,7 @@ from dataclasses import dataclass, field
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 from ..core.photometric import UNRELIABLE
-from ..core.temporal import FULL, PREDICTED
-from ..pipeline.stream import FlowOutput, FlowSummary
+from ..pipeline.stream import FlowOutput, FlowSummary, StreamTotals
 
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 
@@ -58,7 +57,7 @@ class Window:
     unreliable: int = 0  # outputs of the period whose unexplained fraction exceeds UNRELIABLE
     unexplained: float | None = None  # of the last output
     motion_times: list[float] = field(default_factory=list)  # seconds of the derived outputs, per analysed pair
-    last_stream_fallback: str = ""  # NodeStats.last_stream_fallback
+    last_stream_fallback: str = ""  # NodeStats.stream.last_fallback
 
 
 @dataclass
@@ -79,7 +78,7 @@ class NodeStats:
     last_reset: str = ""
     last_rejection: str = ""
     last_error: str = ""
-    last_stream_fallback: str = ""  # why the stream mode last solved a pair in full
+    stream: StreamTotals = field(default_factory=StreamTotals)  # the stream mode's pairs (predicted, fallbacks)
     solve_max: float = 0.0  # longest solve since start (s)
     solve_total: float = 0.0  # seconds spent solving since start
 
@@ -130,12 +129,8 @@ class NodeStats:
             self._publish.append(publish_s)
             self._unreliable += int(output.unexplained > UNRELIABLE)
             self._last = output
-            stream = output.stats.stream if output.stats is not None else ""
-            if stream == PREDICTED:
-                self.totals.predicted += 1
-            elif stream.startswith(FULL):
-                self.totals.stream_fallbacks += 1
-                self.last_stream_fallback = stream.partition(": ")[2]
+            self.stream.count(output.stats.stream if output.stats is not None else "")
+            self.totals.predicted, self.totals.stream_fallbacks = self.stream.predicted, self.stream.fallbacks
 
     def analysed(self, seconds: float) -> None:
         """The derived motion outputs of a pair were computed (and published) in ``seconds``."""
@@ -153,7 +148,7 @@ class NodeStats:
                        t.dropped - m.dropped, t.rejected - m.rejected, t.errors - m.errors, self._solve,
                        self._overhead, self._publish, None, self.last_reset, self.last_rejection, self.last_error,
                        None if self._last_input is None else now - self._last_input, self._unreliable,
-                       None if last is None else last.unexplained, self._motion, self.last_stream_fallback)
+                       None if last is None else last.unexplained, self._motion, self.stream.last_fallback)
             self._start, self._mark = now, Totals(**vars(t))
             self._solve, self._overhead, self._publish, self._motion, self._unreliable = [], [], [], [], 0
         w.summary = None if last is None else last.summary
