@@ -147,3 +147,27 @@ def test_several_models_ranked_like_the_paper(tmp_path):
     topics = set(messages(out / "bag"))
     assert {"/flow_node/flow", "/flow_node/l2_l2/flow", "/flow_node/l2_l2/flow_color"} <= topics
     assert "Ranking (as the paper's Table 1)" in (out / "report.md").read_text()
+
+
+def test_bags_as_stream_sequences() -> None:
+    """The stream regime's view of the bundled bags (bench.suite.sequences.bag_sequences): every bag, its frames
+    in order as 8-bit grey, a ground truth for every pair whose mean magnitude is bags/README.md's figure."""
+    from bench.suite.sequences import bag_sequences
+
+    seqs = {s.name: s for s in bag_sequences(BAGS)}
+    readme = {"translation": (6, 2.00), "rotation": (6, 1.75), "zoom": (6, 1.21), "deformation": (6, 1.08),
+              "objects": (10, 1.22)}
+    assert set(seqs) == {f"bag_{n}" for n in readme}
+    for name, (frames, magnitude) in readme.items():
+        s = seqs[f"bag_{name}"]
+        assert len(s.frames) == frames and all(f.dtype == np.uint8 and f.shape == (96, 128) for f in s.frames)
+        assert len(s.gt) == frames - 1 and all(g is not None for g in s.gt)
+        mean = float(np.mean([np.linalg.norm(g, axis=-1).mean() for g in s.gt]))
+        assert mean == pytest.approx(magnitude, abs=0.006), name
+        for t, g in enumerate(s.gt):  # each truth belongs to its pair: I_t+1(x + gt) explains I_t(x)
+            h, w = g.shape[:2]
+            xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+            back = cv2.remap(s.frames[t + 1].astype(np.float32), xs + g[..., 0], ys + g[..., 1], cv2.INTER_CUBIC)
+            inner = (slice(8, -8), slice(8, -8))
+            moved = np.abs(s.frames[t + 1].astype(np.float32) - s.frames[t])[inner].mean()
+            assert np.abs(back - s.frames[t])[inner].mean() < 0.5 * moved, (name, t)

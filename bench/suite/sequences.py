@@ -18,6 +18,11 @@ accelerate or decelerate exactly. Kinds (one sequence of each per split; the sce
   exposure step between frames 19 and 20.
 
 ``tune`` uses seeds 0-7, ``report`` 1000-1007 (as bench/suite/synthetic.py's splits).
+
+:func:`bag_sequences` gives the bundled bags (bags/README.md: 128x96, 6-10 frames, ground truth on
+/camera/flow_gt) as sequences of kind ``bag``: their images decoded as the node decodes them, then as 8-bit grey
+(BT.601 luma of colour, 16 bit scaled by 1/257) so that DIS runs on the same frames; the ground truth matched by
+stamp.
 """
 
 from __future__ import annotations
@@ -25,11 +30,16 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from flow_node.bag.bagio import IMAGE, IMAGE_TYPES, deserialize, find_connections, open_bag, read_messages, stamp_ns
+from flow_node.bag.evaluate import DEFAULT_GT_TOPIC, read_ground_truth
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture, make_scene
+from flow_node.pipeline.codec import decode
 
+from ..common import REPO
 from .data import LUMA
 from .synthetic import quantise, seeds
 
@@ -154,3 +164,44 @@ def sequences(split: str, size: tuple[int, int], kinds: tuple[str, ...] = KINDS,
             yield render(KINDS[k], seed, size, frames)
 
 
+
+
+BAGS = REPO / "bags"
+
+
+def grey8(frame: np.ndarray, encoding: str) -> np.ndarray:
+    """A decoded image (codec.decode: (H, W) or (H, W, 3) uint8/uint16/float32 and its encoding label) as
+    (H, W) uint8 grey: colour by BT.601 luma (channel order from the label), 16 bit scaled by 1/257, float
+    (0..1) by 255."""
+    f = frame.astype(np.float64)
+    if f.ndim == 3:
+        f = f[..., :3] @ (LUMA[::-1] if encoding.startswith("bgr") else LUMA)
+    scale = 1 / 257 if frame.dtype == np.uint16 else 255.0 if frame.dtype.kind == "f" else 1.0
+    return np.clip(np.rint(f * scale), 0, 255).astype(np.uint8)
+
+
+def bag_sequence(folder: Path) -> Sequence:
+    """A bundled bag as a sequence of kind ``bag`` (module docstring): frames in stamp order, ``gt[t]`` the
+    ground truth stamped like frame t + 1 (None where the bag has none)."""
+    frames: dict[int, np.ndarray] = {}
+    truths: dict[int, object] = {}
+    with open_bag(folder) as reader:
+        gt_conns = find_connections(reader, DEFAULT_GT_TOPIC, (IMAGE,), "gt")
+        image_conns = find_connections(reader, None, IMAGE_TYPES, "image", exclude=(DEFAULT_GT_TOPIC,))
+        gt_ids = {c.id for c in gt_conns}
+        for conn, _, raw in read_messages(reader, list(image_conns) + list(gt_conns)):
+            msg = deserialize(raw, conn.msgtype)
+            if conn.id in gt_ids:
+                truths[stamp_ns(msg)] = msg
+            else:
+                frames[stamp_ns(msg)] = grey8(*decode(msg))
+    stamps = sorted(frames)
+    shape = frames[stamps[0]].shape
+    gt = [read_ground_truth(truths[s], shape, s) if s in truths else None for s in stamps[1:]]
+    return Sequence(f"bag_{folder.name}", "bag", [frames[s] for s in stamps], _f32(gt))
+
+
+def bag_sequences(folder: Path = BAGS) -> Iterator[Sequence]:
+    """Every bag below ``folder`` (the bundled ones by default) as a sequence, by name."""
+    for bag in sorted(p.parent for p in folder.glob("*/metadata.yaml")):
+        yield bag_sequence(bag)

@@ -5,6 +5,7 @@ the same exactly rendered sequences (bench/suite/sequences.py), frame by frame (
     python -m bench.suite.streams --split tune --size 320x240
     python -m bench.suite.streams --split report --size 640x480 --out bench/results/suite/stream
     python -m bench.suite.streams --split tune --method cand=stream_fast,stream_iterations=6 --kinds pan,cut
+    python -m bench.suite.streams --bags --out bench/results/suite/stream     # the bundled bags (128x96)
 
 Per frame every method takes its turn (the order rotating frame by frame, so load changes on a shared machine
 hit all alike), once: a stream method cannot repeat a frame without changing its state. A stream method is
@@ -20,7 +21,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +35,7 @@ from flow_node.pipeline.stream import FlowStream, StreamSettings
 
 from ..common import REPO, machine, write_json
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST
-from .sequences import FRAMES, KINDS, Sequence, sequences
+from .sequences import FRAMES, KINDS, Sequence, bag_sequences, sequences
 
 RESULTS = REPO / "bench" / "results" / "suite" / "stream"
 PERIOD_NS = 33_333_333  # 30 Hz stamps
@@ -133,6 +134,11 @@ def _mean(values: list[float | None]) -> float:
     return float(np.mean(v)) if v else float("nan")
 
 
+def _kind(seq: Sequence) -> str:
+    """The column a sequence is reported in: its kind (one sequence per kind and split), a bag by its name."""
+    return seq.name if seq.kind == "bag" else seq.kind
+
+
 def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Sequence]) -> dict[str, Any]:
     """Per method: mean AEE and seconds over every pair, per kind, time and AEE ratios against DIS, the stream
     labels counted, and the event ratios (the pairs after a cut / the exposure step over the base preset's)."""
@@ -143,7 +149,7 @@ def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Se
         secs = [x for s in seqs for x in per_seq[s.name][n]["seconds"]]
         labels = [x for s in seqs for x in per_seq[s.name][n]["stream"]]
         out[n] = {"aee": _mean(aees), "seconds": float(np.mean(secs)),
-                  "per_kind": {s.kind: {"aee": _mean(per_seq[s.name][n]["aee"]),
+                  "per_kind": {_kind(s): {"aee": _mean(per_seq[s.name][n]["aee"]),
                                         "seconds": float(np.mean(per_seq[s.name][n]["seconds"]))} for s in seqs},
                   "predicted": labels.count("predicted"),
                   "fallbacks": sum(x.startswith("full") for x in labels)}
@@ -162,13 +168,15 @@ def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Se
 
 
 def run(methods: Mapping[str, FlowConfig], split: str, size: tuple[int, int], kinds: tuple[str, ...] = KINDS,
-        frames: int = FRAMES, log: Callable[[str], None] = print) -> dict[str, Any]:
-    """The regime on one split and size: ``{"methods": summary, "per_sequence": {name: rows}, ...}``."""
+        frames: int = FRAMES, log: Callable[[str], None] = print,
+        source: Iterable[Sequence] | None = None) -> dict[str, Any]:
+    """The regime on one split and size: ``{"methods": summary, "per_sequence": {name: rows}, ...}``; on the
+    sequences of ``source`` instead if given (the bundled bags: split ``bags``)."""
     runners = build(methods)
     per_seq: dict[str, Any] = {}
     seqs = []
     started = time.time()
-    for seq in sequences(split, size, kinds, frames):
+    for seq in sequences(split, size, kinds, frames) if source is None else source:
         seqs.append(seq)
         per_seq[seq.name] = run_sequence(seq, runners)
         log(f"  {seq.name}: " + ", ".join(f"{n} {_mean(r['aee']):.3f}/{1000 * np.mean(r['seconds']):.1f}ms"
@@ -181,7 +189,7 @@ def run(methods: Mapping[str, FlowConfig], split: str, size: tuple[int, int], ki
 def markdown(res: dict[str, Any], command: str) -> str:
     """A short table of a result: per method mean AEE, ms per frame, ratios, fallbacks, worst event ratio."""
     w, h = res["size"]
-    lines = [f"# Stream regime, {res['split']} split, {w}x{h} ({res['frames']} frames per sequence)", "",
+    lines = [f"# Stream regime, {res['split']} split, {w}x{h} (up to {res['frames']} frames per sequence)", "",
              f"`{command}`", "",
              "| method | mean AEE | ms/frame | time vs DIS medium | time vs DIS ultrafast | AEE vs DIS medium "
              "| predicted / full | worst event ratio |", "|---|---|---|---|---|---|---|---|"]
@@ -213,6 +221,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", default="320x240", help="WIDTHxHEIGHT")
     ap.add_argument("--kinds", default=",".join(KINDS), help=f"comma-separated subset of {', '.join(KINDS)}")
     ap.add_argument("--frames", type=int, default=FRAMES)
+    ap.add_argument("--bags", action="store_true", help="the bundled bags (bags/) instead of rendered sequences "
+                    "(--split, --size, --kinds and --frames do not apply; writes bags.{json,md})")
     ap.add_argument("--method", action="append", default=[], metavar="NAME=PRESET[,key=value...]",
                     help=f"replaces the default methods ({', '.join(DEFAULT_METHODS)})")
     ap.add_argument("--out", type=Path, default=None, help="directory for <split>_<size>.{json,md}")
@@ -220,14 +230,20 @@ def main(argv: list[str] | None = None) -> int:
     w, h = (int(x) for x in args.size.split("x"))
     methods = dict(parse_method(m) for m in args.method) or {
         n: FlowConfig.preset(p).replace(**kw) for n, (p, kw) in DEFAULT_METHODS.items()}
-    res = run(methods, args.split, (w, h), tuple(args.kinds.split(",")), args.frames)
+    if args.bags:
+        seqs = list(bag_sequences())
+        args.split, (w, h), args.frames = "bags", seqs[0].size, max(len(q.frames) for q in seqs)
+        res = run(methods, args.split, (w, h), frames=args.frames, source=seqs)
+    else:
+        res = run(methods, args.split, (w, h), tuple(args.kinds.split(",")), args.frames)
     command = "python -m bench.suite.streams " + " ".join(argv if argv is not None else sys.argv[1:])
     res["command"] = command
     md = markdown(res, command)
     print(md)
     if args.out is not None:
-        write_json(args.out / f"{args.split}_{w}x{h}.json", res)
-        (args.out / f"{args.split}_{w}x{h}.md").write_text(md)
+        stem = "bags" if args.bags else f"{args.split}_{w}x{h}"
+        write_json(args.out / f"{stem}.json", res)
+        (args.out / f"{stem}.md").write_text(md)
     return 0
 
 
