@@ -29,9 +29,15 @@ from numba import njit, prange
 
 REG_CODES = {"l2": 0, "tv": 1, "tv_l2": 2, "tv_tv": 3}  # regulariser -> integer flag of the kernels
 
+# fastmath without "reassoc": with it, LLVM may reorder sums in ways that make a solve depend on more than its
+# inputs (measured: a process's first solve of a pair came out 4e-5-1e-4 px away from its later solves of the
+# same pair); without it, every solve of the same input is bit for bit the same, in one process or another.
+# The other flags: every value is finite (nnan, ninf), signed zeros do not matter (nsz), fused multiply-add
+# (contract), approximate functions and reciprocals (afn, arcp).
+FASTMATH = {"nnan", "ninf", "nsz", "contract", "afn", "arcp"}
 # error_model numpy: no zero-check branch per division; nogil: a kernel releases the GIL, so another
 # thread of the process (a Dask worker's event loop, the node's executor) is not held up for its duration
-_JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
+_JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
 _ONE = np.float32(1.0)
 _ZERO = np.float32(0.0)
 
