@@ -96,7 +96,8 @@ def test_a_fresh_process_compiles_no_kernel() -> None:
 
 def test_a_process_first_solve_equals_its_later_ones() -> None:
     """The numba kernels' result depends on their input alone: the first solve of a fresh process equals the
-    next solve of the same pair bit for bit (with fastmath's "reassoc" it did not: numba_kernels.FASTMATH)."""
+    next solve of the same pair bit for bit (with the solver kernels on full fastmath it did not:
+    numba_kernels.FASTMATH)."""
     diffs = run_child(REPEAT)
     assert diffs == {"fastest": 0.0, "realtime": 0.0, "census": 0.0}, diffs
 

@@ -18,9 +18,9 @@ import numpy as np
 from numba import njit, prange
 
 from .census import OFFSETS, CensusParams
-from .numba_kernels import _JIT
 from .workspace import scratch
 
+_JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
 _F32 = np.float32
 _DY = np.array([d[0] for d in OFFSETS], np.int64)
 _DX = np.array([d[1] for d in OFFSETS], np.int64)

@@ -22,12 +22,11 @@ from numba import njit, prange
 
 from . import numba_backend as nb
 from .confidence import CONFIDENCE_SCALE_PX, CONFIDENCE_WINDOW, check_points
-from .numba_kernels import _JIT
 from .workspace import scratch
 
 _F32 = np.float32
-# the kernels' flags (numba_kernels._JIT): every value is finite here (the engine's flow is checked finite,
-# the frames are in [0, 1])
+# fastmath: every value is finite here (the engine's flow is checked finite, the frames are in [0, 1])
+_JIT = dict(cache=True, fastmath=True, error_model="numpy", nogil=True)
 _EPS = _F32(1e-3)  # confidence.confidence: the gradient floor of the division
 
 

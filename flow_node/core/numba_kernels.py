@@ -29,12 +29,13 @@ from numba import njit, prange
 
 REG_CODES = {"l2": 0, "tv": 1, "tv_l2": 2, "tv_tv": 3}  # regulariser -> integer flag of the kernels
 
-# fastmath without "reassoc": with it, LLVM may reorder sums in ways that make a solve depend on more than its
-# inputs (measured: a process's first solve of a pair came out 4e-5-1e-4 px away from its later solves of the
-# same pair); without it, every solve of the same input is bit for bit the same, in one process or another.
-# The other flags: every value is finite (nnan, ninf), signed zeros do not matter (nsz), fused multiply-add
-# (contract), approximate functions and reciprocals (afn, arcp).
-FASTMATH = {"nnan", "ninf", "nsz", "contract", "afn", "arcp"}
+# The solver's fastmath: finite values (nnan, ninf), signed zeros do not matter (nsz), fused multiply-add
+# (contract) -- but no "reassoc", "afn" or "arcp", which let a vectorised loop body compute other values than
+# the scalar iterations of the same loop; which elements take which path can depend on the arrays' addresses,
+# and the iterations amplify the last-bit differences: with them a process's first solve of a pair came out
+# 3e-5-8e-4 px away from its later solves of the same pair. With these flags every solve of the same input
+# is bit for bit the same (test_cold_start). The warp, census and confidence kernels keep fastmath=True.
+FASTMATH = {"nnan", "ninf", "nsz", "contract"}
 # error_model numpy: no zero-check branch per division; nogil: a kernel releases the GIL, so another
 # thread of the process (a Dask worker's event loop, the node's executor) is not held up for its duration
 _JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
@@ -222,9 +223,11 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                 p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
 
     def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,  # noqa: ANN001, ANN202
-                    soft, mass, p, qpad, tv):
+                    soft, mass, p, qpad, tv, measure):
         """One primal step over the whole image, in place on v, v_bar (and w, w_bar); returns
-        sum |v_new - v|^2. xbuf: (threads, 2, W + 1) scratch for the x-part of div y (see below). ``quad``:
+        sum |v_new - v|^2 if ``measure``, else 0 (a sum inside the row loop would keep it from being vectorised:
+        fastmath without "reassoc" may not reorder it; so the row keeps the change in v_bar, sums it when
+        asked and then adds v_new). xbuf: (threads, 2, W + 1) scratch for the x-part of div y (see below). ``quad``:
         ``a`` is a quadratic data term (5, H, W) (:func:`prox_quadratic`; ``c`` unused), else rho = a . v + c.
         ``mass``: the data term is dualised: v <- v + tv (div y + b - A* p), per-pixel tv, A* p = a p + the
         central differences' adjoint of ``qpad`` = M p (zero-padded by one pixel, see :func:`_mass_px`)."""
@@ -264,12 +267,16 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                                             tau_d)
                 else:
                     n0, n1 = prox_data(vt0, vt1, a[0, i, j], a[1, i, j], c[i, j], tau_d, data_l1, soft)
-                d0, d1 = n0 - v0, n1 - v1
-                v_bar[0, i, j] = n0 + d0
-                v_bar[1, i, j] = n1 + d1
+                v_bar[0, i, j] = n0 - v0  # the change; the extrapolation v_new + change is made below
+                v_bar[1, i, j] = n1 - v1
                 v[0, i, j] = n0
                 v[1, i, j] = n1
-                acc += d0 * d0 + d1 * d1
+            if measure:  # the row's sum of squared changes (not inside the loop above: see the docstring)
+                for j in range(wd):
+                    acc += v_bar[0, i, j] * v_bar[0, i, j] + v_bar[1, i, j] * v_bar[1, i, j]
+            for j in range(wd):
+                v_bar[0, i, j] += v[0, i, j]
+                v_bar[1, i, j] += v[1, i, j]
             if reg >= 2:
                 w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg)
             total += acc
@@ -301,14 +308,15 @@ def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  #
     n = 2.0 * v.shape[1] * v.shape[2]
     k = 0
     for k in range(1, iterations + 1):
+        measure = tolerance > 0.0 and k % check_every == 0
         if parallel:
             dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
             ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
-                                 soft, mass, p, qpad, tv)
+                                 soft, mass, p, qpad, tv, measure)
         else:
             dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
             ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
-                                 soft, mass, p, qpad, tv)
-        if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
+                                 soft, mass, p, qpad, tv, measure)
+        if measure and math.sqrt(ss / n) < tolerance:
             break
     return k

@@ -24,9 +24,10 @@ from numba import njit, prange
 
 from .models import step_sizes
 from .numba_backend import PARALLEL_MIN_PIXELS
-from .numba_kernels import _JIT, REG_CODES
+from .numba_kernels import REG_CODES
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 
+_JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
 _ONE = np.float32(1.0)
 _ZERO = np.float32(0.0)
 

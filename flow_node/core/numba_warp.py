@@ -16,7 +16,9 @@ from __future__ import annotations
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .numba_kernels import _JIT, _ONE
+from .numba_kernels import _ONE
+
+_JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
 
 _HALF = np.float32(0.5)
 
