@@ -12,7 +12,8 @@ confidence they take (all but the divergence) is reported on its own; each topic
 confidence map given (~/confidence subscribed anyway: the node computes it once per pair for every
 consumer) and without it ("+conf", what a topic costs when ~/confidence is not subscribed: as the node's
 MotionAnalysis.of, the fits take the confidence at their samples alone, FlowEstimator.confidence_at, and
-the mask computes the whole map, FlowEstimator.confidence; both with the estimator's backend). Pairs from
+the mask where it reads it alone, FlowEstimator.confidence with ``where``; both with the estimator's
+backend). Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
 best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
@@ -50,12 +51,14 @@ NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "al
 
 
 def topic_time(flow: np.ndarray, conf: np.ndarray | Callable[[], np.ndarray], names: tuple[str, ...],
-               confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> float:
+               confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+               confidence_in: Callable[[np.ndarray], np.ndarray] | None = None) -> float:
     """Seconds the node's worker spends on ``names`` for one pair, the confidence given or computed as
-    needed (``conf`` a function, ``confidence_at`` its values at points; module docstring)."""
+    needed (``conf`` a function, ``confidence_at`` its values at points, ``confidence_in`` where a mask is
+    True; module docstring)."""
     header = Header(frame_id="camera")
     start = time.perf_counter()
-    a = MotionAnalysis(flow, conf, 0.1, confidence_at=confidence_at)
+    a = MotionAnalysis(flow, conf, 0.1, confidence_at=confidence_at, confidence_in=confidence_in)
     detected = MotionDetector().update(a.moving_fraction) if "motion/detected" in names else None
     for _ in motion_messages(RclpyKit(), header, a, detected, names):
         pass
@@ -77,7 +80,8 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
     if topic == name:
         return topic_time(res.flow, conf, names)
     return topic_time(res.flow, lambda: est.confidence(*res.frames, res.flow), names,
-                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs))
+                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs),
+                      lambda where: est.confidence(*res.frames, res.flow, where))
 
 
 def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[dict[str, Any]]:

@@ -8,13 +8,15 @@ earlier frame's grid; ``confidence`` (H, W) in [0, 1] of the same pair
   planar): a similarity (translation of the image centre, rotation, scale) and a homography, fitted
   robustly (:func:`flow_node.pipeline.robust.fit_robust`) on ~4096 samples weighted by the confidence.
 * :func:`moving_mask` -- pixels whose flow deviates from the dominant motion's by more than
-  ``abs_px + rel x |predicted flow|``, confident ones only, cleaned by a morphological opening.
+  ``abs_px + rel x |predicted flow|``, confident ones only, cleaned by a morphological opening (the
+  confidence read only where the deviating pixels survive the opening).
 * :class:`MotionDetector` -- a ``motion detected`` flag with hysteresis over the moving area fraction.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -27,6 +29,7 @@ from .robust import (
     Samples,
     Weights,
     check_flow,
+    check_flow_shape,
     check_weights,
     fit_robust,
     median_slopes,
@@ -222,19 +225,35 @@ def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThresh
                           hom.scale, support, (frame.cx, frame.cy))
 
 
-def moving_mask(flow: np.ndarray, confidence: np.ndarray, motion: DominantMotion | None,
+# What the mask reads the confidence from: the map (H, W), or a function of a bool (H, W) array that gives
+# a map right at least where that array is True (e.g. FlowOutput.confidence_in: those pixels alone)
+MaskConfidence = np.ndarray | Callable[[np.ndarray], np.ndarray]
+
+
+def moving_mask(flow: np.ndarray, confidence: MaskConfidence, motion: DominantMotion | None,
                 threshold: MaskThreshold | None = None) -> np.ndarray:
     """Independently moving pixels: uint8 (H, W), 255 where the flow (H, W, 2) px/frame deviates from
     ``motion``'s predicted flow by more than ``threshold`` (abs px + rel x predicted length) and the
     confidence (H, W) is at least ``threshold.min_confidence``, after a morphological opening (removes
-    specks narrower than 2 ``opening_px`` + 1 px); 0 elsewhere. All 0 without a dominant motion."""
-    check_flow(flow, confidence)
+    specks narrower than 2 ``opening_px`` + 1 px); 0 elsewhere. All 0 without a dominant motion.
+
+    The confidence is read only where the opening of the deviating pixels alone is nonzero (the deviating
+    pixels when there is no opening), so ``confidence`` may be a function that computes it there alone
+    (:data:`MaskConfidence`): the opening of (deviates & confident) is the same whatever the confidence
+    elsewhere. Its erosion keeps a pixel q only if every pixel of q's element deviates and is confident, so
+    only q in the erosion of the deviating pixels, and reads the confidence in q's element then, which lies
+    in that erosion's dilation: the opening of the deviating pixels (test_pipeline_motion.py checks it).
+    """
+    if callable(confidence):
+        check_flow_shape(flow)
+    else:
+        check_flow(flow, confidence)
     threshold = threshold if threshold is not None else MaskThreshold()
+    h, w = flow.shape[:2]
     if motion is None:
-        return np.zeros(confidence.shape, np.uint8)
+        return np.zeros((h, w), np.uint8)
     # one pass per step, without (H, W, 2) temporaries: the homography's numerators and denominator are
     # sums of a row and a column term; OpenCV's split and magnitude are single SIMD passes
-    h, w = confidence.shape
     hm = np.asarray(motion.homography, np.float32)
     x, y = np.arange(w, dtype=np.float32)[None, :], np.arange(h, dtype=np.float32)[:, None]
     den = (hm[2, 0] * x + hm[2, 2]) + hm[2, 1] * y
@@ -245,13 +264,21 @@ def moving_mask(flow: np.ndarray, confidence: np.ndarray, motion: DominantMotion
     limit += np.float32(threshold.abs_px)
     u, v = cv2.split(np.ascontiguousarray(flow, dtype=np.float32))
     deviation = cv2.magnitude(np.subtract(u, pu, out=u), np.subtract(v, pv, out=v))
-    moving = (deviation > limit) & (confidence >= threshold.min_confidence)
-    mask = moving.view(np.uint8) * np.uint8(255)
+    moving = deviation > limit
+    opening = None
     if threshold.opening_px > 0:
         r = threshold.opening_px
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel)
-    return mask
+        opening = lambda m: cv2.morphologyEx(m, cv2.MORPH_OPEN, kernel)  # noqa: E731
+    if callable(confidence):  # the pixels whose confidence the result depends on (docstring), if any
+        read = moving if opening is None else opening(moving.view(np.uint8)).view(np.bool_)
+        if not read.any():
+            return np.zeros((h, w), np.uint8)
+        confidence = confidence(read)
+        check_flow(flow, confidence)
+    moving &= confidence >= threshold.min_confidence
+    mask = moving.view(np.uint8) * np.uint8(255)
+    return mask if opening is None else opening(mask)
 
 
 def moving_fraction(mask: np.ndarray) -> float:
