@@ -102,11 +102,16 @@ def region_bounds(shape: tuple[int, int], grid: tuple[int, int]) -> list[tuple[i
     return [(xs[c], ys[r], xs[c + 1], ys[r + 1]) for r in range(rows) for c in range(cols)]
 
 
-def _affine_fits(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _affine_basis(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """The affine fits' basis (1, X, Y) of R regions' samples X, Y (R, m): (R, 3, m)."""
+    return np.stack([np.ones_like(X), X, Y], axis=1)
+
+
+def _affine_fits(basis: np.ndarray, uv: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Weighted least-squares affine fits u ~ a0 + a1 X + a2 Y and v ~ b0 + b1 X + b2 Y of R regions at
-    once, each from its m samples (X, Y, w (R, m); uv (R, m, 2)): coefficients (R, 3, 2) as [[a0, b0],
-    [a1, b1], [a2, b2]] (0 where a region's weighted system is singular) and whether it was not (R,)."""
-    basis = np.stack([np.ones_like(X), X, Y], axis=1)  # (R, 3, m)
+    once, each from its m samples (``basis`` (R, 3, m) of :func:`_affine_basis`, w (R, m); uv (R, m, 2)):
+    coefficients (R, 3, 2) as [[a0, b0], [a1, b1], [a2, b2]] (0 where a region's weighted system is
+    singular) and whether it was not (R,)."""
     wb = basis * w[:, None, :]
     normal = wb @ basis.transpose(0, 2, 1)  # (R, 3, 3)
     total = normal[:, 0, 0]
@@ -115,11 +120,11 @@ def _affine_fits(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, w: np.ndarray) ->
     return np.where(ok[:, None, None], np.linalg.solve(normal, wb @ uv), 0.0), ok
 
 
-def _affine_residual(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, coef: np.ndarray) -> np.ndarray:
-    """Endpoint residual px (R, m) of samples uv (R, m, 2) at X, Y (R, m) against the fits coef (R, 3, 2)."""
-    model = coef[:, None, 0, :] + coef[:, None, 1, :] * X[..., None] + coef[:, None, 2, :] * Y[..., None]
-    d = uv - model
-    return np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2)
+def _affine_residual(basis: np.ndarray, uv: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """Endpoint residual px (R, m) of samples uv (R, m, 2) with ``basis`` (R, 3, m) against the fits coef
+    (R, 3, 2)."""
+    d = uv - basis.transpose(0, 2, 1) @ coef
+    return np.hypot(d[..., 0], d[..., 1])
 
 
 def _affine_start(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.ndarray, k: int) -> np.ndarray:
@@ -165,10 +170,11 @@ def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None =
     mid = (bounds[:, 0:2] + bounds[:, 2:4] - 1) / 2.0
     X, Y = (px - mid[:, 0:1]) / half[:, 0:1], (py - mid[:, 1:2]) / half[:, 1:2]
     coef, ok, scale = _affine_start(X, Y, uv, conf, k), np.ones(count, bool), None
+    basis = _affine_basis(X, Y)
     for psi, iterations in ((huber_weight, HUBER_ITERATIONS), (tukey_weight, TUKEY_ITERATIONS)):
         for _ in range(iterations):
-            weight, scale = reweight(_affine_residual(X, Y, uv, coef), conf, scale, psi)
-            previous, (coef, ok) = coef, _affine_fits(X, Y, uv, weight)
+            weight, scale = reweight(_affine_residual(basis, uv, coef), conf, scale, psi)
+            previous, (coef, ok) = coef, _affine_fits(basis, uv, weight)
             # |X|, |Y| <= 1: no sample's model flow moved by more than the coefficients' changes together
             if np.max(np.abs(coef - previous).sum(axis=1)) < CONVERGED_PX:
                 break

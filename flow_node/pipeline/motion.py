@@ -134,6 +134,8 @@ class _Frame:
         self.tu = s.x.ravel() - self.cx + s.u.ravel()  # where the samples went, px relative to the centre
         self.tv = s.y.ravel() - self.cy + s.v.ravel()
         self.flow = np.concatenate([s.u.ravel(), s.v.ravel()])  # px/frame, u-components then v-components
+        self.target = np.concatenate([self.tu, self.tv])  # where they went, the same way
+        self._basis = np.stack([self.X, self.Y, np.ones_like(self.X)])
         self._sim_jac: np.ndarray | None = None
 
     def similarity(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -150,18 +152,14 @@ class _Frame:
     def homography(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """h (8,) normalised, h33 = 1: X' = (h0 X + h1 Y + h2) / D, Y' = (h3 X + h4 Y + h5) / D,
         D = h6 X + h7 Y + 1 (Gauss-Newton: the Jacobian at h)."""
-        X, Y, n = self.X, self.Y, self.X.size
-        inv = self.half / (h[6] * X + h[7] * Y + 1.0)  # px per normalised unit, over D
-        pu = (h[0] * X + h[1] * Y + h[2]) * inv  # px, relative to the centre
-        pv = (h[3] * X + h[4] * Y + h[5]) * inv
-        jac = np.zeros((8, 2 * n))
-        jac[0, :n] = jac[3, n:] = X * inv
-        jac[1, :n] = jac[4, n:] = Y * inv
-        jac[2, :n] = jac[5, n:] = inv
-        gu, gv = pu * inv / self.half, pv * inv / self.half  # d(px)/dD, over -1
-        jac[6, :n], jac[6, n:] = -gu * X, -gv * X
-        jac[7, :n], jac[7, n:] = -gu * Y, -gv * Y
-        return jac, np.concatenate([self.tu - pu, self.tv - pv])
+        basis = self._basis  # (3, n): X, Y, 1
+        inv = self.half / (h[6:8] @ basis[:2] + 1.0)  # px per normalised unit, over D
+        p = (h[:6].reshape(2, 3) @ basis) * inv  # (2, n): pu, pv px, relative to the centre
+        jac = np.zeros((8, 2, basis.shape[1]))  # (parameter, component, sample)
+        jac[0:3, 0] = jac[3:6, 1] = basis * inv
+        g = p * (inv / -self.half)  # d(px)/dD
+        jac[6:8] = basis[:2, None, :] * g  # (2, 2, n)
+        return jac.reshape(8, -1), self.target - p.reshape(-1)
 
     def similarity_start(self) -> np.ndarray:
         """A robust start (tx, ty, a, b) for :meth:`similarity`: a and b from the median slopes of the
@@ -170,8 +168,7 @@ class _Frame:
         confident enough."""
         s = self.s
         keep = s.w >= START_CONFIDENCE
-        dudx, dudy = median_slopes(s.u, s.x, s.y, keep)
-        dvdx, dvdy = median_slopes(s.v, s.x, s.y, keep)
+        (dudx, dvdx), (dudy, dvdy) = median_slopes(np.stack([s.u, s.v]), s.x, s.y, keep)  # u and v at once
         a, b = np.nan_to_num([(dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0])
         X, Y = self.X * self.half, self.Y * self.half
         rest = np.stack([s.u.ravel() - a * X + b * Y, s.v.ravel() - b * X - a * Y], axis=-1)
