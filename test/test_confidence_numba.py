@@ -2,9 +2,12 @@
 (confidence.confidence), the oracle: random frames and flows that leave the image in places, and a pair
 rendered exactly with the realtime preset's flow; rows run serially and in parallel; the backends' wiring
 (Backend.confidence, FlowEstimator.confidence, the stream's FlowOutput.confidence); the same for the
-confidence at points only (numba_confidence.confidence_at_numba against confidence.confidence_at)."""
+confidence at points only (numba_confidence.confidence_at_numba against confidence.confidence_at: each
+point's box alone, or the map near dense points) and where a mask is True (confidence_numba with ``where``)."""
 
 from __future__ import annotations
+
+import math
 
 import numba
 import numpy as np
@@ -13,7 +16,7 @@ from test_fusion_numba import REMAP_EXACT
 
 from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
-from flow_node.core import FlowEstimator, numba_backend
+from flow_node.core import FlowEstimator, numba_backend, numba_confidence
 from flow_node.core.backends import NUMPY, select_backend
 from flow_node.core.confidence import confidence, confidence_at
 from flow_node.core.config import FlowConfig
@@ -98,8 +101,16 @@ def border_and_grid(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     return ys[keep], xs[keep]
 
 
+@pytest.fixture(params=["boxes", "map"])
+def at_path(request, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Both ways confidence_at_numba computes points: each point's box from its own terms, or the map near
+    the points (numba_confidence.AT_MAP_COVER, the share of the image from which it takes the map, patched)."""
+    monkeypatch.setattr(numba_confidence, "AT_MAP_COVER", math.inf if request.param == "boxes" else 0.0)
+    return request.param
+
+
 @pytest.mark.parametrize("shape", [(2, 2), (3, 7), (37, 53), (120, 160)])
-def test_confidence_at_points_matches_the_map(shape, rows) -> None:
+def test_confidence_at_points_matches_the_map(shape, rows, at_path) -> None:
     rng = np.random.default_rng(3)
     i0, i1 = (rng.random(shape, dtype=np.float32) for _ in range(2))
     flow = rng.normal(0.0, 4.0, shape + (2,)).astype(np.float32)
@@ -117,7 +128,7 @@ def test_confidence_at_points_matches_the_map(shape, rows) -> None:
 
 
 @pytest.mark.parametrize("kind", ["pan", "approach"])
-def test_confidence_at_points_of_a_rendered_pair(kind) -> None:
+def test_confidence_at_points_of_a_rendered_pair(kind, at_path) -> None:
     i0, i1, flow = rendered_pair(kind)
     ys, xs = border_and_grid(flow.shape[:2])
     assert_matches(confidence_at_numba(i0, i1, flow, ys, xs), confidence_at(i0, i1, flow, ys, xs))

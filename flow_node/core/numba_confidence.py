@@ -28,6 +28,11 @@ _F32 = np.float32
 # fastmath: every value is finite here (the engine's flow is checked finite, the frames are in [0, 1])
 _JIT = dict(cache=True, fastmath=True, error_model="numpy", nogil=True)
 _EPS = _F32(1e-3)  # confidence.confidence: the gradient floor of the division
+# confidence_at_numba: points whose boxes (25 px each) add up to at least this share of the image take the
+# map near them (confidence_numba with ``where``: each pixel's terms once, frame 1's planes computed once)
+# instead of every box summed from its own terms (measured: 972 points at 320x240 0.67 vs 0.80 ms, 1064 at
+# 640x480 1.74 vs 0.80 ms)
+AT_MAP_COVER = 0.25
 
 
 @njit(**_JIT)
@@ -217,13 +222,18 @@ def confidence_at_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np
                         xs: np.ndarray) -> np.ndarray:
     """confidence.confidence_at with :func:`confidence_at_kernel`: the confidence at the pixels (ys, xs)
     (integer arrays of one shape, inside the image) alone, ~25 x 5 plane evaluations per point instead of
-    whole-image passes; float32 of ys' shape, the full map's values up to float32 rounding."""
+    whole-image passes, or, for points dense enough (AT_MAP_COVER), the map near them; float32 of ys' shape,
+    the full map's values up to float32 rounding."""
     flow = np.ascontiguousarray(flow, dtype=_F32)
     h, w = flow.shape[:2]
     check_points((h, w), ys, xs)
     yi, xi = (np.ascontiguousarray(np.ravel(a), dtype=np.int64) for a in (ys, xs))
-    out = np.empty(yi.size, _F32)
     work = yi.size * CONFIDENCE_WINDOW * CONFIDENCE_WINDOW
+    if work >= AT_MAP_COVER * h * w:  # dense points: the map near them
+        where = np.zeros((h, w), np.bool_)
+        where[yi, xi] = True
+        return confidence_numba(i0, i1, flow, where)[yi, xi].reshape(np.shape(ys))
+    out = np.empty(yi.size, _F32)
     with nb.thread_count(nb.threads() if work >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
         confidence_at_kernel(out, np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32),
                              flow, yi, xi, _F32(1.0 / CONFIDENCE_SCALE_PX))
