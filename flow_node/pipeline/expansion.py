@@ -136,7 +136,8 @@ def _affine_start(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.ndarray
     fields = np.moveaxis(uv, -1, 0).reshape(2, r, k, k)  # u and v of every region, in one batch
     dx, dy = median_slopes(fields, *(np.broadcast_to(a.reshape(r, k, k), (2, r, k, k)) for a in (X, Y, keep)))
     coef = np.zeros((r, 3, 2))
-    coef[:, 1, :], coef[:, 2, :] = np.nan_to_num(dx).T, np.nan_to_num(dy).T
+    coef[:, 1, :], coef[:, 2, :] = dx.T, dy.T
+    coef[np.isnan(coef)] = 0.0  # no pairs: no slope (the slopes are finite otherwise)
     coef[:, 0, :] = medoid_offset(uv - coef[:, None, 1, :] * X[..., None] - coef[:, None, 2, :] * Y[..., None], keep)
     return coef
 
@@ -157,7 +158,8 @@ def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None =
     check_weights(flow, confidence)
     rows, cols = grid
     count = rows * cols
-    bounds = np.array(region_bounds(flow.shape[:2], grid), np.float64)  # (R, 4)
+    cells = region_bounds(flow.shape[:2], grid)
+    bounds = np.array(cells, np.float64)  # (R, 4)
     k = max(2, int(round(math.sqrt(samples / count))))
     t = np.linspace(0.0, 1.0, k)
     xi = np.rint(bounds[:, 0:1] + t * (bounds[:, 2:3] - 1 - bounds[:, 0:1])).astype(np.int64)  # (R, k)
@@ -186,10 +188,10 @@ def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None =
     with np.errstate(divide="ignore", invalid="ignore"):
         ttc = np.where(expansion > MIN_EXPANSION, 1.0 / expansion, np.inf)
     ttc[(support < MIN_SUPPORT) | np.isnan(expansion)] = np.nan
+    values = zip(div.tolist(), expansion.tolist(), ttc.tolist(), support.tolist(), strict=True)  # Python floats
     return TimeToContact(rows, cols, tuple(
-        RegionTTC(r // cols, r % cols, tuple(bounds[r].astype(int).tolist()), float(div[r]), float(expansion[r]),
-                  float(ttc[r]), None if interval_s is None else float(ttc[r]) * interval_s, float(support[r]))
-        for r in range(count)))
+        RegionTTC(r // cols, r % cols, cells[r], d, e, t, None if interval_s is None else t * interval_s, c)
+        for r, (d, e, t, c) in enumerate(values)))
 
 
 @dataclass(frozen=True)

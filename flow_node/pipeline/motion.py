@@ -169,7 +169,7 @@ class _Frame:
         s = self.s
         keep = s.w >= START_CONFIDENCE
         (dudx, dvdx), (dudy, dvdy) = median_slopes(np.stack([s.u, s.v]), s.x, s.y, keep)  # u and v at once
-        a, b = np.nan_to_num([(dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0])
+        a, b = (0.0 if math.isnan(v) else float(v) for v in ((dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0))
         X, Y = self.X * self.half, self.Y * self.half
         rest = np.stack([s.u.ravel() - a * X + b * Y, s.v.ravel() - b * X - a * Y], axis=-1)
         tx, ty = medoid_offset(rest, keep.ravel())
