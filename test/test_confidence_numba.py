@@ -176,15 +176,17 @@ def test_confidence_where_matches_the_map_there(shape, rows) -> None:
     rng = np.random.default_rng(5)
     i0, i1 = (rng.random(shape, dtype=np.float32) for _ in range(2))
     flow = rng.normal(0.0, 4.0, shape + (2,)).astype(np.float32)
-    where = specks_and_borders(shape, 2)
     full = confidence(i0, i1, flow)
-    ref = confidence(i0, i1, flow, where)
-    np.testing.assert_array_equal(ref, np.where(where, full, 0.0))  # the reference: the map, cleared elsewhere
-    out = confidence_numba(i0, i1, flow, where)
-    assert out.dtype == np.float32 and out.shape == shape and not out[~where].any()
-    assert_matches(out, ref)
-    # against the numba map: the terms beyond the box's reach of ``where`` are 0 instead, nothing else
-    np.testing.assert_allclose(out, np.where(where, confidence_numba(i0, i1, flow), 0.0), rtol=0, atol=1e-6)
+    middle = np.zeros(shape, bool)  # rows away from the borders: the box filter runs on a band of rows
+    middle[shape[0] // 3:shape[0] // 2 + 1, shape[1] // 4:] = True
+    for where in (specks_and_borders(shape, 2), middle):
+        ref = confidence(i0, i1, flow, where)
+        np.testing.assert_array_equal(ref, np.where(where, full, 0.0))  # the reference: the map, cleared elsewhere
+        out = confidence_numba(i0, i1, flow, where)
+        assert out.dtype == np.float32 and out.shape == shape and not out[~where].any()
+        assert_matches(out, ref)
+        # against the numba map: the terms beyond the box's reach of ``where`` are 0 instead, nothing else
+        np.testing.assert_allclose(out, np.where(where, confidence_numba(i0, i1, flow), 0.0), rtol=0, atol=1e-6)
     np.testing.assert_array_equal(confidence_numba(i0, i1, flow, np.ones(shape, bool)), confidence_numba(i0, i1, flow))
     assert not confidence_numba(i0, i1, flow, np.zeros(shape, bool)).any()
 

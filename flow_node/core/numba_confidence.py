@@ -177,8 +177,9 @@ def confidence_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np
     """confidence.confidence with the kernels above: same arguments (frames (H, W), flow (H, W, 2), ``where``
     (H, W) bool or None), same result up to float32 rounding; float32 (H, W) in [0, 1]. With ``where``
     the residual terms are computed only within the box's reach of it (its CONFIDENCE_WINDOW dilation;
-    0 beyond, which no box of a ``where`` pixel reads, also where the border is reflected) and the ratio
-    only at it: what the moving mask needs, about that share of the terms pass (the bulk of the cost)."""
+    0 beyond, which no box of a ``where`` pixel reads, also where the border is reflected), the box filter
+    on the rows of that reach (:func:`_band`) and the ratio only at ``where``: what the moving mask needs,
+    about that share of the terms pass (the bulk of the cost)."""
     flow = np.ascontiguousarray(flow, dtype=_F32)
     h, w = flow.shape[:2]
     check_where((h, w), where)
@@ -192,10 +193,20 @@ def confidence_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np
     with nb.thread_count(nb.threads() if h * w >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
         planes_kernel(s1, np.ascontiguousarray(i1, dtype=_F32))
         terms_kernel(boxed, np.ascontiguousarray(i0, dtype=_F32), s1, flow, need)
-        cv2.boxFilter(boxed, -1, (CONFIDENCE_WINDOW, CONFIDENCE_WINDOW), dst=boxed, borderType=cv2.BORDER_REFLECT)
+        band = boxed if where is None else boxed[_band(need)]  # where: the rows within the box's reach alone
+        if band.size:
+            cv2.boxFilter(band, -1, (CONFIDENCE_WINDOW, CONFIDENCE_WINDOW), dst=band, borderType=cv2.BORDER_REFLECT)
         confidence_kernel(conf, boxed, flow, none if where is None else np.ascontiguousarray(where),
                           _F32(1.0 / CONFIDENCE_SCALE_PX))
     return conf
+
+
+def _band(need: np.ndarray) -> slice:
+    """The rows from the first to the last with a True in ``need`` (H, W) bool (none: an empty slice). The box
+    filter on those rows alone gives every pixel whose whole box lies in ``need`` its value: its box's rows
+    are in the band, and only rows beyond the band's ends are reflected differently."""
+    rows = np.flatnonzero(need.any(axis=1))
+    return slice(int(rows[0]), int(rows[-1]) + 1) if rows.size else slice(0, 0)
 
 
 @njit(parallel=True, **_JIT)
