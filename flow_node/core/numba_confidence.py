@@ -30,8 +30,8 @@ _JIT = dict(cache=True, fastmath=True, error_model="numpy", nogil=True)
 _EPS = _F32(1e-3)  # confidence.confidence: the gradient floor of the division
 # confidence_at_numba: points whose boxes (25 px each) add up to at least this share of the image take the
 # map near them (confidence_numba with ``where``: each pixel's terms once, frame 1's planes computed once)
-# instead of every box summed from its own terms (measured: 972 points at 320x240 0.67 vs 0.80 ms, 1064 at
-# 640x480 1.74 vs 0.80 ms)
+# instead of every box summed from its own terms (measured: 972 points at 320x240 0.66 vs 0.70 ms, 1296
+# 0.71 vs 0.92 ms; 1064 at 640x480 1.74 vs 0.80 ms)
 AT_MAP_COVER = 0.25
 
 
