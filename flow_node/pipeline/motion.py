@@ -6,7 +6,7 @@ earlier frame's grid; ``confidence`` (H, W) in [0, 1] of the same pair
 
 * :func:`dominant_motion` -- the motion of most of the image (the camera's, over a scene far away or
   planar): a similarity (translation of the image centre, rotation, scale) and a homography, fitted
-  robustly (:func:`flow_node.pipeline.robust.fit_robust`) on ~4096 samples weighted by the confidence.
+  robustly (:func:`flow_node.pipeline.robust.fit_robust`) on ~1024 samples weighted by the confidence.
 * :func:`moving_mask` -- pixels whose flow deviates from the dominant motion's by more than
   ``abs_px + rel x |predicted flow|``, confident ones only, cleaned by a morphological opening (the
   confidence read only where the deviating pixels survive the opening).
