@@ -12,7 +12,9 @@ confidence they take (all but the divergence) is reported on its own; each topic
 confidence map given (~/confidence subscribed anyway: the node computes it once per pair for every
 consumer) and without it ("+conf", what a topic costs when ~/confidence is not subscribed: as the node's
 MotionAnalysis.of, the fits take the confidence at their samples alone, FlowEstimator.confidence_at, and
-the mask computes the whole map, FlowEstimator.confidence; both with the estimator's backend). Pairs from
+the mask where it reads it alone, FlowEstimator.confidence with ``where``; both with the estimator's
+backend). "mask, whole map" is the mask +conf as it was before that (the whole map first, the dominant
+motion reading it), timed in the same loop for the comparison. Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
 best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
@@ -47,15 +49,18 @@ from .motion_regime import quantise8
 
 CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
 NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "all")
+WHOLE_MAP = "motion/moving_mask+map"  # the mask +conf with the whole map first (before confidence_in)
 
 
 def topic_time(flow: np.ndarray, conf: np.ndarray | Callable[[], np.ndarray], names: tuple[str, ...],
-               confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> float:
+               confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+               confidence_in: Callable[[np.ndarray], np.ndarray] | None = None) -> float:
     """Seconds the node's worker spends on ``names`` for one pair, the confidence given or computed as
-    needed (``conf`` a function, ``confidence_at`` its values at points; module docstring)."""
+    needed (``conf`` a function, ``confidence_at`` its values at points, ``confidence_in`` where a mask is
+    True; module docstring)."""
     header = Header(frame_id="camera")
     start = time.perf_counter()
-    a = MotionAnalysis(flow, conf, 0.1, confidence_at=confidence_at)
+    a = MotionAnalysis(flow, conf, 0.1, confidence_at=confidence_at, confidence_in=confidence_in)
     detected = MotionDetector().update(a.moving_fraction) if "motion/detected" in names else None
     for _ in motion_messages(RclpyKit(), header, a, detected, names):
         pass
@@ -72,12 +77,13 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
     if name == "confidence":
         est.confidence(*res.frames, res.flow)
         return time.perf_counter() - start
-    topic = name.removesuffix("+conf")
+    topic = name.removesuffix("+conf").removesuffix("+map")
     names = tuple(MOTION_TOPICS) if topic == "all" else (topic,)
     if topic == name:
         return topic_time(res.flow, conf, names)
     return topic_time(res.flow, lambda: est.confidence(*res.frames, res.flow), names,
-                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs))
+                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs),
+                      None if name == WHOLE_MAP else lambda where: est.confidence(*res.frames, res.flow, where))
 
 
 def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[dict[str, Any]]:
@@ -93,7 +99,8 @@ def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[d
             conf = est.confidence(*res.frames, res.flow)
             times: dict[str, float] = {}
             for _ in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike
-                for name in ("engine", "confidence", *MOTION_TOPICS, "all", *(f"{t}+conf" for t in NEEDS_CONFIDENCE)):
+                for name in ("engine", "confidence", *MOTION_TOPICS, "all", *(f"{t}+conf" for t in NEEDS_CONFIDENCE),
+                             WHOLE_MAP):
                     times[name] = min(times.get(name, math.inf), _time(name, f0, f1, est, res, conf))
             row: dict[str, Any] = {"kind": kind} | {f"{name}_s": t for name, t in times.items()}
             rows.append(row)
@@ -113,6 +120,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             tc = np.array([r[f"{name}+conf_s"] for r in rows])
             out[name] |= {"with_confidence_ratio_median": float(np.median(tc / engine)),
                           "with_confidence_ms_median": 1e3 * float(np.median(tc))}
+    tm = np.array([r[f"{WHOLE_MAP}_s"] for r in rows])
+    out["motion/moving_mask"] |= {"whole_map_ratio_median": float(np.median(tm / engine)),
+                                  "whole_map_ms_median": 1e3 * float(np.median(tm))}
     return out
 
 
@@ -137,6 +147,8 @@ def main(argv: list[str] | None = None) -> int:
                  + (f"{100 * r['summary'][name]['with_confidence_ratio_median']:12.2f} %"
                     if name in NEEDS_CONFIDENCE else " " * 14) for r in results.values()]
         print(f"{name:22s}" + "".join(f"{c:>36s}" for c in cells))
+    print(f"{'mask, whole map':22s}" + "".join(
+        f"{100 * r['summary']['motion/moving_mask']['whole_map_ratio_median']:48.2f} %" for r in results.values()))
     print(f"{'realtime (ms)':22s}" + "".join(f"{r['summary']['engine_ms_median']:19.1f} ms" for r in results.values()))
     write_json(args.output, {"command": "python -m bench.motion_cost " + " ".join(argv), "machine": machine(),
                              "results": results})

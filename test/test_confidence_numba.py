@@ -2,9 +2,12 @@
 (confidence.confidence), the oracle: random frames and flows that leave the image in places, and a pair
 rendered exactly with the realtime preset's flow; rows run serially and in parallel; the backends' wiring
 (Backend.confidence, FlowEstimator.confidence, the stream's FlowOutput.confidence); the same for the
-confidence at points only (numba_confidence.confidence_at_numba against confidence.confidence_at)."""
+confidence at points only (numba_confidence.confidence_at_numba against confidence.confidence_at: each
+point's box alone, or the map near dense points) and where a mask is True (confidence_numba with ``where``)."""
 
 from __future__ import annotations
+
+import math
 
 import numba
 import numpy as np
@@ -13,7 +16,7 @@ from test_fusion_numba import REMAP_EXACT
 
 from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
-from flow_node.core import FlowEstimator, numba_backend
+from flow_node.core import FlowEstimator, numba_backend, numba_confidence
 from flow_node.core.backends import NUMPY, select_backend
 from flow_node.core.confidence import confidence, confidence_at
 from flow_node.core.config import FlowConfig
@@ -98,8 +101,16 @@ def border_and_grid(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     return ys[keep], xs[keep]
 
 
+@pytest.fixture(params=["boxes", "map"])
+def at_path(request, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Both ways confidence_at_numba computes points: each point's box from its own terms, or the map near
+    the points (numba_confidence.AT_MAP_COVER, the share of the image from which it takes the map, patched)."""
+    monkeypatch.setattr(numba_confidence, "AT_MAP_COVER", math.inf if request.param == "boxes" else 0.0)
+    return request.param
+
+
 @pytest.mark.parametrize("shape", [(2, 2), (3, 7), (37, 53), (120, 160)])
-def test_confidence_at_points_matches_the_map(shape, rows) -> None:
+def test_confidence_at_points_matches_the_map(shape, rows, at_path) -> None:
     rng = np.random.default_rng(3)
     i0, i1 = (rng.random(shape, dtype=np.float32) for _ in range(2))
     flow = rng.normal(0.0, 4.0, shape + (2,)).astype(np.float32)
@@ -117,7 +128,7 @@ def test_confidence_at_points_matches_the_map(shape, rows) -> None:
 
 
 @pytest.mark.parametrize("kind", ["pan", "approach"])
-def test_confidence_at_points_of_a_rendered_pair(kind) -> None:
+def test_confidence_at_points_of_a_rendered_pair(kind, at_path) -> None:
     i0, i1, flow = rendered_pair(kind)
     ys, xs = border_and_grid(flow.shape[:2])
     assert_matches(confidence_at_numba(i0, i1, flow, ys, xs), confidence_at(i0, i1, flow, ys, xs))
@@ -147,3 +158,58 @@ def test_backends_and_outputs_compute_points_alone() -> None:
                                   .confidence_at(*out.frames, out.flow, ys, xs), at)
     conf = out.confidence()
     np.testing.assert_array_equal(out.confidence_at(ys, xs), conf[ys, xs])  # once computed: read from the map
+
+
+# ------------------------------------------------------------- the confidence where a mask is True (the mask's)
+def specks_and_borders(shape: tuple[int, int], seed: int) -> np.ndarray:
+    """A bool (H, W): random specks and a block, and the first and last rows and columns in places."""
+    rng = np.random.default_rng(seed)
+    where = rng.random(shape) < 0.03
+    h, w = shape
+    where[h // 3:h // 2 + 1, w // 4:w // 2 + 1] = True
+    where[0, : w // 2] = where[-1, w // 3:] = where[:, 0] = where[h // 2:, -1] = True
+    return where
+
+
+@pytest.mark.parametrize("shape", [(2, 2), (3, 7), (37, 53), (120, 160)])
+def test_confidence_where_matches_the_map_there(shape, rows) -> None:
+    rng = np.random.default_rng(5)
+    i0, i1 = (rng.random(shape, dtype=np.float32) for _ in range(2))
+    flow = rng.normal(0.0, 4.0, shape + (2,)).astype(np.float32)
+    full = confidence(i0, i1, flow)
+    middle = np.zeros(shape, bool)  # rows away from the borders: the box filter runs on a band of rows
+    middle[shape[0] // 3:shape[0] // 2 + 1, shape[1] // 4:] = True
+    for where in (specks_and_borders(shape, 2), middle):
+        ref = confidence(i0, i1, flow, where)
+        np.testing.assert_array_equal(ref, np.where(where, full, 0.0))  # the reference: the map, cleared elsewhere
+        out = confidence_numba(i0, i1, flow, where)
+        assert out.dtype == np.float32 and out.shape == shape and not out[~where].any()
+        assert_matches(out, ref)
+        # against the numba map: the terms beyond the box's reach of ``where`` are 0 instead, nothing else
+        np.testing.assert_allclose(out, np.where(where, confidence_numba(i0, i1, flow), 0.0), rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(confidence_numba(i0, i1, flow, np.ones(shape, bool)), confidence_numba(i0, i1, flow))
+    assert not confidence_numba(i0, i1, flow, np.zeros(shape, bool)).any()
+
+
+def test_confidence_where_of_a_rendered_pair_and_its_wiring() -> None:
+    i0, i1, flow = rendered_pair("pan")
+    where = specks_and_borders(flow.shape[:2], 3)
+    est = FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba"))
+    assert_matches(est.confidence(i0, i1, flow, where), confidence(i0, i1, flow, where))
+    stream = FlowStream(StreamSettings(config=FlowConfig.preset("realtime").replace(backend="numba")))
+    stream.process((255 * i0).astype(np.uint8), 0)
+    out = stream.process((255 * i1).astype(np.uint8), 100_000_000)
+    part = out.confidence_in(where)
+    assert not out.confidence_computed and not part[~where].any()  # those pixels alone, not the map
+    assert_matches(part, confidence(*out.frames, out.flow, where))
+    conf = out.confidence()
+    assert out.confidence_in(where) is conf  # once computed: the map
+
+
+@pytest.mark.parametrize("conf", [confidence, confidence_numba])
+def test_confidence_rejects_a_where_of_another_shape_or_type(conf) -> None:
+    i0 = np.zeros((6, 8), np.float32)
+    flow = np.zeros((6, 8, 2), np.float32)
+    for where in (np.ones((6, 7), bool), np.ones((6, 8), np.uint8)):
+        with pytest.raises(InputError, match="where"):
+            conf(i0, i0, flow, where)

@@ -102,7 +102,8 @@ def test_computed_only_while_subscribed_and_near_the_truth(harness: Harness) -> 
     out = Outputs(h, ["motion/dominant", "motion/moving_mask", "motion/homography", "motion/ttc"])
     h.send_frame(frame(3))  # the pair 2 -> 3
     wait_for(lambda: all(out.got.values()), 10.0, "dominant, mask, homography, ttc")
-    assert analysed(h) == 2 and h.node.stats.last.confidence_computed
+    # the fits take the confidence at their samples, the mask where the deviating pixels survive its opening
+    assert analysed(h) == 2 and not h.node.stats.last.confidence_computed
     twist = out.got["motion/dominant"][-1]
     assert (twist.header.stamp.sec, twist.header.stamp.nanosec) == divmod(13 * INTERVAL_NS, 1_000_000_000)
     assert twist.header.frame_id == "cam_test"

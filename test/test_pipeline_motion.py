@@ -262,3 +262,56 @@ def test_fits_take_the_confidence_at_their_samples_alone() -> None:
     assert b.dominant == ref.dominant and calls == []
     c = MotionAnalysis(out.flow, out.confidence, 0.1, confidence_at=lambda ys, xs: calls.append(ys.size) or at(ys, xs))
     assert c.dominant == ref.dominant and c.foe == ref.foe and len(calls) == 1  # one grid, computed once
+
+
+# --------------------------------------------------- the mask with the confidence where it reads it alone
+@pytest.mark.parametrize("opening_px", [0, 1, 2, 3])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_moving_mask_reads_the_confidence_only_where_the_deviating_pixels_survive_the_opening(opening_px, seed) -> None:
+    rng = np.random.default_rng(seed)
+    base = similarity_flow(0.5, -0.3, 0.4, 1.005)
+    flow = with_block(base, (3.0, -2.0)).copy()
+    flow += np.where(rng.random((H, W, 1)) < 0.05, rng.normal(0.0, 3.0, (H, W, 2)), 0.0).astype(np.float32)
+    flow[:6, :] += 4.0  # deviating pixels along the border too
+    conf = rng.random((H, W)).astype(np.float32)  # confident and not, in specks, everywhere
+    conf[25:60, 35:80] = 0.9
+    threshold = MaskThreshold(opening_px=opening_px)
+    m = dominant_motion(flow, ONES)
+    full = moving_mask(flow, conf, m, threshold)
+    assert full.any() and not full.all()
+    read: list[np.ndarray] = []
+
+    def conf_in(where: np.ndarray) -> np.ndarray:  # right where asked, anything (here the opposite) elsewhere
+        read.append(where.copy())
+        return np.where(where, conf, 1.0 - conf).astype(np.float32)
+
+    np.testing.assert_array_equal(moving_mask(flow, conf_in, m, threshold), full)
+    assert len(read) == 1 and read[0].mean() < 0.5  # a part of the image: the deviating pixels' opening
+    surviving = moving_mask(flow, ONES, m, MaskThreshold(opening_px=opening_px, min_confidence=0.0)) > 0
+    np.testing.assert_array_equal(read[0], surviving)
+
+
+def test_moving_mask_reads_nothing_without_deviating_pixels_or_motion() -> None:
+    base = similarity_flow(1.0, 0.0, 0.0, 1.0)
+
+    def fail(where: np.ndarray) -> np.ndarray:
+        raise AssertionError("the confidence was read")
+
+    assert not moving_mask(base, fail, dominant_motion(base, ONES)).any()
+    assert not moving_mask(base, fail, None).any()
+
+
+def test_analysis_mask_takes_the_confidence_where_it_reads_it() -> None:
+    from flow_node.bag.motion_scenes import motion_scene
+    from flow_node.bag.scenes import render_grey_pair
+    from flow_node.pipeline.stream import FlowStream, StreamSettings
+
+    scene, _ = motion_scene("pan", (256, 192), np.random.default_rng(3), object_share=0.2, objects=1)
+    i0, i1, _ = render_grey_pair(scene)
+    stream = FlowStream(StreamSettings(config=FlowConfig.preset("realtime")))
+    stream.process((255 * i0).astype(np.uint8), 0)
+    out = stream.process((255 * i1).astype(np.uint8), 100_000_000)
+    a = MotionAnalysis.of(out)
+    mask = a.moving_mask
+    assert mask.any() and not out.confidence_computed  # neither the fits nor the mask took the whole map
+    np.testing.assert_array_equal(mask, moving_mask(out.flow, out.confidence(), a.dominant))

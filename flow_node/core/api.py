@@ -157,12 +157,14 @@ class FlowEstimator:
         self.confidence_at(f0, f1, np.zeros(shape + (2,), np.float32), np.zeros(1, np.int64), np.zeros(1, np.int64))
         return time.perf_counter() - start
 
-    def confidence(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
+    def confidence(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray,
+                   where: np.ndarray | None = None) -> np.ndarray:
         """The per-pixel confidence of ``flow`` (H, W, 2) px/frame between grey frames i0, i1 (H, W):
-        (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`), with this estimator's
-        backend on its threads."""
+        (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`; with ``where`` (H, W) bool
+        its values there alone, 0 elsewhere), with this estimator's backend on its threads."""
         with self._backend.running():
-            return self._backend.confidence(i0, i1, flow)
+            return self._backend.confidence(i0, i1, flow) if where is None else \
+                self._backend.confidence(i0, i1, flow, where)
 
     def confidence_at(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray,
                       xs: np.ndarray) -> np.ndarray:

@@ -18,16 +18,17 @@ from .fusion import box_mean, planes, warp_residual
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
 
-# confidence(i0, i1, flow) -> (H, W) float32 in [0, 1]: a backend's field (backends.Backend.confidence);
-# :func:`confidence` is the numpy reference, numba_confidence.confidence_numba the numba kernels
-Confidence = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+# confidence(i0, i1, flow[, where]) -> (H, W) float32 in [0, 1]: a backend's field (backends.Backend.confidence);
+# :func:`confidence` is the numpy reference, numba_confidence.confidence_numba the numba kernels; ``where``
+# (H, W) bool, optional: the map at those pixels, 0 elsewhere (a backend may then compute those alone)
+Confidence = Callable[..., np.ndarray]
 # confidence_at(i0, i1, flow, ys, xs) -> float32 of ys' shape: the same confidence at integer pixel points only
 # (what the derived motion outputs' fits read); :func:`confidence_at` is the reference, a backend's field
 # (backends.Backend.confidence_at) may compute the points alone (numba_confidence.confidence_at_numba)
 ConfidenceAt = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 
 
-def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
+def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
     """Confidence of ``flow`` (H, W, 2) between frames i0, i1 (H, W): float32 (H, W) in [0, 1].
 
     The local data residual (:func:`warp_residual`, a CONFIDENCE_WINDOW box) divided by the local image
@@ -36,7 +37,11 @@ def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
     where x + f leaves the image. Occluded pixels (their content is not in frame 1) and wrong flow have a
     large residual, hence low confidence; flat regions, where no flow is observable, have little gradient,
     hence low confidence too.
+
+    ``where`` (H, W) bool, optional: the values at those pixels, 0 elsewhere (the reference computes the
+    whole map and clears the rest; numba_confidence.confidence_numba computes near ``where`` alone).
     """
+    check_where(flow.shape[:2], where)
     f = np.moveaxis(flow, -1, 0)
     s0 = planes(i0)  # I0 and its gradient: the residual's and the normalisation's
     r, inside = warp_residual(i0, i1, f, (s0, planes(i1)))
@@ -44,6 +49,8 @@ def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> np.ndarray:
     err = box_mean(r, CONFIDENCE_WINDOW) / (g + 1e-3)
     conf = 1.0 / (1.0 + (err / CONFIDENCE_SCALE_PX) ** 2)
     conf[~inside] = 0.0
+    if where is not None:
+        conf[~where] = 0.0
     return conf.astype(np.float32, copy=False)
 
 
@@ -53,6 +60,13 @@ def confidence_at(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarr
     numba_confidence.confidence_at_numba, which computes the points alone)."""
     check_points(flow.shape[:2], ys, xs)
     return confidence(i0, i1, flow)[ys, xs]
+
+
+def check_where(shape: tuple[int, ...], where: np.ndarray | None) -> None:
+    """InputError unless ``where`` is None or a bool array of an image of ``shape`` (H, W)."""
+    if where is not None and (where.dtype != np.bool_ or where.shape != tuple(shape[:2])):
+        raise InputError(f"confidence: where must be a bool array of shape {tuple(shape[:2])}, got "
+                         f"{where.dtype} {where.shape}")
 
 
 def check_points(shape: tuple[int, ...], ys: np.ndarray, xs: np.ndarray) -> None:

@@ -72,16 +72,21 @@ class MotionAnalysis:
     as a function that computes it, called on first use (the divergence alone does not need it).
     ``confidence_at`` (optional; ``FlowOutput.confidence_at``) gives the confidence at integer pixel points
     (ys, xs) alone: the fits (dominant motion, TTC, focus of expansion) read it only at their ~1000 samples,
-    so while the map is not computed anyway (given, or for the moving mask) they take it there instead.
+    so while the map is not computed anyway (given) they take it there instead. ``confidence_in``
+    (optional; ``FlowOutput.confidence_in``) gives it right at least where a bool (H, W) array is True: the
+    moving mask reads it only where the deviating pixels survive its opening
+    (:func:`~flow_node.pipeline.motion.moving_mask`), so while the map is not computed it takes it there.
     """
 
     def __init__(self, flow: np.ndarray, confidence: np.ndarray | Callable[[], np.ndarray],
                  interval_s: float | None = None, settings: MotionSettings | None = None,
-                 confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None) -> None:
+                 confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+                 confidence_in: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         check_flow_shape(flow)
         if not callable(confidence):
             check_flow(flow, confidence)
         self.flow, self._confidence, self._confidence_at = flow, confidence, confidence_at
+        self._confidence_in = confidence_in
         self._at_points: dict[tuple[tuple[int, ...], bytes, bytes], np.ndarray] = {}
         self.interval_s = interval_s if interval_s is not None and interval_s > 0.0 else None
         self.settings = settings if settings is not None else MotionSettings()
@@ -94,10 +99,15 @@ class MotionAnalysis:
         return conf
 
     @property
+    def _map_at_hand(self) -> bool:
+        """Whether the confidence map is given or computed already."""
+        return not callable(self._confidence) or "confidence" in self.__dict__
+
+    @property
     def weights(self) -> Weights:
         """What the fits weigh their samples by: the confidence map when it is at hand (given, or computed
         already), else its values at the samples alone (``confidence_at``, each set of points once)."""
-        if self._confidence_at is None or not callable(self._confidence) or "confidence" in self.__dict__:
+        if self._confidence_at is None or self._map_at_hand:
             return self.confidence
         return self._points
 
@@ -112,10 +122,11 @@ class MotionAnalysis:
     @classmethod
     def of(cls, out: FlowOutput, settings: MotionSettings | None = None) -> MotionAnalysis:
         """The analysis of a stream's output: its flow in px/frame (``frame_flow`` when ``flow`` is in
-        px/s), its confidence (computed on first use, if it was not already; at the fits' samples alone
-        while only fits need it) and its pair's interval."""
+        px/s), its confidence (computed on first use, if it was not already; at the fits' samples and
+        where the mask reads it alone while the map is not) and its pair's interval."""
         flow = out.flow if out.frame_flow is None else out.frame_flow
-        return cls(flow, out.confidence, (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings, out.confidence_at)
+        return cls(flow, out.confidence, (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings, out.confidence_at,
+                   out.confidence_in)
 
     @cached_property
     def dominant(self) -> DominantMotion | None:
@@ -140,8 +151,9 @@ class MotionAnalysis:
 
     @cached_property
     def moving_mask(self) -> np.ndarray:
-        """:func:`~flow_node.pipeline.motion.moving_mask` against :attr:`dominant`, (H, W) uint8 0/255."""
-        conf = self.confidence  # the map first: the mask needs it per pixel, the dominant motion reads it then
+        """:func:`~flow_node.pipeline.motion.moving_mask` against :attr:`dominant`, (H, W) uint8 0/255; the
+        confidence from the map when it is at hand, else (``confidence_in``) where the mask reads it alone."""
+        conf = self.confidence if self._confidence_in is None or self._map_at_hand else self._confidence_in
         return moving_mask(self.flow, conf, self.dominant, self.settings.mask)
 
     @property

@@ -102,11 +102,16 @@ def region_bounds(shape: tuple[int, int], grid: tuple[int, int]) -> list[tuple[i
     return [(xs[c], ys[r], xs[c + 1], ys[r + 1]) for r in range(rows) for c in range(cols)]
 
 
-def _affine_fits(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _affine_basis(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """The affine fits' basis (1, X, Y) of R regions' samples X, Y (R, m): (R, 3, m)."""
+    return np.stack([np.ones_like(X), X, Y], axis=1)
+
+
+def _affine_fits(basis: np.ndarray, uv: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Weighted least-squares affine fits u ~ a0 + a1 X + a2 Y and v ~ b0 + b1 X + b2 Y of R regions at
-    once, each from its m samples (X, Y, w (R, m); uv (R, m, 2)): coefficients (R, 3, 2) as [[a0, b0],
-    [a1, b1], [a2, b2]] (0 where a region's weighted system is singular) and whether it was not (R,)."""
-    basis = np.stack([np.ones_like(X), X, Y], axis=1)  # (R, 3, m)
+    once, each from its m samples (``basis`` (R, 3, m) of :func:`_affine_basis`, w (R, m); uv (R, m, 2)):
+    coefficients (R, 3, 2) as [[a0, b0], [a1, b1], [a2, b2]] (0 where a region's weighted system is
+    singular) and whether it was not (R,)."""
     wb = basis * w[:, None, :]
     normal = wb @ basis.transpose(0, 2, 1)  # (R, 3, 3)
     total = normal[:, 0, 0]
@@ -115,11 +120,11 @@ def _affine_fits(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, w: np.ndarray) ->
     return np.where(ok[:, None, None], np.linalg.solve(normal, wb @ uv), 0.0), ok
 
 
-def _affine_residual(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, coef: np.ndarray) -> np.ndarray:
-    """Endpoint residual px (R, m) of samples uv (R, m, 2) at X, Y (R, m) against the fits coef (R, 3, 2)."""
-    model = coef[:, None, 0, :] + coef[:, None, 1, :] * X[..., None] + coef[:, None, 2, :] * Y[..., None]
-    d = uv - model
-    return np.sqrt(d[..., 0] ** 2 + d[..., 1] ** 2)
+def _affine_residual(basis: np.ndarray, uv: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """Endpoint residual px (R, m) of samples uv (R, m, 2) with ``basis`` (R, 3, m) against the fits coef
+    (R, 3, 2)."""
+    d = uv - basis.transpose(0, 2, 1) @ coef
+    return np.hypot(d[..., 0], d[..., 1])
 
 
 def _affine_start(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.ndarray, k: int) -> np.ndarray:
@@ -131,7 +136,8 @@ def _affine_start(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.ndarray
     fields = np.moveaxis(uv, -1, 0).reshape(2, r, k, k)  # u and v of every region, in one batch
     dx, dy = median_slopes(fields, *(np.broadcast_to(a.reshape(r, k, k), (2, r, k, k)) for a in (X, Y, keep)))
     coef = np.zeros((r, 3, 2))
-    coef[:, 1, :], coef[:, 2, :] = np.nan_to_num(dx).T, np.nan_to_num(dy).T
+    coef[:, 1, :], coef[:, 2, :] = dx.T, dy.T
+    coef[np.isnan(coef)] = 0.0  # no pairs: no slope (the slopes are finite otherwise)
     coef[:, 0, :] = medoid_offset(uv - coef[:, None, 1, :] * X[..., None] - coef[:, None, 2, :] * Y[..., None], keep)
     return coef
 
@@ -152,7 +158,8 @@ def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None =
     check_weights(flow, confidence)
     rows, cols = grid
     count = rows * cols
-    bounds = np.array(region_bounds(flow.shape[:2], grid), np.float64)  # (R, 4)
+    cells = region_bounds(flow.shape[:2], grid)
+    bounds = np.array(cells, np.float64)  # (R, 4)
     k = max(2, int(round(math.sqrt(samples / count))))
     t = np.linspace(0.0, 1.0, k)
     xi = np.rint(bounds[:, 0:1] + t * (bounds[:, 2:3] - 1 - bounds[:, 0:1])).astype(np.int64)  # (R, k)
@@ -165,10 +172,11 @@ def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None =
     mid = (bounds[:, 0:2] + bounds[:, 2:4] - 1) / 2.0
     X, Y = (px - mid[:, 0:1]) / half[:, 0:1], (py - mid[:, 1:2]) / half[:, 1:2]
     coef, ok, scale = _affine_start(X, Y, uv, conf, k), np.ones(count, bool), None
+    basis = _affine_basis(X, Y)
     for psi, iterations in ((huber_weight, HUBER_ITERATIONS), (tukey_weight, TUKEY_ITERATIONS)):
         for _ in range(iterations):
-            weight, scale = reweight(_affine_residual(X, Y, uv, coef), conf, scale, psi)
-            previous, (coef, ok) = coef, _affine_fits(X, Y, uv, weight)
+            weight, scale = reweight(_affine_residual(basis, uv, coef), conf, scale, psi)
+            previous, (coef, ok) = coef, _affine_fits(basis, uv, weight)
             # |X|, |Y| <= 1: no sample's model flow moved by more than the coefficients' changes together
             if np.max(np.abs(coef - previous).sum(axis=1)) < CONVERGED_PX:
                 break
@@ -180,10 +188,10 @@ def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None =
     with np.errstate(divide="ignore", invalid="ignore"):
         ttc = np.where(expansion > MIN_EXPANSION, 1.0 / expansion, np.inf)
     ttc[(support < MIN_SUPPORT) | np.isnan(expansion)] = np.nan
+    values = zip(div.tolist(), expansion.tolist(), ttc.tolist(), support.tolist(), strict=True)  # Python floats
     return TimeToContact(rows, cols, tuple(
-        RegionTTC(r // cols, r % cols, tuple(bounds[r].astype(int).tolist()), float(div[r]), float(expansion[r]),
-                  float(ttc[r]), None if interval_s is None else float(ttc[r]) * interval_s, float(support[r]))
-        for r in range(count)))
+        RegionTTC(r // cols, r % cols, cells[r], d, e, t, None if interval_s is None else t * interval_s, c)
+        for r, (d, e, t, c) in enumerate(values)))
 
 
 @dataclass(frozen=True)

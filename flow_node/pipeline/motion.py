@@ -6,15 +6,17 @@ earlier frame's grid; ``confidence`` (H, W) in [0, 1] of the same pair
 
 * :func:`dominant_motion` -- the motion of most of the image (the camera's, over a scene far away or
   planar): a similarity (translation of the image centre, rotation, scale) and a homography, fitted
-  robustly (:func:`flow_node.pipeline.robust.fit_robust`) on ~4096 samples weighted by the confidence.
+  robustly (:func:`flow_node.pipeline.robust.fit_robust`) on ~1024 samples weighted by the confidence.
 * :func:`moving_mask` -- pixels whose flow deviates from the dominant motion's by more than
-  ``abs_px + rel x |predicted flow|``, confident ones only, cleaned by a morphological opening.
+  ``abs_px + rel x |predicted flow|``, confident ones only, cleaned by a morphological opening (the
+  confidence read only where the deviating pixels survive the opening).
 * :class:`MotionDetector` -- a ``motion detected`` flag with hysteresis over the moving area fraction.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -27,6 +29,7 @@ from .robust import (
     Samples,
     Weights,
     check_flow,
+    check_flow_shape,
     check_weights,
     fit_robust,
     median_slopes,
@@ -131,6 +134,8 @@ class _Frame:
         self.tu = s.x.ravel() - self.cx + s.u.ravel()  # where the samples went, px relative to the centre
         self.tv = s.y.ravel() - self.cy + s.v.ravel()
         self.flow = np.concatenate([s.u.ravel(), s.v.ravel()])  # px/frame, u-components then v-components
+        self.target = np.concatenate([self.tu, self.tv])  # where they went, the same way
+        self._basis = np.stack([self.X, self.Y, np.ones_like(self.X)])
         self._sim_jac: np.ndarray | None = None
 
     def similarity(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -147,18 +152,14 @@ class _Frame:
     def homography(self, h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """h (8,) normalised, h33 = 1: X' = (h0 X + h1 Y + h2) / D, Y' = (h3 X + h4 Y + h5) / D,
         D = h6 X + h7 Y + 1 (Gauss-Newton: the Jacobian at h)."""
-        X, Y, n = self.X, self.Y, self.X.size
-        inv = self.half / (h[6] * X + h[7] * Y + 1.0)  # px per normalised unit, over D
-        pu = (h[0] * X + h[1] * Y + h[2]) * inv  # px, relative to the centre
-        pv = (h[3] * X + h[4] * Y + h[5]) * inv
-        jac = np.zeros((8, 2 * n))
-        jac[0, :n] = jac[3, n:] = X * inv
-        jac[1, :n] = jac[4, n:] = Y * inv
-        jac[2, :n] = jac[5, n:] = inv
-        gu, gv = pu * inv / self.half, pv * inv / self.half  # d(px)/dD, over -1
-        jac[6, :n], jac[6, n:] = -gu * X, -gv * X
-        jac[7, :n], jac[7, n:] = -gu * Y, -gv * Y
-        return jac, np.concatenate([self.tu - pu, self.tv - pv])
+        basis = self._basis  # (3, n): X, Y, 1
+        inv = self.half / (h[6:8] @ basis[:2] + 1.0)  # px per normalised unit, over D
+        p = (h[:6].reshape(2, 3) @ basis) * inv  # (2, n): pu, pv px, relative to the centre
+        jac = np.zeros((8, 2, basis.shape[1]))  # (parameter, component, sample)
+        jac[0:3, 0] = jac[3:6, 1] = basis * inv
+        g = p * (inv / -self.half)  # d(px)/dD
+        jac[6:8] = basis[:2, None, :] * g  # (2, 2, n)
+        return jac.reshape(8, -1), self.target - p.reshape(-1)
 
     def similarity_start(self) -> np.ndarray:
         """A robust start (tx, ty, a, b) for :meth:`similarity`: a and b from the median slopes of the
@@ -167,9 +168,8 @@ class _Frame:
         confident enough."""
         s = self.s
         keep = s.w >= START_CONFIDENCE
-        dudx, dudy = median_slopes(s.u, s.x, s.y, keep)
-        dvdx, dvdy = median_slopes(s.v, s.x, s.y, keep)
-        a, b = np.nan_to_num([(dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0])
+        (dudx, dvdx), (dudy, dvdy) = median_slopes(np.stack([s.u, s.v]), s.x, s.y, keep)  # u and v at once
+        a, b = (0.0 if math.isnan(v) else float(v) for v in ((dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0))
         X, Y = self.X * self.half, self.Y * self.half
         rest = np.stack([s.u.ravel() - a * X + b * Y, s.v.ravel() - b * X - a * Y], axis=-1)
         tx, ty = medoid_offset(rest, keep.ravel())
@@ -222,19 +222,35 @@ def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThresh
                           hom.scale, support, (frame.cx, frame.cy))
 
 
-def moving_mask(flow: np.ndarray, confidence: np.ndarray, motion: DominantMotion | None,
+# What the mask reads the confidence from: the map (H, W), or a function of a bool (H, W) array that gives
+# a map right at least where that array is True (e.g. FlowOutput.confidence_in: those pixels alone)
+MaskConfidence = np.ndarray | Callable[[np.ndarray], np.ndarray]
+
+
+def moving_mask(flow: np.ndarray, confidence: MaskConfidence, motion: DominantMotion | None,
                 threshold: MaskThreshold | None = None) -> np.ndarray:
     """Independently moving pixels: uint8 (H, W), 255 where the flow (H, W, 2) px/frame deviates from
     ``motion``'s predicted flow by more than ``threshold`` (abs px + rel x predicted length) and the
     confidence (H, W) is at least ``threshold.min_confidence``, after a morphological opening (removes
-    specks narrower than 2 ``opening_px`` + 1 px); 0 elsewhere. All 0 without a dominant motion."""
-    check_flow(flow, confidence)
+    specks narrower than 2 ``opening_px`` + 1 px); 0 elsewhere. All 0 without a dominant motion.
+
+    The confidence is read only where the opening of the deviating pixels alone is nonzero (the deviating
+    pixels when there is no opening), so ``confidence`` may be a function that computes it there alone
+    (:data:`MaskConfidence`): the opening of (deviates & confident) is the same whatever the confidence
+    elsewhere. Its erosion keeps a pixel q only if every pixel of q's element deviates and is confident, so
+    only q in the erosion of the deviating pixels, and reads the confidence in q's element then, which lies
+    in that erosion's dilation: the opening of the deviating pixels (test_pipeline_motion.py checks it).
+    """
+    if callable(confidence):
+        check_flow_shape(flow)
+    else:
+        check_flow(flow, confidence)
     threshold = threshold if threshold is not None else MaskThreshold()
+    h, w = flow.shape[:2]
     if motion is None:
-        return np.zeros(confidence.shape, np.uint8)
+        return np.zeros((h, w), np.uint8)
     # one pass per step, without (H, W, 2) temporaries: the homography's numerators and denominator are
     # sums of a row and a column term; OpenCV's split and magnitude are single SIMD passes
-    h, w = confidence.shape
     hm = np.asarray(motion.homography, np.float32)
     x, y = np.arange(w, dtype=np.float32)[None, :], np.arange(h, dtype=np.float32)[:, None]
     den = (hm[2, 0] * x + hm[2, 2]) + hm[2, 1] * y
@@ -245,13 +261,21 @@ def moving_mask(flow: np.ndarray, confidence: np.ndarray, motion: DominantMotion
     limit += np.float32(threshold.abs_px)
     u, v = cv2.split(np.ascontiguousarray(flow, dtype=np.float32))
     deviation = cv2.magnitude(np.subtract(u, pu, out=u), np.subtract(v, pv, out=v))
-    moving = (deviation > limit) & (confidence >= threshold.min_confidence)
-    mask = moving.view(np.uint8) * np.uint8(255)
+    moving = deviation > limit
+    opening = None
     if threshold.opening_px > 0:
         r = threshold.opening_px
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-        mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel)
-    return mask
+        opening = lambda m: cv2.morphologyEx(m, cv2.MORPH_OPEN, kernel)  # noqa: E731
+    if callable(confidence):  # the pixels whose confidence the result depends on (docstring), if any
+        read = moving if opening is None else opening(moving.view(np.uint8)).view(np.bool_)
+        if not read.any():
+            return np.zeros((h, w), np.uint8)
+        confidence = confidence(read)
+        check_flow(flow, confidence)
+    moving &= confidence >= threshold.min_confidence
+    mask = moving.view(np.uint8) * np.uint8(255)
+    return mask if opening is None else opening(mask)
 
 
 def moving_fraction(mask: np.ndarray) -> float:

@@ -102,12 +102,12 @@ def masked_quantile(values: np.ndarray, keep: np.ndarray, q: float = 0.5) -> np.
         kept = values[keep]
         k = int((kept.size - 1) * q)
         return np.asarray(np.partition(kept, k)[k] if kept.size else np.nan)
-    v = np.where(keep, values, np.inf)
+    v = np.where(keep, values, np.inf).reshape(-1, values.shape[-1])  # one row per quantile
     v.sort(axis=-1)
-    n = np.count_nonzero(keep, axis=-1)
-    rank = (np.maximum(n, 1) - 1) * q
-    out = np.take_along_axis(v, rank.astype(np.int64)[..., None], axis=-1)[..., 0]
-    return np.where(n > 0, out, np.nan)
+    n = np.count_nonzero(keep, axis=-1).reshape(-1)
+    rank = ((np.maximum(n, 1) - 1) * q).astype(np.int64)
+    out = v[np.arange(v.shape[0]), rank]
+    return np.where(n > 0, out, np.nan).reshape(values.shape[:-1])
 
 
 def masked_median(values: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -152,15 +152,15 @@ def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndar
     median, over every pair of samples SLOPE_SPAN of the grid apart along x (along y) whose both samples
     are kept, of their difference over their coordinate difference. Few pairs straddle an object's edge
     (about SLOPE_SPAN / (1 - SLOPE_SPAN) of those in the rows the edge crosses), and pairs that far apart
-    see the slope of a flow with small steps (TV staircasing). Shapes ``field.shape[:-2]``; NaN without
-    pairs."""
+    see the slope of a flow with small steps (TV staircasing). ``x``, ``y`` and ``keep`` broadcast to
+    ``field``'s shape. Shapes ``field.shape[:-2]``; NaN without pairs."""
     out = []
     for axis, coord in ((-1, x), (-2, y)):
         n = field.shape[axis]
         d = max(1, int(round(SLOPE_SPAN * n)))
         df, dc = (second - first for first, second in (_ends(a, axis, d) for a in (field, coord)))
         first, second = _ends(keep, axis, d)
-        both = first & second & (dc != 0)
+        both = np.broadcast_to(first & second & (dc != 0), df.shape)  # coordinates and keep may be shared
         flat = field.shape[:-2] + (-1,)
         slope = df / np.where(dc != 0, dc, 1.0)
         out.append(masked_median(slope.reshape(flat), both.reshape(flat)))
@@ -200,7 +200,7 @@ def huber_weight(z: np.ndarray) -> np.ndarray:
 
 def tukey_weight(z: np.ndarray) -> np.ndarray:
     """Tukey's biweight of residuals ``z`` in robust scales: (1 - (z / TUKEY_C)^2)^2, 0 beyond TUKEY_C."""
-    t = np.clip(1.0 - (z / TUKEY_C) ** 2, 0.0, None)
+    t = np.maximum(1.0 - (z / TUKEY_C) ** 2, 0.0)
     return t * t
 
 
@@ -223,12 +223,15 @@ class RobustFit:
 def _step(jac: np.ndarray, err: np.ndarray, weight: np.ndarray) -> np.ndarray | None:
     """The weighted least-squares step (p,) solving jac.T @ step ~ err (``jac`` (p, 2n)) with each sample's
     two components weighted by ``weight`` (n,); None when the weighted system is singular (no support)."""
-    jw = jac * np.concatenate([weight, weight])
+    p = jac.shape[0]
+    jw = (jac.reshape(p, 2, -1) * weight).reshape(p, -1)  # both components of a sample weighted alike
     normal = jw @ jac.T
-    if not np.all(np.isfinite(normal)) or np.trace(normal) <= 0.0:
+    trace = float(np.trace(normal))
+    if not (math.isfinite(trace) and trace > 0.0 and np.isfinite(normal).all()):
         return None
+    normal.flat[::p + 1] += 1e-12 * trace
     try:
-        step = np.linalg.solve(normal + 1e-12 * np.trace(normal) * np.eye(normal.shape[0]), jw @ err)
+        step = np.linalg.solve(normal, jw @ err)
     except np.linalg.LinAlgError:
         return None
     return step if np.all(np.isfinite(step)) else None

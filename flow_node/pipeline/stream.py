@@ -166,21 +166,26 @@ class FlowOutput:
         """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`:
         low where the data residual says the flow is wrong or the pixel occluded; ``confidence_of``), cached."""
         if self._confidence is None:
-            if self.frames is None:
-                raise ValueError("this output keeps no frames; the confidence cannot be computed")
-            flow = self.flow if self.frame_flow is None else self.frame_flow
-            self._confidence = self.confidence_of(self.frames[0], self.frames[1], flow)
+            self._confidence = self.confidence_of(*self._judged())
         return self._confidence
+
+    def _judged(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The frames and the px/frame flow the confidence judges; ValueError when the frames are not kept."""
+        if self.frames is None:
+            raise ValueError("this output keeps no frames; the confidence cannot be computed")
+        return self.frames[0], self.frames[1], self.flow if self.frame_flow is None else self.frame_flow
 
     def confidence_at(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """:meth:`confidence` at the pixels (ys, xs) (integer arrays of one shape): read from the map when it
         is computed already, else computed at the points alone (``confidence_at_of``; not cached)."""
         if self._confidence is not None:
             return self._confidence[ys, xs]
-        if self.frames is None:
-            raise ValueError("this output keeps no frames; the confidence cannot be computed")
-        flow = self.flow if self.frame_flow is None else self.frame_flow
-        return self.confidence_at_of(self.frames[0], self.frames[1], flow, ys, xs)
+        return self.confidence_at_of(*self._judged(), ys, xs)
+
+    def confidence_in(self, where: np.ndarray) -> np.ndarray:
+        """:meth:`confidence`, right at least where ``where`` (H, W) bool is True: the map when it is computed
+        already, else computed there alone (``confidence_of`` with ``where``: 0 elsewhere; not cached)."""
+        return self._confidence if self._confidence is not None else self.confidence_of(*self._judged(), where)
 
     def color(self) -> np.ndarray:
         """Middlebury colour coding, (H, W, 3) uint8 in B, G, R order (bgr8), cached."""
