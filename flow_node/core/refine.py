@@ -25,9 +25,15 @@ from .models import MODEL_SPECS, weight_data, weight_quadratic
 from .operators import image_gradient, mass_linearise, warp_source
 from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
-from .solver import PDState, Problem, SolveParams
+from .solver import PDState, Problem, SolveParams, affine_neutral
 from .validity import data_weight, fill_flow
 from .workspace import scratch
+
+# px: the smallest side of a level on which the mass problem's regulariser is made neutral to the affine fit at
+# the border (solver.affine_neutral). An affine flow then costs nothing, and on the coarse levels, where the
+# data does not yet fix the affine motion, that let the flow grow (rotation pair of fine_320: 1 px off with the
+# term on every level; 0.008 px on levels of >= 29-49 px, 0.020 from 21 px; docs/engine.md)
+MASS_BORDER_MIN_SIZE = 40
 
 
 @dataclass
@@ -99,14 +105,16 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
     valid = pyr.valid(level)
+    neutral = cfg.constraint == "mass" and min(pyr.i0[level].shape) >= MASS_BORDER_MIN_SIZE
+    solve = affine_neutral(backend.solve) if neutral else backend.solve
     for warp in range(warps):
         if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
             state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
-        iterations += backend.solve(problem, state, params)
+        iterations += solve(problem, state, params)
         if cfg.median_filter:
             state.v = median_filter(state.v, cfg.median_filter)
-    extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
+    extra = bregman(problem, state, params, solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 
 
