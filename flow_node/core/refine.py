@@ -29,10 +29,12 @@ from .solver import PDState, Problem, SolveParams, affine_neutral
 from .validity import data_weight, fill_flow
 from .workspace import scratch
 
-# px: the smallest side of a level on which the mass problem's regulariser is made neutral to the affine fit at
-# the border (solver.affine_neutral). An affine flow then costs nothing, and on the coarse levels, where the
-# data does not yet fix the affine motion, that let the flow grow (rotation pair of fine_320: 1 px off with the
-# term on every level; 0.008 px on levels of >= 29-49 px, 0.020 from 21 px; docs/engine.md)
+# The mass problem's border term (solver.affine_neutral), off: it removes the rotation's border band (fine_320
+# rotations 0.034 -> 0.009 px) but frees divergence-free shears the mass data term cannot see (shifts 0.012 ->
+# 0.13 px, the mass regime 0.095 -> 2.9 px); docs/engine.md, "Mass preservation", the border band. On: on the
+# levels whose smaller side is >= MASS_BORDER_MIN_SIZE px (on every level the coarse ones, where the data does
+# not yet fix the affine motion, took the rotation pair 3.5 px off).
+MASS_AFFINE_BORDER = False
 MASS_BORDER_MIN_SIZE = 40
 
 
@@ -105,7 +107,7 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
     valid = pyr.valid(level)
-    neutral = cfg.constraint == "mass" and min(pyr.i0[level].shape) >= MASS_BORDER_MIN_SIZE
+    neutral = MASS_AFFINE_BORDER and cfg.constraint == "mass" and min(pyr.i0[level].shape) >= MASS_BORDER_MIN_SIZE
     solve = affine_neutral(backend.solve) if neutral else backend.solve
     for warp in range(warps):
         if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
