@@ -99,6 +99,16 @@ class FlowConfig:
                      "stacked into one data term; invariant to white balance; ~1.9x the census term's time, "
                      "docs/engine.md). Grey input, and the grey-value data terms, use the luma either way",
                      choices=COLOUR_MODES)
+    census_antialias: int = _f(-1, "photometric census at full resolution (finest_level 0): how many of the finest "
+                               "pyramid steps are anti-aliased (the coarser ones get the weak blur of the grey-value "
+                               "modes; -1 = every step). The strong blur on every step spreads a smooth scene's edges "
+                               "over flat areas, whose signature then moves with them (docs/engine.md, 'Presets')",
+                               lo=-1, hi=30)
+    census_coarse_eps: float = _f(0.01, "photometric census: the signature's EPS (of the frame's robust range) on "
+                                  "pyramid levels narrower than census_coarse_width (still invariant: EPS only damps "
+                                  "flat areas); 0.01 is the finer levels' EPS", lo=0.0, hi=1.0, lo_open=True)
+    census_coarse_width: int = _f(0, "photometric census: levels narrower than this (px) use census_coarse_eps "
+                                  "(0 = none)", lo=0, hi=100000)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
                          "densities that thin out or pile up, e.g. fluids, cells, PET; needs photometric density "
