@@ -38,7 +38,7 @@ def test_coarse_eps_applies_below_the_width_only() -> None:
     cfg = CENSUS_RT.replace(census_coarse_eps=0.03, census_coarse_width=50)
     assert level_census(cfg, 49) == CensusParams(eps=0.03)
     assert level_census(cfg, 50) is CENSUS
-    assert level_census(CENSUS_RT, 10) is CENSUS  # width 0: never
+    assert level_census(CENSUS_RT.replace(census_coarse_width=0), 10) is CENSUS  # width 0: never
 
 
 @pytest.mark.parametrize("backend", ["numpy", "numba"])
@@ -50,9 +50,25 @@ def test_census_problem_uses_the_level_eps(backend: str) -> None:
     cfg = CENSUS_RT.replace(census_coarse_eps=0.3, census_coarse_width=w + 1)
     be = select_backend(backend)
     got = census_problem(i0, i1, cfg, be, True)(v0)
-    base = census_problem(i0, i1, CENSUS_RT, be, True)(v0)
+    base = census_problem(i0, i1, CENSUS_RT.replace(census_coarse_width=0), be, True)(v0)
     params = CensusParams(eps=0.3)
     f0, g0 = level_signature(i0, params)
     want = census_form(i0, i1, f0, g0, got.a, got.c, v0, True, params)
     np.testing.assert_allclose(got.q, want, atol=1e-5 * max(1.0, float(np.abs(want).max())))
     assert np.abs(got.q - base.q).max() > 1e-3  # the level EPS changed the form
+
+
+def test_the_schedule_only_changes_the_census_mode() -> None:
+    """quality's census schedule: its grey-value pyramid and problems are today's; with census its pyramid
+    anti-aliases three steps and its coarse levels get EPS 0.03."""
+    tex = texture(256, 320, seed=4).image
+    quality = FlowConfig.preset("quality")
+    plain = quality.replace(census_antialias=-1, census_coarse_eps=0.01, census_coarse_width=0)
+    for got, ref in zip(make_pyramid(tex, tex, quality).i0, make_pyramid(tex, tex, plain).i0, strict=True):
+        np.testing.assert_array_equal(got, ref)
+    census = quality.replace(photometric="census")
+    pyr = make_pyramid(tex, tex, census)
+    want = build_pyramid(tex, pyr.shapes, census.scale_factor, 3)
+    for got, ref in zip(pyr.i0, want, strict=True):
+        np.testing.assert_array_equal(got, ref)
+    assert level_census(census, pyr.shapes[-1][1]).eps == census.census_coarse_eps > CENSUS.eps
