@@ -109,14 +109,15 @@ def test_prox_of_the_quadratic_data_term_is_optimal() -> None:
     np.testing.assert_allclose(v - vt + tau * census.form_residual(q, v), 0.0, atol=2e-4)
 
 
-def test_numba_signature_and_form_match_numpy() -> None:
+@pytest.mark.parametrize("params", [census.CENSUS, CensusParams(eps=0.03)], ids=["eps0.01", "eps0.03"])
+def test_numba_signature_and_form_match_numpy(params: CensusParams) -> None:
     i0, i1, a, c, v0 = random_linearisation(7)
-    f0, g0 = level_signature(i0)
-    f0_fast, _ = level_signature_numba(i0, census.CENSUS)
+    f0, g0 = level_signature(i0, params)
+    f0_fast, _ = level_signature_numba(i0, params)
     np.testing.assert_allclose(f0_fast, f0, atol=AGREE)
     for robust in (False, True):
-        ref = census_form(i0, i1, f0, g0, a, c, v0, robust)
-        fast = census_form_numba(i0, i1, f0_fast, None, a, c, v0, robust, census.CENSUS)
+        ref = census_form(i0, i1, f0, g0, a, c, v0, robust, params)
+        fast = census_form_numba(i0, i1, f0_fast, None, a, c, v0, robust, params)
         assert np.abs(ref).max() > 0.1
         np.testing.assert_allclose(fast, ref, atol=AGREE * max(1.0, float(np.abs(ref).max())))
 

@@ -99,6 +99,17 @@ class FlowConfig:
                      "stacked into one data term; invariant to white balance; ~1.9x the census term's time, "
                      "docs/engine.md). Grey input, and the grey-value data terms, use the luma either way",
                      choices=COLOUR_MODES)
+    census_antialias: int = _f(-1, "photometric census at full resolution (finest_level 0): how many of the finest "
+                               "pyramid steps are anti-aliased (the coarser ones get the weak blur of the grey-value "
+                               "modes; -1 = every step). The strong blur on every step spreads a smooth scene's edges "
+                               "over flat areas, whose signature then moves with them; quality and realtime set 3 "
+                               "(chosen on the suite's tune split, docs/engine.md 'Presets')", lo=-1, hi=30)
+    census_coarse_eps: float = _f(0.01, "photometric census: the signature's EPS (of the frame's robust range) on "
+                                  "pyramid levels narrower than census_coarse_width (still invariant: EPS only damps "
+                                  "flat areas; the finer levels' EPS is 0.01; quality and realtime set 0.03)",
+                                  lo=0.0, hi=1.0, lo_open=True)
+    census_coarse_width: int = _f(0, "photometric census: levels narrower than this (px) use census_coarse_eps "
+                                  "(0 = none; quality and realtime set 50)", lo=0, hi=100000)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
                          "densities that thin out or pile up, e.g. fluids, cells, PET; needs photometric density "
@@ -350,16 +361,22 @@ def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str,
 #   (the level it enters at): on the large set and the large-motion bags the finer levels changed the AEE by
 #   < 2 % and cost ~3/4 of realtime's time (docs/engine.md, "Presets"; BENCHMARKS.md, "Large motions at a
 #   bounded cost").
+# - census schedule (issue 25, docs/engine.md "Presets", third round): with photometric=census, quality and realtime
+#   anti-alias only the three finest pyramid steps and use EPS 0.03 on levels under 50 px wide (chosen on the
+#   suite's tune split); balanced keeps every step anti-aliased (3 steps broke its fine textures on tune: 0.010 ->
+#   0.057), fastest solves at half size (every step anti-aliased anyway) and was not tuned for the coarse EPS.
+CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, census_coarse_eps=0.03,
+                                                           census_coarse_width=50))
 PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                    finest_level=0, initialisation="dis_fine", init_finest_level=0),
+                    finest_level=0, initialisation="dis_fine", init_finest_level=0, **CENSUS_SCHEDULE),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0, initialisation="dis_fast", init_finest_level=0),
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                     initialisation="dis_ultrafast", init_finest_level=2),
+                     initialisation="dis_ultrafast", init_finest_level=2, **CENSUS_SCHEDULE),
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2),

@@ -139,18 +139,30 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
     level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
     finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
     flow, which must not have converged to an aliased texture's wrong minimum either. With the census data
-    term every step is anti-aliased too: it normalises contrast away, so an aliased remnant of fine texture
-    on a coarse level -- faint in grey values -- would weigh as much as real structure there. ``channels``:
+    term the finest ``cfg.census_antialias`` steps are anti-aliased too (:func:`antialias_steps`): it normalises
+    contrast away, so an aliased remnant of fine texture on a coarse level -- faint in grey values -- would weigh
+    as much as real structure there. ``channels``:
     both frames' colour channels (C, H, W), pyramids of each built the same way (Pyramid.c0, c1). ``valid``:
     the frames' validity masks (H, W) bool, carried down with the same blur (validity.mask_levels)."""
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
-    antialias = len(shapes) if min(cfg.finest_level, len(shapes) - 1) > 0 or compares_signatures(cfg.photometric) else 0
+    antialias = antialias_steps(cfg, len(shapes))
     grey = [build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1)]
     colour = [None, None] if channels is None else \
         [channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels]
     masks = [None, None] if valid is None else \
         [mask_levels(m, build_pyramid(m.astype(np.float32), shapes, cfg.scale_factor, antialias)) for m in valid]
     return Pyramid(shapes, *grey, *colour, *masks)
+
+
+def antialias_steps(cfg: FlowConfig, levels: int) -> int:
+    """How many of the finest of ``levels`` levels' steps :func:`make_pyramid` anti-aliases for ``cfg``: every
+    step when the finest solved level is coarser than the input; with the census data term at full resolution
+    ``cfg.census_antialias`` of them (-1: every step); else none."""
+    if min(cfg.finest_level, levels - 1) > 0:
+        return levels
+    if compares_signatures(cfg.photometric):
+        return levels if cfg.census_antialias < 0 else min(cfg.census_antialias, levels)
+    return 0
 
 
 def channel_pyramid(frame: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0

@@ -10,14 +10,14 @@ Flow is channel-first (2, h, w) in pixels of its level.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
 from .backends import Backend
 from .bregman import bregman
-from .census import CENSUS
+from .census import CENSUS, CensusParams
 from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
@@ -160,16 +160,23 @@ def problem_source(cfg: FlowConfig) -> Callable[..., Linearisation]:
     return mass_problem if cfg.constraint == "mass" else grey_problem
 
 
+def level_census(cfg: FlowConfig, width: int) -> CensusParams:
+    """The census constants of a pyramid level ``width`` px wide: CENSUS, with EPS ``cfg.census_coarse_eps`` on
+    levels narrower than ``cfg.census_coarse_width`` (docs/engine.md, "Presets")."""
+    return replace(CENSUS, eps=cfg.census_coarse_eps) if width < cfg.census_coarse_width else CENSUS
+
+
 def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
     """The census data term (census.py): frame 0's signature once per level; per warp the grey-value
     linearisation (which carries frame 1 sampled at x + v0: the backend's fused warp is the cheapest way to
     that sample), the warped frame's signature and the quadratic form around v0."""
     grey = grey_problem(i0, i1, cfg, backend, robust)
-    f0, g0 = backend.signature(i0, CENSUS)
+    params = level_census(cfg, i0.shape[1])
+    f0, g0 = backend.signature(i0, params)
 
     def around(v0: np.ndarray) -> Problem:
         lin = grey(v0)
-        return Problem(lin.a, lin.c, q=backend.census_form(i0, i1, f0, g0, lin.a, lin.c, v0, robust, CENSUS))
+        return Problem(lin.a, lin.c, q=backend.census_form(i0, i1, f0, g0, lin.a, lin.c, v0, robust, params))
 
     return around
 
@@ -180,13 +187,14 @@ def colour_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
     frame 1's interpolation coefficients once per level; per warp frame 1's channels sampled at x + v0 and the
     colour form around v0. The form replaces (a, c) in the solve: they are zeros."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
-    f0, g0 = channel_signature(c0, backend.signature, CENSUS)
+    params = level_census(cfg, c0.shape[2])
+    f0, g0 = channel_signature(c0, backend.signature, params)
     h, w = c0.shape[1:]
     a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
 
     def around(v0: np.ndarray) -> Problem:
         warped, outside = warped_channels(coefs, c1, v0, cfg.warp_kernel, backend.warper.sample)
-        return Problem(a, c, q=backend.colour_form(f0, g0, warped, outside, v0, robust, CENSUS))
+        return Problem(a, c, q=backend.colour_form(f0, g0, warped, outside, v0, robust, params))
 
     return around
 

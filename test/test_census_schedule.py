@@ -1,0 +1,74 @@
+"""The census mode's pyramid schedule (FlowConfig census_antialias, census_coarse_eps, census_coarse_width):
+which steps are anti-aliased, which levels get the coarse EPS, and that the refinement uses them (numpy and
+numba backends alike)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from synth import texture
+
+from flow_node.core.backends import select_backend
+from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
+from flow_node.core.config import FlowConfig
+from flow_node.core.pyramid import build_pyramid, make_pyramid, pyramid_shapes
+from flow_node.core.refine import census_problem, level_census
+
+CENSUS_RT = FlowConfig.preset("realtime").replace(photometric="census")
+
+
+def test_antialias_steps_follow_the_config() -> None:
+    tex = texture(128, 160, seed=3).image
+    shapes = pyramid_shapes(tex.shape, 5, 0.5, 16)
+    assert len(shapes) == 4
+    for steps, cfg in ((2, CENSUS_RT.replace(census_antialias=2)),
+                       (len(shapes), CENSUS_RT.replace(census_antialias=-1)),
+                       (0, CENSUS_RT.replace(photometric="normalise", census_antialias=2)),
+                       (len(shapes), CENSUS_RT.replace(census_antialias=1, finest_level=1))):
+        pyr = make_pyramid(tex, tex, cfg)
+        want = build_pyramid(tex, shapes, 0.5, steps)
+        for got, ref in zip(pyr.i0, want, strict=True):
+            np.testing.assert_array_equal(got, ref)
+    two, every = (make_pyramid(tex, tex, CENSUS_RT.replace(census_antialias=n)).i0 for n in (2, -1))
+    np.testing.assert_array_equal(two[2], every[2])  # the two finest steps are the same blur
+    assert np.abs(two[3] - every[3]).max() > 1e-3  # the third is not
+
+
+def test_coarse_eps_applies_below_the_width_only() -> None:
+    cfg = CENSUS_RT.replace(census_coarse_eps=0.03, census_coarse_width=50)
+    assert level_census(cfg, 49) == CensusParams(eps=0.03)
+    assert level_census(cfg, 50) is CENSUS
+    assert level_census(CENSUS_RT.replace(census_coarse_width=0), 10) is CENSUS  # width 0: never
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_census_problem_uses_the_level_eps(backend: str) -> None:
+    h, w = 30, 40
+    i0 = texture(h, w, seed=5, cell=2).image
+    i1 = texture(h, w, seed=6, cell=2).image
+    v0 = np.full((2, h, w), 0.3, np.float32)
+    cfg = CENSUS_RT.replace(census_coarse_eps=0.3, census_coarse_width=w + 1)
+    be = select_backend(backend)
+    got = census_problem(i0, i1, cfg, be, True)(v0)
+    base = census_problem(i0, i1, CENSUS_RT.replace(census_coarse_width=0), be, True)(v0)
+    params = CensusParams(eps=0.3)
+    f0, g0 = level_signature(i0, params)
+    want = census_form(i0, i1, f0, g0, got.a, got.c, v0, True, params)
+    np.testing.assert_allclose(got.q, want, atol=1e-5 * max(1.0, float(np.abs(want).max())))
+    assert np.abs(got.q - base.q).max() > 1e-3  # the level EPS changed the form
+
+
+def test_the_schedule_only_changes_the_census_mode() -> None:
+    """quality's census schedule: its grey-value pyramid and problems are today's; with census its pyramid
+    anti-aliases three steps and its coarse levels get EPS 0.03."""
+    tex = texture(256, 320, seed=4).image
+    quality = FlowConfig.preset("quality")
+    plain = quality.replace(census_antialias=-1, census_coarse_eps=0.01, census_coarse_width=0)
+    for got, ref in zip(make_pyramid(tex, tex, quality).i0, make_pyramid(tex, tex, plain).i0, strict=True):
+        np.testing.assert_array_equal(got, ref)
+    census = quality.replace(photometric="census")
+    pyr = make_pyramid(tex, tex, census)
+    want = build_pyramid(tex, pyr.shapes, census.scale_factor, 3)
+    for got, ref in zip(pyr.i0, want, strict=True):
+        np.testing.assert_array_equal(got, ref)
+    assert level_census(census, pyr.shapes[-1][1]).eps == census.census_coarse_eps > CENSUS.eps
