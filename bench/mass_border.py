@@ -1,12 +1,10 @@
 """Where the mass model's error lies on fine_320's divergence-free pairs: AEE by distance to the border.
 
-    python -m bench.mass_border [--pairs 0,1] [--set key=value ...] [--border-term]
-        # -> bench/results/mass/border.{json,md}
+    python -m bench.mass_border [--pairs 0,1] [--set key=value ...]   # -> bench/results/mass/border.{json,md}
 
 Per report pair (index 0 = shift, 1 = rotation of synthetic.fine), brightness (FlowConfig()) and mass
 (``constraint=mass`` plus the ``--set`` overrides) run on the same frames; the AEE is given per band of
-distance d to the nearest image edge (px). ``--border-term`` adds the mass model with the engine's (off)
-border term, refine.MASS_AFFINE_BORDER. docs/engine.md, "Mass preservation", reads these numbers.
+distance d to the nearest image edge (px). docs/engine.md, "Mass preservation", reads these numbers.
 """
 
 from __future__ import annotations
@@ -17,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from flow_node.core import refine
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 
@@ -35,20 +32,13 @@ def band_aee(err: np.ndarray) -> dict[str, float]:
     return {(f"{lo}+" if hi >= 10**6 else f"{lo}-{hi}"): float(err[(d >= lo) & (d < hi)].mean()) for lo, hi in BANDS}
 
 
-BORDER_TERM = "mass + border term"  # a method name: the mass config with refine.MASS_AFFINE_BORDER on
-
-
 def measure(index: int, configs: dict[str, FlowConfig]) -> list[dict[str, object]]:
     """One report pair of fine_320 (index into the motion cycle) under each config: AEE and AEE per band."""
     i0, i1, gt, label = synthetic._pair(synthetic.REPORT_SEED0 + index, index, (320, 240))
     q0, q1 = synthetic.quantise(i0, 8), synthetic.quantise(i1, 8)
     rows: list[dict[str, object]] = []
     for name, cfg in configs.items():
-        refine.MASS_AFFINE_BORDER = name == BORDER_TERM
-        try:
-            flow = FlowEstimator(cfg).estimate(q0, q1).flow
-        finally:
-            refine.MASS_AFFINE_BORDER = False
+        flow = FlowEstimator(cfg).estimate(q0, q1).flow
         err = np.hypot(flow[..., 0] - gt[..., 0], flow[..., 1] - gt[..., 1])
         rows.append({"pair": label, "method": name, "aee": float(err.mean()), "bands": band_aee(err)})
     return rows
@@ -58,19 +48,15 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pairs", default="0,1", help="report pair indices (0 shift, 1 rotation, 2 zoom, 3 affine)")
     ap.add_argument("--set", action="append", default=[], help="key=value override of the mass method")
-    ap.add_argument("--border-term", action="store_true", help=f"add the method '{BORDER_TERM}'")
     ap.add_argument("--out", type=Path, default=OUT, help="path without suffix; .json and .md are written")
     args = ap.parse_args(argv)
     configs = {"brightness": FlowConfig(), "mass": FlowConfig().with_overrides(["constraint=mass", *args.set])}
-    if args.border_term:
-        configs[BORDER_TERM] = configs["mass"]
     rows = [r for k in args.pairs.split(",") for r in measure(int(k), configs)]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps({"overrides": args.set, "rows": rows}, indent=1))
     keys = list(rows[0]["bands"])  # type: ignore[arg-type]
     lines = [f"Command: `python -m bench.mass_border --pairs {args.pairs}"
-             + "".join(f" --set {s}" for s in args.set) + (" --border-term" if args.border_term else "")
-             + "`; AEE (px) by distance to the nearest edge (px)", "",
+             + "".join(f" --set {s}" for s in args.set) + "`; AEE (px) by distance to the nearest edge (px)", "",
              "| pair | method | AEE | " + " | ".join(keys) + " |", "|---|---|---:|" + "---:|" * len(keys)]
     for r in rows:
         bands: dict[str, float] = r["bands"]  # type: ignore[assignment]

@@ -204,3 +204,27 @@ def test_density_mode_is_one_gain_for_both_frames() -> None:
     gain = d0 / i0
     np.testing.assert_allclose(gain, gain.flat[0], rtol=1e-5)
     np.testing.assert_allclose(d1 / i1, gain.flat[0], rtol=1e-5)
+
+
+@pytest.mark.parametrize("model", ["l2_tv", "l1_tv"])
+def test_bregman_steps_keep_the_mass_term(model: str) -> None:
+    """Every Bregman step solves the mass problem (M passed through); for L2 data its shifted constant is
+    c + rho(v_k) with rho(v) = A v + c, the continuity equation's residual (not brightness constancy's a . v + c)."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(2, 12, 14)).astype(np.float32)
+    m = rng.normal(size=(2, 2, 12, 14)).astype(np.float32)
+    c = rng.normal(size=(12, 14)).astype(np.float32)
+    problem = Problem(a, c, m=m)
+    state = PDState.zeros(MODEL_SPECS[model], (12, 14))
+    state.v = rng.normal(size=(2, 12, 14)).astype(np.float32)
+    seen: list[Problem] = []
+
+    def solve(step: Problem, st: PDState, p: SolveParams) -> int:
+        seen.append(step)
+        return 1
+
+    p = SolveParams(MODEL_SPECS[model], 0.05, 0.0, "isotropic", 10, 0.0)
+    assert bregman(problem, state, p, solve, 2) == 2
+    assert all(s.m is m for s in seen)
+    if model == "l2_tv":
+        np.testing.assert_allclose(seen[0].c, c + apply_a(state.v, a, m) + c, rtol=1e-5, atol=1e-5)

@@ -20,8 +20,9 @@ from typing import Any, Protocol
 import numpy as np
 
 from flow_node.core.api import FlowEstimator, to_grey
-from flow_node.core.config import GENERAL_PRESETS, FlowConfig
+from flow_node.core.config import FlowConfig
 from flow_node.core.initialise import to_u8
+from flow_node.core.presets import GENERAL_PRESETS
 
 from .data import Sample
 

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from .census import form_residual
-from .models import residual
+from .models import apply_a, residual
 from .operators import div
 from .solver import LevelSolver, PDState, Problem, SolveParams
 
@@ -17,7 +19,8 @@ def bregman(problem: Problem, state: PDState, p: SolveParams, solve: LevelSolver
     of R at v_k that the dual variable provides (the solver's y is already y / alpha, see solver.py).
     A quadratic (census) data term ``problem.q`` is shifted the same way for L2: its linear part g gets
     the gradient T v_k + g added (the b-update of 1/2 |A v - f|^2 written on g = -A^T f); for L1 (whose census
-    term is a majoriser, census.py) the subgradient form as above, which holds for any data term.
+    term is a majoriser, census.py) the subgradient form as above, which holds for any data term. Every
+    other part of the problem (the mass term ``m``) passes through unchanged; with mass, rho(v) = A v + c.
     """
     total = 0
     c_shift, q_shift = problem.c, problem.q
@@ -25,11 +28,13 @@ def bregman(problem: Problem, state: PDState, p: SolveParams, solve: LevelSolver
         if p.spec.data == "l2" and problem.q is not None:
             q_shift = q_shift.copy()
             q_shift[3:] += form_residual(problem.q, state.v)
-            step = Problem(problem.a, problem.c, q=q_shift)
+            step = replace(problem, q=q_shift, b=None)
         elif p.spec.data == "l2":
-            c_shift = c_shift + residual(state.v, problem.a, problem.c)
-            step = Problem(problem.a, c_shift)
+            rho = (residual(state.v, problem.a, problem.c) if problem.m is None
+                   else apply_a(state.v, problem.a, problem.m) + problem.c)
+            c_shift = c_shift + rho
+            step = replace(problem, c=c_shift, b=None)
         else:
-            step = Problem(problem.a, problem.c, -div(state.y), q=problem.q)
+            step = replace(problem, b=-div(state.y))
         total += solve(step, state, p)
     return total

@@ -19,6 +19,7 @@ from .errors import ConfigError, FileFormatError, short_path
 from .initialise import SOURCES as INITIALISATIONS
 from .models import CONSTRAINTS, MODEL_SPECS
 from .photometric import MASS_PHOTOMETRIC, PHOTOMETRIC
+from .presets import PRESETS
 from .settings import FieldInfo
 from .settings import check_field as _check_field
 from .settings import fields_info as settings_fields_info
@@ -342,67 +343,6 @@ def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str,
     if model == current_model or model not in MODEL_WEIGHTS:
         return {}
     return {k: v for k, v in MODEL_WEIGHTS[model].items() if k not in changes}
-
-
-# The named presets, each complete in one place. Re-tuned on the suite as a whole (issue 11: bench.suite tune
-# split plus the 8 Middlebury pairs), after the exact warp and the photometric stage. Why each value:
-# docs/engine.md, "Presets"; the measurements behind them: `git show a451d03:BENCHMARKS.md` (issue 11 sections)
-# and bench/results/suite/tune/.
-# - quality: many short warps per level on a fine pyramid (Middlebury <= 0.30); balanced: 2 x 15, alpha 0.035
-#   (ahead of DIS medium on sensor noise); realtime: 4 x 6 on the coarse levels, 2 x 16 at full size (the
-#   level that costs); fastest: half size, 4 warps per level, 10 iterations per coarse warp.
-# - initialisation (issue 12, docs/engine.md "Large displacements"): every preset starts from OpenCV DIS where a
-#   pair moves more than init_min_motion; the DIS preset is the one of similar cost, quality's is DIS medium
-#   down to full resolution (dis_fine: ~3x DIS medium's time, on ../shared/data/large 60.7 summed AEE over
-#   the 7 pairs against 61.7 with dis_medium, both with the occlusion-aware fusion; on the large-motion bags
-#   the two are level, 23.02 vs 22.97 on merged main, at ~1.4x the time). Middlebury and the suite's
-#   small-motion regimes (under 24 px) are unchanged by construction.
-# - init_finest_level: the speed presets refine a pair the initialisation is fused on down to quarter size only
-#   (the level it enters at): on the large set and the large-motion bags the finer levels changed the AEE by
-#   < 2 % and cost ~3/4 of realtime's time (docs/engine.md, "Presets"; BENCHMARKS.md, "Large motions at a
-#   bounded cost").
-# - census schedule (issue 25, docs/engine.md "Presets", third round): with photometric=census, quality and realtime
-#   anti-alias only the three finest pyramid steps and use EPS 0.03 on levels under 50 px wide (chosen on the
-#   suite's tune split); balanced keeps every step anti-aliased (3 steps broke its fine textures on tune: 0.010 ->
-#   0.057), fastest solves at half size (every step anti-aliased anyway) and was not tuned for the coarse EPS.
-CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, census_coarse_eps=0.03,
-                                                           census_coarse_width=50))
-PRESETS: dict[str, dict[str, Any]] = {
-    "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
-                    level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                    finest_level=0, initialisation="dis_fine", init_finest_level=0, **CENSUS_SCHEDULE),
-    "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
-                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
-                     finest_level=0, initialisation="dis_fast", init_finest_level=0),
-    "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
-                     levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                     initialisation="dis_ultrafast", init_finest_level=2, **CENSUS_SCHEDULE),
-    "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
-                    finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                    initialisation="dis_ultrafast", init_finest_level=2),
-    # the paper's joint model (issue 27; docs/engine.md, "Joint model"): realtime's schedule with the images
-    # eliminated (J_gamma data term); gamma and alpha chosen on the suite's noise regime, tune seeds
-    "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
-                  levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                  initialisation="dis_ultrafast", init_finest_level=2, reconstruction="joint", image_gamma=0.02),
-    # stream presets (issue 26, docs/engine.md "The stream mode"): a single pair, and a stream's fallback, is
-    # solved as fastest (stream_fast) or as fastest at quarter size (stream_lite) does; while the previous flow
-    # predicts the next, only the finest two solved levels (stream_lite: one) run, from the carried state (tuned
-    # on the suite's stream regime, tune split: bench/results/suite/stream/; docs/engine.md "The stream mode")
-    "stream_fast": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
-                        finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=2, stream_warps=3,
-                        stream_iterations=10),
-    "stream_lite": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
-                        finest_level=2, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=1, stream_warps=4,
-                        stream_iterations=10),
-}
-
-# The general-purpose presets, in order of cost: what the suite judges against the peers on every regime. The
-# others serve one kind of input: `joint` noisy frames (docs/engine.md, "Joint model"), `stream_fast` and
-# `stream_lite` the pairs of a stream (single pairs as `fastest`; docs/engine.md, "The stream mode").
-GENERAL_PRESETS = ("quality", "balanced", "realtime", "fastest")
 
 
 def field_names() -> tuple[str, ...]:

@@ -49,8 +49,6 @@ MODEL_SPECS: dict[str, ModelSpec] = {
 # The data term's constraint (FlowConfig.constraint): brightness constancy I1(x + v) = I0(x), or mass
 # preservation I_t + div(I v) = 0, in the warping scheme I1(x + v) det(Id + grad v) = I0(x).
 CONSTRAINTS = ("brightness", "mass")
-# px/px: below this affine gradient the TV subgradient of affine_border_term is scaled down (smoothed)
-AFFINE_GRADIENT_FLOOR = 1e-3
 
 
 # ------------------------------------------------------------------------------------------ data terms
@@ -163,25 +161,6 @@ def affine_modes(shape: tuple[int, int]) -> np.ndarray:
     for j, (k, f) in enumerate(((0, one), (1, one), (0, xs), (0, ys), (1, xs), (1, ys))):
         out[j, k] = f
     return out
-
-
-def affine_fit(v: np.ndarray) -> np.ndarray:
-    """The least-squares affine flow of v (2, H, W) px: its projection onto :func:`affine_modes`, (2, H, W)
-    float32 (v itself when v is affine)."""
-    modes = affine_modes(v.shape[1:]).reshape(6, -1).astype(np.float64)
-    theta = np.linalg.solve(modes @ modes.T, modes @ v.reshape(-1).astype(np.float64))
-    return (theta @ modes).reshape(v.shape).astype(np.float32)
-
-
-def affine_border_term(v: np.ndarray, regulariser: str, tv_norm: str) -> np.ndarray:
-    """b = -div(y_aff), the regulariser's subgradient at the affine fit v_aff = :func:`affine_fit` (v) of
-    v (2, H, W) px, -> (2, H, W) float32: y_aff = grad v_aff for ``l2`` (1/2 |grad v|^2), the unit dual
-    grad v_aff / |grad v_aff| for ``tv`` (in ``tv_norm``, smoothed below AFFINE_GRADIENT_FLOOR px/px so
-    that a near-constant fit gives b ~ 0 rather than a unit vector of its noise). grad v_aff is constant but
-    for grad's zero last column/row, so b is zero in the interior and lives on the border pixels."""
-    g = grad(affine_fit(v))
-    y = g if regulariser == "l2" else project_dual_tv(g / AFFINE_GRADIENT_FLOOR, 1.0, tv_norm)
-    return (-div(y)).astype(np.float32)
 
 
 def mode_step(phi: np.ndarray, r: np.ndarray, data: str, sweeps: int = 8, stride: int = 2) -> np.ndarray:

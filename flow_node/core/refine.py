@@ -25,17 +25,9 @@ from .models import MODEL_SPECS, weight_data, weight_quadratic
 from .operators import image_gradient, mass_linearise, warp_source
 from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
-from .solver import PDState, Problem, SolveParams, affine_neutral
+from .solver import PDState, Problem, SolveParams
 from .validity import data_weight, fill_flow
 from .workspace import scratch
-
-# The mass problem's border term (solver.affine_neutral), off: it removes the rotation's border band (fine_320
-# rotations 0.034 -> 0.009 px) but frees divergence-free shears the mass data term cannot see (shifts 0.012 ->
-# 0.13 px, the mass regime 0.095 -> 2.9 px); docs/engine.md, "Mass preservation", the border band. On: on the
-# levels whose smaller side is >= MASS_BORDER_MIN_SIZE px (on every level the coarse ones, where the data does
-# not yet fix the affine motion, took the rotation pair 3.5 px off).
-MASS_AFFINE_BORDER = False
-MASS_BORDER_MIN_SIZE = 40
 
 
 @dataclass
@@ -107,16 +99,14 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
     valid = pyr.valid(level)
-    neutral = MASS_AFFINE_BORDER and cfg.constraint == "mass" and min(pyr.i0[level].shape) >= MASS_BORDER_MIN_SIZE
-    solve = affine_neutral(backend.solve) if neutral else backend.solve
     for warp in range(warps):
         if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
             state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
-        iterations += solve(problem, state, params)
+        iterations += backend.solve(problem, state, params)
         if cfg.median_filter:
             state.v = median_filter(state.v, cfg.median_filter)
-    extra = bregman(problem, state, params, solve, bregman_steps) if bregman_steps else 0
+    extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 
 

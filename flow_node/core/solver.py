@@ -22,14 +22,13 @@ spatial axes from v. On volumes an optional incompressibility penalty (beta/2)|d
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from .models import (
     PROX_DATA,
     ModelSpec,
-    affine_border_term,
     affine_modes,
     apply_a,
     apply_a_adjoint,
@@ -189,28 +188,6 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
         state.p = p_data
         shift_slow_modes(problem, state, p)
     return k
-
-
-def affine_neutral(solve: LevelSolver) -> LevelSolver:
-    """``solve`` with the regulariser made neutral to the flow's affine fit at the image border, for the
-    mass-preservation problem (``problem.m`` set, 2-D, regulariser L2 or TV; other problems pass through).
-
-    The continuity equation cannot see a steady flux along a density's level lines (div(I w) = 0, e.g.
-    w = (0, g(x) / I) along the left edge), and with Neumann boundaries TV (and L2) rewards lowering the ends
-    of a linear ramp: the regulariser's subgradient at an affine flow, -div(y_aff), lives on the border
-    pixels only. With nothing in the mass data term against it, a rotation's tangential flow, which grows
-    linearly to the edge, lost ~14 % in a band along the border (docs/engine.md, "Mass preservation", the
-    border band). Per call we add that subgradient as a linear term, b += models.affine_border_term(v):
-    R(v) - <b, v> is R's Bregman distance to the affine fit (up to a constant), stationary at an affine
-    flow and unchanged in the interior (b is zero there), so only the border's pull is removed."""
-
-    def solve_neutral(problem: Problem, state: PDState, p: SolveParams) -> int:
-        if problem.m is None or state.v.shape[0] != 2 or p.spec.regulariser not in ("l2", "tv"):
-            return solve(problem, state, p)
-        b = affine_border_term(state.v, p.spec.regulariser, p.tv_norm)
-        return solve(replace(problem, b=b if problem.b is None else (problem.b + b).astype(np.float32)), state, p)
-
-    return solve_neutral
 
 
 def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
