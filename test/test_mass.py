@@ -4,6 +4,8 @@ density pairs, and that the model recovers a divergent motion that brightness co
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from synth import texture
@@ -79,7 +81,8 @@ def random_case(model: str, data_bregman: bool, seed: int) -> tuple[Problem, PDS
 
 
 def copy_state(st: PDState) -> PDState:
-    return PDState(*(None if x is None else x.copy() for x in (st.v, st.y, st.w, st.z, st.p)))
+    return dataclasses.replace(st, **{f.name: None if getattr(st, f.name) is None else getattr(st, f.name).copy()
+                                      for f in dataclasses.fields(st)})
 
 
 @pytest.mark.parametrize("bregman_term", [False, True], ids=["plain", "bregman"])
