@@ -65,6 +65,15 @@ def _reweight(residual, conf, scale, tukey, weight):  # noqa: ANN001, ANN202
     return s
 
 
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc", "contract"})
+def _wdot(a, b, w):  # noqa: ANN001, ANN202
+    """sum(a * b * w) of three (m,) arrays, vectorised (reassociated: the sum in any order)."""
+    acc = 0.0
+    for k in range(a.size):
+        acc += a[k] * b[k] * w[k]
+    return acc
+
+
 @njit(**_JIT)
 def _solve(a, b):  # noqa: ANN001, ANN202
     """a x = b for a (p, p) and b (p, c) (both overwritten) by Gaussian elimination with partial pivoting;
@@ -100,15 +109,14 @@ def _solve(a, b):  # noqa: ANN001, ANN202
 
 @njit(**_JIT)
 def _linearise(model, params, X, Y, half, flow, target, jac, err):  # noqa: ANN001, ANN202
-    """_Frame.similarity (model 0) or _Frame.homography (1) at ``params`` into jac (2n, p) (the reference's
-    transposed: a sample's row contiguous) and err (2n,)."""
+    """_Frame.similarity (model 0) or _Frame.homography (1) at ``params`` into jac (p, 2n) and err (2n,)."""
     n = X.size
     if model == 0:
         tx, ty, a, b = params[0], params[1], params[2], params[3]
         for i in range(n):
             x, y = X[i] * half, Y[i] * half
-            jac[i, 0], jac[i, 1], jac[i, 2], jac[i, 3] = half, 0.0, x, -y
-            jac[n + i, 0], jac[n + i, 1], jac[n + i, 2], jac[n + i, 3] = 0.0, half, y, x
+            jac[0, i], jac[1, i], jac[2, i], jac[3, i] = half, 0.0, x, -y
+            jac[0, n + i], jac[1, n + i], jac[2, n + i], jac[3, n + i] = 0.0, half, y, x
             err[i] = flow[i] - (tx * half + a * x - b * y)
             err[n + i] = flow[n + i] - (ty * half + a * y + b * x)
         return
@@ -118,11 +126,12 @@ def _linearise(model, params, X, Y, half, flow, target, jac, err):  # noqa: ANN0
         inv = half / (h[6] * x + h[7] * y + 1.0)
         pu = (h[0] * x + h[1] * y + h[2]) * inv
         pv = (h[3] * x + h[4] * y + h[5]) * inv
-        ju, jv = jac[i], jac[n + i]
-        ju[0], ju[1], ju[2], ju[3], ju[4], ju[5] = x * inv, y * inv, inv, 0.0, 0.0, 0.0
-        jv[0], jv[1], jv[2], jv[3], jv[4], jv[5] = 0.0, 0.0, 0.0, x * inv, y * inv, inv
+        jac[0, i], jac[1, i], jac[2, i] = x * inv, y * inv, inv
+        jac[3, i] = jac[4, i] = jac[5, i] = 0.0
+        jac[0, n + i] = jac[1, n + i] = jac[2, n + i] = 0.0
+        jac[3, n + i], jac[4, n + i], jac[5, n + i] = x * inv, y * inv, inv
         gu, gv = pu * (inv / -half), pv * (inv / -half)
-        ju[6], jv[6], ju[7], jv[7] = x * gu, x * gv, y * gu, y * gv
+        jac[6, i], jac[6, n + i], jac[7, i], jac[7, n + i] = x * gu, x * gv, y * gu, y * gv
         err[i], err[n + i] = target[i] - pu, target[n + i] - pv
 
 
@@ -131,8 +140,8 @@ def _irls(model, start, X, Y, half, flow, target, conf, huber_iterations, tukey_
     """robust.fit_robust of ``model`` (see :func:`_linearise`): (params, residual (n,), scale, ok)."""
     n, p = X.size, start.size
     params = start.copy()
-    jac, err = np.empty((2 * n, p)), np.empty(2 * n)
-    residual, weight = np.empty(n), np.empty(n)
+    jac, err, moved_by = np.empty((p, 2 * n)), np.empty(2 * n), np.empty(2 * n)
+    residual, weight, weight2 = np.empty(n), np.empty(n), np.empty(2 * n)
     _linearise(model, params, X, Y, half, flow, target, jac, err)
     scale = -1.0
     for stage in range(2):
@@ -140,22 +149,12 @@ def _irls(model, start, X, Y, half, flow, target, conf, huber_iterations, tukey_
             for i in range(n):
                 residual[i] = math.sqrt(err[i] * err[i] + err[n + i] * err[n + i])
             scale = _reweight(residual, conf, scale, stage == 1, weight)
-            normal, rhs = np.zeros((p, p)), np.zeros((p, 1))  # robust._step
-            for k in range(2 * n):
-                wk = weight[k % n]
-                if wk == 0.0:
-                    continue
-                col = jac[k]
-                for r in range(p):
-                    if col[r] == 0.0:
-                        continue
-                    jw = col[r] * wk
-                    rhs[r, 0] += jw * err[k]
-                    for c in range(r, p):
-                        normal[r, c] += jw * col[c]
+            weight2[:n], weight2[n:] = weight, weight  # both components of a sample weighted alike
+            normal, rhs = np.empty((p, p)), np.empty((p, 1))  # robust._step
             for r in range(p):
-                for c in range(r):
-                    normal[r, c] = normal[c, r]
+                rhs[r, 0] = _wdot(jac[r], err, weight2)
+                for c in range(r, p):
+                    normal[r, c] = normal[c, r] = _wdot(jac[r], jac[c], weight2)
             trace = 0.0
             for r in range(p):
                 trace += normal[r, r]
@@ -166,12 +165,10 @@ def _irls(model, start, X, Y, half, flow, target, conf, huber_iterations, tukey_
             step, solved = _solve(normal, rhs)
             if not (solved and np.all(np.isfinite(step))):
                 return params, residual, 0.0, False
-            moved = 0.0
-            for k in range(2 * n):
-                acc = 0.0
-                for r in range(p):
-                    acc += step[r, 0] * jac[k, r]
-                moved = max(moved, abs(acc))
+            moved_by[:] = 0.0  # step @ jac: each sample's model flow change, px
+            for r in range(p):
+                moved_by += step[r, 0] * jac[r]
+            moved = np.max(np.abs(moved_by))
             for r in range(p):
                 params[r] += step[r, 0]
             _linearise(model, params, X, Y, half, flow, target, jac, err)
