@@ -17,8 +17,11 @@ backend). "mask, whole map" is the mask +conf as it was before that (the whole m
 motion reading it), timed in the same loop for the comparison. Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
-best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
-shared machine only adds time, and weighs on all of them alike).
+best of ``--repeat`` runs, the engine's and the outputs' interleaved, in reverse order every other run (the
+other load of the shared machine only adds time, and weighs on all of them alike; whichever runs first
+after the engine pays for its cold caches). The fits run as the node runs them, with the engine's
+backend's (derived.fits_for: numba kernels); the dominant motion, the homography and the TTC are also timed
+with the numpy reference fits ("@numpy", confidence given), in the same loop.
 """
 
 from __future__ import annotations
@@ -50,7 +53,7 @@ from .motion_regime import quantise8
 CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
 NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "all")
 WHOLE_MAP = "motion/moving_mask+map"  # the mask +conf with the whole map first (before confidence_in)
-NUMPY_FIT_TOPICS = ("motion/dominant", "motion/ttc")  # also timed with the numpy reference fits ("@numpy")
+NUMPY_FIT_TOPICS = ("motion/dominant", "motion/homography", "motion/ttc")  # also with the numpy fits ("@numpy")
 
 
 def topic_time(flow: np.ndarray, conf: np.ndarray | Callable[[], np.ndarray], names: tuple[str, ...],
@@ -102,9 +105,10 @@ def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[d
             res = est.estimate(f0, f1)
             conf = est.confidence(*res.frames, res.flow)
             times: dict[str, float] = {}
-            for _ in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike
-                for name in ("engine", "confidence", *MOTION_TOPICS, "all", *(f"{t}+conf" for t in NEEDS_CONFIDENCE),
-                             WHOLE_MAP, *(f"{t}@numpy" for t in NUMPY_FIT_TOPICS)):
+            names = ("engine", "confidence", *MOTION_TOPICS, "all", *(f"{t}+conf" for t in NEEDS_CONFIDENCE),
+                     WHOLE_MAP, *(f"{t}@numpy" for t in NUMPY_FIT_TOPICS))
+            for r in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike, the
+                for name in names if r % 2 == 0 else names[::-1]:  # order reversed every other time (first: dearer)
                     times[name] = min(times.get(name, math.inf), _time(name, f0, f1, est, res, conf))
             row: dict[str, Any] = {"kind": kind} | {f"{name}_s": t for name, t in times.items()}
             rows.append(row)
