@@ -71,10 +71,10 @@ def test_no_support_fails_alike() -> None:
     assert_same_dominant(flow, zero)  # both None
     assert_same_regions(flow, zero)  # every region NaN in both
     frame_conf = np.zeros(16)
-    from flow_node.pipeline.motion import _Frame  # noqa: PLC0415  (the kernel's direct input)
+    from flow_node.pipeline.motion import SampleFrame  # the kernels' direct input
     from flow_node.pipeline.robust import sample_flow
     s = sample_flow(flow[:16, :16], np.ones((16, 16), np.float32), 4)
-    frame = _Frame(s, (16, 16))
+    frame = SampleFrame(s, (16, 16))
     for model, start in (("similarity", np.zeros(4)), ("homography", np.array([1, 0, 0, 0, 1, 0, 0, 0.0]))):
         assert fit_model(model, frame, start, frame_conf, 0) is None
         assert fit_model_numba(model, frame, start, frame_conf, 0) is None
@@ -106,3 +106,12 @@ def test_analysis_takes_the_backends_fits() -> None:
         a = MotionAnalysis.of(out)
         assert a.fits.name == backend
         assert a.fits.model is (fit_model if backend == "numpy" else fit_model_numba)
+
+
+def test_warm_fits_compiles_the_kernels() -> None:
+    from flow_node.pipeline import numba_fits
+    from flow_node.pipeline.derived import warm_fits
+
+    assert warm_fits(NUMPY_FITS) >= 0.0
+    warm_fits(fits_for("numba"))  # what the node's warm-up and flow_bag eval --motion run before the first frame
+    assert numba_fits.compiled()

@@ -17,6 +17,7 @@ the moving mask needs the dominant motion. No rclpy, no rosbags.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -97,6 +98,18 @@ def fits_for(backend: str) -> Fits:
     from .numba_fits import fit_model_numba, region_fits_numba  # numba imported only with its backend
 
     return Fits("numba", fit_model_numba, region_fits_numba)
+
+
+def warm_fits(fits: Fits, shape: tuple[int, int] = (48, 64)) -> float:
+    """Run ``fits`` once (the dominant motion and the TTC of a small zoom, (H, W) ``shape``) so that numba
+    compiles its kernels now, or loads them from its cache (~10 s the first time, without a cache), not
+    on the first analysed frame. Returns the seconds it took."""
+    start = time.perf_counter()
+    ys, xs = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float32)
+    flow = 0.01 * np.stack([xs - shape[1] / 2.0, ys - shape[0] / 2.0], axis=-1)
+    analysis = MotionAnalysis(flow, np.ones(shape, np.float32), fits=fits)
+    analysis.dominant, analysis.ttc  # noqa: B018
+    return time.perf_counter() - start
 
 
 class MotionAnalysis:

@@ -122,7 +122,7 @@ def apply_homography(hm: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.n
     return (hm[0, 0] * x + hm[0, 1] * y + hm[0, 2]) / den - x, (hm[1, 0] * x + hm[1, 1] * y + hm[1, 2]) / den - y
 
 
-class _Frame:
+class SampleFrame:
     """Samples in coordinates normalised about the image centre: X = (x - cx) / L, with L half the image
     diagonal, so that the parameters of every model are O(1); residuals and Jacobians stay in px."""
 
@@ -187,13 +187,13 @@ class _Frame:
 
 
 # fit(model, frame, start, confidence, huber_iterations) -> RobustFit | None: the IRLS fit of one of
-# _Frame's models ("similarity", "homography") from ``start`` with confidence (n,) (fit_robust's semantics,
+# SampleFrame's models ("similarity", "homography") from ``start`` with confidence (n,) (fit_robust's semantics,
 # TUKEY_ITERATIONS biweight steps); :func:`fit_model` is the numpy reference, numba_fits.fit_model_numba
 # the compiled one (derived.Fits chooses)
-ModelFit = Callable[[str, _Frame, np.ndarray, np.ndarray, int], RobustFit | None]
+ModelFit = Callable[[str, SampleFrame, np.ndarray, np.ndarray, int], RobustFit | None]
 
 
-def fit_model(model: str, frame: _Frame, start: np.ndarray, confidence: np.ndarray,
+def fit_model(model: str, frame: SampleFrame, start: np.ndarray, confidence: np.ndarray,
               huber_iterations: int) -> RobustFit | None:
     """:func:`~flow_node.pipeline.robust.fit_robust` of ``frame``'s ``model`` ("similarity": (tx, ty, a, b),
     "homography": h (8,), both normalised) from ``start`` with ``confidence`` (n,) in [0, 1] (the reference
@@ -206,7 +206,7 @@ def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThresh
     """The dominant motion of ``flow`` (H, W, 2) px/frame weighted by ``confidence`` (H, W) in [0, 1].
 
     On a regular grid of ~``samples`` points (so the cost hardly depends on the image size): a similarity
-    from a robust start (median slopes, :meth:`_Frame.similarity_start`) refined by IRLS (one Huber step,
+    from a robust start (median slopes, :meth:`SampleFrame.similarity_start`) refined by IRLS (one Huber step,
     then Tukey's biweight; confidence times the robust weight), then from it a homography by Gauss-Newton
     IRLS (biweight) on the endpoint error in px; where that fails, the similarity stands in for it. The
     similarity gives tx, ty, rotation and scale; the homography the inlier share (within ``threshold``,
@@ -222,7 +222,7 @@ def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThresh
     support = int(np.count_nonzero(w > 0.0))
     if support < 8:
         return None
-    frame = _Frame(s, flow.shape[:2])
+    frame = SampleFrame(s, flow.shape[:2])
     sim = fit("similarity", frame, frame.similarity_start(), w, HUBER_ITERATIONS)
     if sim is None:
         return None

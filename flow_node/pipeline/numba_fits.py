@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .motion import _Frame
+from .motion import SampleFrame
 from .robust import (
     CONVERGED_PX,
     HUBER_ITERATIONS,
@@ -31,7 +31,7 @@ from .robust import (
 )
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")  # no fastmath: the reference's arithmetic, in order
-MODEL_CODES = {"similarity": 0, "homography": 1}  # _Frame's models -> the kernel's flag
+MODEL_CODES = {"similarity": 0, "homography": 1}  # SampleFrame's models -> the kernel's flag
 _SCALE_FACTOR = tuple(1.4826 * math.sqrt(math.log(2.0) / -math.log(1.0 - q)) for q in (0.5, START_QUANTILE))
 
 
@@ -109,7 +109,7 @@ def _solve(a, b):  # noqa: ANN001, ANN202
 
 @njit(**_JIT)
 def _linearise(model, params, X, Y, half, flow, target, jac, err):  # noqa: ANN001, ANN202
-    """_Frame.similarity (model 0) or _Frame.homography (1) at ``params`` into jac (p, 2n) and err (2n,)."""
+    """SampleFrame.similarity (model 0) or SampleFrame.homography (1) at ``params`` into jac (p, 2n) and err (2n,)."""
     n = X.size
     if model == 0:
         tx, ty, a, b = params[0], params[1], params[2], params[3]
@@ -181,7 +181,7 @@ def _irls(model, start, X, Y, half, flow, target, conf, huber_iterations, tukey_
     return params, residual, final, True
 
 
-def fit_model_numba(model: str, frame: _Frame, start: np.ndarray, confidence: np.ndarray,
+def fit_model_numba(model: str, frame: SampleFrame, start: np.ndarray, confidence: np.ndarray,
                     huber_iterations: int) -> RobustFit | None:
     """:func:`flow_node.pipeline.motion.fit_model` with one compiled call (the same arguments and result)."""
     params, residual, scale, ok = _irls(MODEL_CODES[model], np.asarray(start, np.float64), frame.X, frame.Y,
@@ -240,3 +240,8 @@ def region_fits_numba(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.nda
     result)."""
     f64 = (np.ascontiguousarray(a, np.float64) for a in (X, Y, uv, conf, start))
     return _regions(*f64, HUBER_ITERATIONS, TUKEY_ITERATIONS)
+
+
+def compiled() -> bool:
+    """Whether both kernels are compiled (or loaded from numba's cache) in this process (derived.warm_fits)."""
+    return bool(_irls.signatures and _regions.signatures)
