@@ -6,9 +6,14 @@ reference and test oracle (test/test_fits_numba.py: the parameters to ~1e-9, the
 The reference runs the IRLS loop as ~150 small numpy calls (residual, masked quantile, weights, normal
 equations, solve) whose overhead, not their arithmetic on ~1000 samples, is the cost (~0.3 ms a fit
 whatever the image size); here one call runs the whole loop: the residual scale by the same lower quantile
-(a sort of the kept residuals), the same weights and stopping rules, the normal equations solved by Gaussian
-elimination with partial pivoting (p <= 8; singular: a zero pivot, where numpy's LAPACK solve raises).
-Selected with the engine's backend (derived.fits_for).
+(``np.partition`` of the kept residuals), the same weights and stopping rules, the model's normal equations as
+weighted dot products summed in any order (:func:`_wdot`, reassociated so that LLVM vectorises them; the
+rest in the reference's order, no fastmath), solved by Gaussian elimination with partial pivoting (p <= 8;
+singular: a zero pivot, where numpy's LAPACK solve raises). At 320x240 (972 samples, a tight loop):
+similarity 141 -> 36 us, homography 223 -> 74 us, the TTC's nine region fits 329 -> 80 us. A first version
+that summed the normal equations sample by sample into a (p, p) array and sorted for the quantile was no
+faster than numpy (109 and 219 us). Selected with the engine's backend (derived.fits_for); compiled by the
+node's warm-up (derived.warm_fits).
 """
 
 from __future__ import annotations
