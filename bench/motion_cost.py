@@ -17,8 +17,11 @@ backend). "mask, whole map" is the mask +conf as it was before that (the whole m
 motion reading it), timed in the same loop for the comparison. Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
-best of ``--repeat`` runs, the engine's and the outputs' interleaved (the other load of the
-shared machine only adds time, and weighs on all of them alike).
+best of ``--repeat`` runs, the engine's and the outputs' interleaved, in reverse order every other run (the
+other load of the shared machine only adds time, and weighs on all of them alike; whichever runs first
+after the engine pays for its cold caches). The fits run as the node runs them, with the engine's
+backend's (derived.fits_for: numba kernels); the dominant motion, the homography and the TTC are also timed
+with the numpy reference fits ("@numpy", confidence given), in the same loop.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ from flow_node.bag.motion_scenes import motion_scene
 from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator, FlowResult
 from flow_node.core.config import FlowConfig
-from flow_node.pipeline.derived import MOTION_TOPICS, MotionAnalysis
+from flow_node.pipeline.derived import MOTION_TOPICS, NUMPY_FITS, Fits, MotionAnalysis, fits_for
 from flow_node.pipeline.motion import MotionDetector
 from flow_node.pipeline.motion_msgs import motion_messages
 from flow_node.process import keep_freed_memory
@@ -50,17 +53,18 @@ from .motion_regime import quantise8
 CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
 NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "all")
 WHOLE_MAP = "motion/moving_mask+map"  # the mask +conf with the whole map first (before confidence_in)
+NUMPY_FIT_TOPICS = ("motion/dominant", "motion/homography", "motion/ttc")  # also with the numpy fits ("@numpy")
 
 
 def topic_time(flow: np.ndarray, conf: np.ndarray | Callable[[], np.ndarray], names: tuple[str, ...],
                confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-               confidence_in: Callable[[np.ndarray], np.ndarray] | None = None) -> float:
+               confidence_in: Callable[[np.ndarray], np.ndarray] | None = None, fits: Fits = NUMPY_FITS) -> float:
     """Seconds the node's worker spends on ``names`` for one pair, the confidence given or computed as
     needed (``conf`` a function, ``confidence_at`` its values at points, ``confidence_in`` where a mask is
-    True; module docstring)."""
+    True; module docstring), the fits run by ``fits``."""
     header = Header(frame_id="camera")
     start = time.perf_counter()
-    a = MotionAnalysis(flow, conf, 0.1, confidence_at=confidence_at, confidence_in=confidence_in)
+    a = MotionAnalysis(flow, conf, 0.1, confidence_at=confidence_at, confidence_in=confidence_in, fits=fits)
     detected = MotionDetector().update(a.moving_fraction) if "motion/detected" in names else None
     for _ in motion_messages(RclpyKit(), header, a, detected, names):
         pass
@@ -77,13 +81,16 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
     if name == "confidence":
         est.confidence(*res.frames, res.flow)
         return time.perf_counter() - start
+    if name.endswith("@numpy"):  # the numpy reference fits, the confidence given
+        return topic_time(res.flow, conf, (name.removesuffix("@numpy"),), fits=NUMPY_FITS)
+    fits = fits_for(est.backend)  # as the node's MotionAnalysis.of: the engine's backend's fits
     topic = name.removesuffix("+conf").removesuffix("+map")
     names = tuple(MOTION_TOPICS) if topic == "all" else (topic,)
     if topic == name:
-        return topic_time(res.flow, conf, names)
+        return topic_time(res.flow, conf, names, fits=fits)
     return topic_time(res.flow, lambda: est.confidence(*res.frames, res.flow), names,
                       lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs),
-                      None if name == WHOLE_MAP else lambda where: est.confidence(*res.frames, res.flow, where))
+                      None if name == WHOLE_MAP else lambda where: est.confidence(*res.frames, res.flow, where), fits)
 
 
 def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[dict[str, Any]]:
@@ -98,9 +105,10 @@ def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[d
             res = est.estimate(f0, f1)
             conf = est.confidence(*res.frames, res.flow)
             times: dict[str, float] = {}
-            for _ in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike
-                for name in ("engine", "confidence", *MOTION_TOPICS, "all", *(f"{t}+conf" for t in NEEDS_CONFIDENCE),
-                             WHOLE_MAP):
+            names = ("engine", "confidence", *MOTION_TOPICS, "all", *(f"{t}+conf" for t in NEEDS_CONFIDENCE),
+                     WHOLE_MAP, *(f"{t}@numpy" for t in NUMPY_FIT_TOPICS))
+            for r in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike, the
+                for name in names if r % 2 == 0 else names[::-1]:  # order reversed every other time (first: dearer)
                     times[name] = min(times.get(name, math.inf), _time(name, f0, f1, est, res, conf))
             row: dict[str, Any] = {"kind": kind} | {f"{name}_s": t for name, t in times.items()}
             rows.append(row)
@@ -120,6 +128,10 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             tc = np.array([r[f"{name}+conf_s"] for r in rows])
             out[name] |= {"with_confidence_ratio_median": float(np.median(tc / engine)),
                           "with_confidence_ms_median": 1e3 * float(np.median(tc))}
+    for name in NUMPY_FIT_TOPICS:  # the same topic with the numpy reference fits (same run, interleaved)
+        t = np.array([r[f"{name}@numpy_s"] for r in rows])
+        out[name] |= {"numpy_fits_ratio_median": float(np.median(t / engine)),
+                      "numpy_fits_ms_median": 1e3 * float(np.median(t))}
     tm = np.array([r[f"{WHOLE_MAP}_s"] for r in rows])
     out["motion/moving_mask"] |= {"whole_map_ratio_median": float(np.median(tm / engine)),
                                   "whole_map_ms_median": 1e3 * float(np.median(tm))}
@@ -149,6 +161,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:22s}" + "".join(f"{c:>36s}" for c in cells))
     print(f"{'mask, whole map':22s}" + "".join(
         f"{100 * r['summary']['motion/moving_mask']['whole_map_ratio_median']:48.2f} %" for r in results.values()))
+    for name in NUMPY_FIT_TOPICS:
+        print(f"{name + ' numpy fits':22s}" + "".join(
+            f"{100 * r['summary'][name]['numpy_fits_ratio_median']:6.2f} % "
+            f"{r['summary'][name]['numpy_fits_ms_median']:6.2f} ms" + " " * 14 for r in results.values()))
     print(f"{'realtime (ms)':22s}" + "".join(f"{r['summary']['engine_ms_median']:19.1f} ms" for r in results.values()))
     write_json(args.output, {"command": "python -m bench.motion_cost " + " ".join(argv), "machine": machine(),
                              "results": results})

@@ -32,7 +32,7 @@ from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator
 from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
-from flow_node.pipeline.derived import MotionAnalysis
+from flow_node.pipeline.derived import Fits, MotionAnalysis, fits_for
 
 from .common import REPO, machine, write_json
 
@@ -71,9 +71,10 @@ def best_time(fn: Callable[[], Any], repeat: int) -> tuple[Any, float]:
     return value, best
 
 
-def _output_time(flow: np.ndarray, conf: np.ndarray, name: str) -> float:
-    """Compute one derived output on a fresh analysis (the mask's own cost: its dominant motion first)."""
-    a = MotionAnalysis(flow, conf, 0.1)
+def _output_time(flow: np.ndarray, conf: np.ndarray, name: str, fits: Fits) -> float:
+    """Compute one derived output on a fresh analysis (the mask's own cost: its dominant motion first), the
+    fits run by ``fits`` (the engine's backend's, as in the node)."""
+    a = MotionAnalysis(flow, conf, 0.1, fits=fits)
     if name == "moving_mask":
         a.dominant  # noqa: B018
     start = time.perf_counter()
@@ -93,8 +94,8 @@ def score(case: tuple[str, float, int, float | None], size: tuple[int, int], est
     row: dict[str, Any] = {"kind": kind, "seed": seed, "object_share": truth.object_share,
                            "engine_s": t_engine, "confidence_s": t_conf}
     for name in OUTPUTS:
-        row[f"{name}_s"] = min(_output_time(res.flow, conf, name) for _ in range(repeat))
-    a = MotionAnalysis(res.flow, conf, 0.1)
+        row[f"{name}_s"] = min(_output_time(res.flow, conf, name, fits_for(est.backend)) for _ in range(repeat))
+    a = MotionAnalysis(res.flow, conf, 0.1, fits=fits_for(est.backend))
     row.update(_errors(a, truth, scene.layer_map(0) > 0))
     return row
 

@@ -23,7 +23,7 @@ from ..core.config import FlowConfig
 from ..core.errors import InputError
 from ..core.metrics import aee, angular_error, confidence_auc, valid_mask
 from ..pipeline.codec import array_to_image_fields, decode, image_to_array
-from ..pipeline.derived import MOTION_TOPICS, MotionAnalysis
+from ..pipeline.derived import MOTION_TOPICS, MotionAnalysis, fits_for, warm_fits
 from ..pipeline.stream import FlowOutput, FlowStream, StreamSettings
 from .bagio import (
     IMAGE,
@@ -119,6 +119,8 @@ def evaluate(bag: str | Path, out_bag: Path | None, configs: Sequence[FlowConfig
                         writer.add_topic(run.topic(name, k == 0), msgtype)
             for run in runs:
                 run.stream.warmup()  # JIT compilation (numba) now, not inside the first frame's time
+                if opts.motion:
+                    warm_fits(fits_for(run.stream.backend))  # the derived outputs' fits, likewise
             if isinstance(reader, RecoveredReader):
                 result.warnings.append(reader.recovery)
                 result.recovered = reader.recovered

@@ -17,9 +17,11 @@ the moving mask needs the dominant motion. No rclpy, no rosbags.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
@@ -28,12 +30,23 @@ from .expansion import (
     REGION_GRID,
     REGION_SAMPLES,
     FocusOfExpansion,
+    RegionFit,
     TimeToContact,
     divergence,
     focus_of_expansion,
+    region_fits,
     region_ttc,
 )
-from .motion import DominantMotion, Hysteresis, MaskThreshold, dominant_motion, moving_fraction, moving_mask
+from .motion import (
+    DominantMotion,
+    Hysteresis,
+    MaskThreshold,
+    ModelFit,
+    dominant_motion,
+    fit_model,
+    moving_fraction,
+    moving_mask,
+)
 from .robust import SAMPLES, Weights, check_flow, check_flow_shape
 from .stream import FlowOutput
 
@@ -64,6 +77,41 @@ class MotionSettings:
         return self.grid_rows, self.grid_cols
 
 
+class Fits(NamedTuple):
+    """Who runs the IRLS fits: the dominant motion's (:data:`~flow_node.pipeline.motion.ModelFit`) and the
+    time to contact's (:data:`~flow_node.pipeline.expansion.RegionFit`); the same results either way
+    (test_fits_numba.py)."""
+
+    name: str
+    model: ModelFit
+    regions: RegionFit
+
+
+NUMPY_FITS = Fits("numpy", fit_model, region_fits)
+
+
+def fits_for(backend: str) -> Fits:
+    """The fits of an engine's backend (``FlowOutput.backend``): the numba kernels (numba_fits) with
+    ``numba``, else the numpy reference."""
+    if backend != "numba":
+        return NUMPY_FITS
+    from .numba_fits import fit_model_numba, region_fits_numba  # numba imported only with its backend
+
+    return Fits("numba", fit_model_numba, region_fits_numba)
+
+
+def warm_fits(fits: Fits, shape: tuple[int, int] = (48, 64)) -> float:
+    """Run ``fits`` once (the dominant motion and the TTC of a small zoom, (H, W) ``shape``) so that numba
+    compiles its kernels now, or loads them from its cache (~10 s the first time, without a cache), not
+    on the first analysed frame. Returns the seconds it took."""
+    start = time.perf_counter()
+    ys, xs = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float32)
+    flow = 0.01 * np.stack([xs - shape[1] / 2.0, ys - shape[0] / 2.0], axis=-1)
+    analysis = MotionAnalysis(flow, np.ones(shape, np.float32), fits=fits)
+    analysis.dominant, analysis.ttc  # noqa: B018
+    return time.perf_counter() - start
+
+
 class MotionAnalysis:
     """The derived outputs of one flow (H, W, 2) float32 px/frame and its confidence (H, W) in [0, 1].
 
@@ -76,17 +124,21 @@ class MotionAnalysis:
     (optional; ``FlowOutput.confidence_in``) gives it right at least where a bool (H, W) array is True: the
     moving mask reads it only where the deviating pixels survive its opening
     (:func:`~flow_node.pipeline.motion.moving_mask`), so while the map is not computed it takes it there.
+    ``fits`` runs the IRLS fits (:class:`Fits`; the numpy reference by default, :meth:`of` takes the
+    stream's backend's).
     """
 
     def __init__(self, flow: np.ndarray, confidence: np.ndarray | Callable[[], np.ndarray],
                  interval_s: float | None = None, settings: MotionSettings | None = None,
                  confidence_at: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
-                 confidence_in: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
+                 confidence_in: Callable[[np.ndarray], np.ndarray] | None = None,
+                 fits: Fits = NUMPY_FITS) -> None:
         check_flow_shape(flow)
         if not callable(confidence):
             check_flow(flow, confidence)
         self.flow, self._confidence, self._confidence_at = flow, confidence, confidence_at
         self._confidence_in = confidence_in
+        self.fits = fits
         self._at_points: dict[tuple[tuple[int, ...], bytes, bytes], np.ndarray] = {}
         self.interval_s = interval_s if interval_s is not None and interval_s > 0.0 else None
         self.settings = settings if settings is not None else MotionSettings()
@@ -123,15 +175,15 @@ class MotionAnalysis:
     def of(cls, out: FlowOutput, settings: MotionSettings | None = None) -> MotionAnalysis:
         """The analysis of a stream's output: its flow in px/frame (``frame_flow`` when ``flow`` is in
         px/s), its confidence (computed on first use, if it was not already; at the fits' samples and
-        where the mask reads it alone while the map is not) and its pair's interval."""
+        where the mask reads it alone while the map is not), its pair's interval and its backend's fits."""
         flow = out.flow if out.frame_flow is None else out.frame_flow
         return cls(flow, out.confidence, (out.stamp_ns - out.previous_stamp_ns) / 1e9, settings, out.confidence_at,
-                   out.confidence_in)
+                   out.confidence_in, fits_for(out.backend))
 
     @cached_property
     def dominant(self) -> DominantMotion | None:
         """:func:`~flow_node.pipeline.motion.dominant_motion` (None without confident flow)."""
-        return dominant_motion(self.flow, self.weights, self.settings.mask, self.settings.samples)
+        return dominant_motion(self.flow, self.weights, self.settings.mask, self.settings.samples, self.fits.model)
 
     @cached_property
     def divergence(self) -> np.ndarray:
@@ -142,7 +194,7 @@ class MotionAnalysis:
     def ttc(self) -> TimeToContact:
         """:func:`~flow_node.pipeline.expansion.region_ttc` on the settings' grid."""
         return region_ttc(self.flow, self.weights, self.interval_s, self.settings.grid,
-                          self.settings.region_samples)
+                          self.settings.region_samples, self.fits.regions)
 
     @cached_property
     def foe(self) -> FocusOfExpansion | None:

@@ -16,6 +16,7 @@ seconds multiply by the pair's interval (newer stamp - earlier stamp).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -142,8 +143,35 @@ def _affine_start(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.ndarray
     return coef
 
 
+def region_fits(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.ndarray,
+                start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The robust affine fits of R regions at once (the numpy reference :data:`RegionFit`): from ``start``
+    (R, 3, 2) (:func:`_affine_start`), IRLS with Huber's weights for HUBER_ITERATIONS steps, then Tukey's
+    for TUKEY_ITERATIONS, each region with its own robust scale (:func:`~flow_node.pipeline.robust.reweight`)
+    on the endpoint residual px of its m samples at X, Y (R, m) (normalised, |X|, |Y| <= 1) with flow uv
+    (R, m, 2) px/frame and confidence conf (R, m); every region steps until none changes its coefficients
+    by CONVERGED_PX together. Coefficients (R, 3, 2) (:func:`_affine_fits`) and whether each region's last
+    weighted system was regular (R,)."""
+    coef, ok, scale = start, np.ones(X.shape[0], bool), None
+    basis = _affine_basis(X, Y)
+    for psi, iterations in ((huber_weight, HUBER_ITERATIONS), (tukey_weight, TUKEY_ITERATIONS)):
+        for _ in range(iterations):
+            weight, scale = reweight(_affine_residual(basis, uv, coef), conf, scale, psi)
+            previous, (coef, ok) = coef, _affine_fits(basis, uv, weight)
+            # |X|, |Y| <= 1: no sample's model flow moved by more than the coefficients' changes together
+            if np.max(np.abs(coef - previous).sum(axis=1)) < CONVERGED_PX:
+                break
+    return coef, ok
+
+
+# fit(X, Y, uv, conf, start) -> (coef (R, 3, 2), ok (R,)): the region fits; :func:`region_fits` is the numpy
+# reference, numba_fits.region_fits_numba the compiled one (derived.Fits chooses)
+RegionFit = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
 def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None = None,
-               grid: tuple[int, int] = REGION_GRID, samples: int = REGION_SAMPLES) -> TimeToContact:
+               grid: tuple[int, int] = REGION_GRID, samples: int = REGION_SAMPLES,
+               fit: RegionFit = region_fits) -> TimeToContact:
     """Divergence, expansion and time to contact per cell of a ``grid`` (rows, cols) over the image.
 
     In each cell the flow (H, W, 2) px/frame is fitted by an affine field u = a0 + a1 X + a2 Y,
@@ -153,7 +181,8 @@ def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None =
     object crossing part of a cell does not move its figure. divergence = a1 + b2 (1/frame), expansion =
     sqrt(det(I + J)) - 1 with J = [[a1, a2], [b1, b2]], TTC = 1 / expansion frames (see the module
     docstring); ``interval_s`` (the pair's, seconds) gives TTC in seconds. ``confidence`` may be given as
-    its values at the samples (:data:`~flow_node.pipeline.robust.Weights`).
+    its values at the samples (:data:`~flow_node.pipeline.robust.Weights`). ``fit`` runs the IRLS
+    (:data:`RegionFit`: the numpy reference, or numba_fits.region_fits_numba).
     """
     check_weights(flow, confidence)
     rows, cols = grid
@@ -171,15 +200,7 @@ def region_ttc(flow: np.ndarray, confidence: Weights, interval_s: float | None =
     half = np.maximum(1.0, (bounds[:, 2:4] - bounds[:, 0:2]) / 2.0)  # (R, 2) px
     mid = (bounds[:, 0:2] + bounds[:, 2:4] - 1) / 2.0
     X, Y = (px - mid[:, 0:1]) / half[:, 0:1], (py - mid[:, 1:2]) / half[:, 1:2]
-    coef, ok, scale = _affine_start(X, Y, uv, conf, k), np.ones(count, bool), None
-    basis = _affine_basis(X, Y)
-    for psi, iterations in ((huber_weight, HUBER_ITERATIONS), (tukey_weight, TUKEY_ITERATIONS)):
-        for _ in range(iterations):
-            weight, scale = reweight(_affine_residual(basis, uv, coef), conf, scale, psi)
-            previous, (coef, ok) = coef, _affine_fits(basis, uv, weight)
-            # |X|, |Y| <= 1: no sample's model flow moved by more than the coefficients' changes together
-            if np.max(np.abs(coef - previous).sum(axis=1)) < CONVERGED_PX:
-                break
+    coef, ok = fit(X, Y, uv, conf, _affine_start(X, Y, uv, conf, k))
     jac = np.swapaxes(coef[:, 1:, :], 1, 2) / half[:, None, :]  # (R, 2, 2): [[du/dx, du/dy], [dv/dx, dv/dy]]
     div = jac[:, 0, 0] + jac[:, 1, 1]
     det = (1.0 + jac[:, 0, 0]) * (1.0 + jac[:, 1, 1]) - jac[:, 0, 1] * jac[:, 1, 0]

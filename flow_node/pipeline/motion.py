@@ -24,8 +24,10 @@ import numpy as np
 
 from ..core.settings import check_fields, setting
 from .robust import (
+    HUBER_ITERATIONS,
     SAMPLES,
     START_CONFIDENCE,
+    RobustFit,
     Samples,
     Weights,
     check_flow,
@@ -120,7 +122,7 @@ def apply_homography(hm: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.n
     return (hm[0, 0] * x + hm[0, 1] * y + hm[0, 2]) / den - x, (hm[1, 0] * x + hm[1, 1] * y + hm[1, 2]) / den - y
 
 
-class _Frame:
+class SampleFrame:
     """Samples in coordinates normalised about the image centre: X = (x - cx) / L, with L half the image
     diagonal, so that the parameters of every model are O(1); residuals and Jacobians stay in px."""
 
@@ -184,18 +186,34 @@ class _Frame:
         return hp / hp[2, 2]
 
 
+# fit(model, frame, start, confidence, huber_iterations) -> RobustFit | None: the IRLS fit of one of
+# SampleFrame's models ("similarity", "homography") from ``start`` with confidence (n,) (fit_robust's semantics,
+# TUKEY_ITERATIONS biweight steps); :func:`fit_model` is the numpy reference, numba_fits.fit_model_numba
+# the compiled one (derived.Fits chooses)
+ModelFit = Callable[[str, SampleFrame, np.ndarray, np.ndarray, int], RobustFit | None]
+
+
+def fit_model(model: str, frame: SampleFrame, start: np.ndarray, confidence: np.ndarray,
+              huber_iterations: int) -> RobustFit | None:
+    """:func:`~flow_node.pipeline.robust.fit_robust` of ``frame``'s ``model`` ("similarity": (tx, ty, a, b),
+    "homography": h (8,), both normalised) from ``start`` with ``confidence`` (n,) in [0, 1] (the reference
+    :data:`ModelFit`)."""
+    return fit_robust(getattr(frame, model), start, confidence, huber_iterations=huber_iterations)
+
+
 def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThreshold | None = None,
-                    samples: int = SAMPLES) -> DominantMotion | None:
+                    samples: int = SAMPLES, fit: ModelFit = fit_model) -> DominantMotion | None:
     """The dominant motion of ``flow`` (H, W, 2) px/frame weighted by ``confidence`` (H, W) in [0, 1].
 
     On a regular grid of ~``samples`` points (so the cost hardly depends on the image size): a similarity
-    from a robust start (median slopes, :meth:`_Frame.similarity_start`) refined by IRLS (one Huber step,
+    from a robust start (median slopes, :meth:`SampleFrame.similarity_start`) refined by IRLS (one Huber step,
     then Tukey's biweight; confidence times the robust weight), then from it a homography by Gauss-Newton
     IRLS (biweight) on the endpoint error in px; where that fails, the similarity stands in for it. The
     similarity gives tx, ty, rotation and scale; the homography the inlier share (within ``threshold``,
     default :class:`MaskThreshold`) and what :func:`moving_mask` compares against. None when fewer than 8
     samples have confidence > 0 or the similarity has no support. ``confidence`` may be given as its values
-    at the samples (:data:`~flow_node.pipeline.robust.Weights`).
+    at the samples (:data:`~flow_node.pipeline.robust.Weights`). ``fit`` runs the IRLS fits (:data:`ModelFit`:
+    the numpy reference, or numba_fits.fit_model_numba).
     """
     check_weights(flow, confidence)
     threshold = threshold if threshold is not None else MaskThreshold()
@@ -204,13 +222,13 @@ def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThresh
     support = int(np.count_nonzero(w > 0.0))
     if support < 8:
         return None
-    frame = _Frame(s, flow.shape[:2])
-    sim = fit_robust(frame.similarity, frame.similarity_start(), w)
+    frame = SampleFrame(s, flow.shape[:2])
+    sim = fit("similarity", frame, frame.similarity_start(), w, HUBER_ITERATIONS)
     if sim is None:
         return None
     tx, ty, a, b = sim.params
     start = np.array([1 + a, -b, tx, b, 1 + a, ty, 0.0, 0.0])
-    hom = fit_robust(frame.homography, start, w, huber_iterations=0)  # the similarity's outliers are far
+    hom = fit("homography", frame, start, w, 0)  # the similarity's outliers are far
     if hom is None or not np.all(np.isfinite(hom.params)):
         hom = sim  # the similarity stands in (its residual scale with it)
     hp = frame.to_pixels(hom.params if hom is not sim else start)

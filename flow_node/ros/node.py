@@ -39,6 +39,7 @@ from .. import middleware
 from ..core.backends import fallback_warning
 from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import decode
+from ..pipeline.derived import fits_for, warm_fits
 from ..pipeline.stream import FlowStream, StreamSettings
 from ..process import keep_freed_memory, passive_thread_waits
 from . import camera_info, diagnostics, lifecycle, security, startup
@@ -301,6 +302,7 @@ class FlowNode(LifecycleNode):
     def _warmup(self) -> None:
         assert self._stream is not None  # the worker runs between configure and cleanup
         seconds = self._stream.warmup()
+        seconds += warm_fits(fits_for(self._stream.backend))  # the derived outputs' fits (numba: compiled)
         self.get_logger().info(f"engine warm-up ({self._stream.backend}) took {seconds:.2f} s")
 
     def _frame_failed(self, exc: Exception) -> bool:

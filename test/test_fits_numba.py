@@ -1,0 +1,117 @@
+"""The derived motion outputs' compiled fits (flow_node.pipeline.numba_fits) against the numpy reference
+(motion.fit_model, expansion.region_fits), the oracle: exact flows with a moving block, random flows with
+garbage and zero confidence, and rendered pairs through the realtime engine; the parameters to 1e-9 (the same
+arithmetic up to summation order), the same inliers and the same mask; failures (no support) alike; and the
+wiring: MotionAnalysis.of takes the stream's backend's fits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_pipeline_motion import ONES, homography_flow, similarity_flow, with_block
+
+from flow_node.bag.motion_scenes import motion_scene
+from flow_node.bag.scenes import render_grey_pair
+from flow_node.core import FlowConfig, FlowEstimator
+from flow_node.core.confidence import confidence as flow_confidence
+from flow_node.pipeline.derived import NUMPY_FITS, MotionAnalysis, fits_for
+from flow_node.pipeline.expansion import region_fits, region_ttc
+from flow_node.pipeline.motion import dominant_motion, fit_model, moving_mask
+from flow_node.pipeline.numba_fits import fit_model_numba, region_fits_numba
+
+TOL = 1e-9  # parameters: the reference's arithmetic, summed in another order (the target is ~1e-5)
+
+
+def assert_same_dominant(flow: np.ndarray, conf: np.ndarray) -> None:
+    ref, out = (dominant_motion(flow, conf, fit=f) for f in (fit_model, fit_model_numba))
+    assert (ref is None) == (out is None)
+    if ref is None:
+        return
+    np.testing.assert_allclose(np.array(out.homography), np.array(ref.homography), rtol=0, atol=TOL)
+    for name in ("tx", "ty", "rotation_deg", "scale", "residual_px"):
+        assert getattr(out, name) == pytest.approx(getattr(ref, name), rel=0, abs=TOL), name
+    assert out.inlier_share == ref.inlier_share and out.samples == ref.samples  # the same inliers
+    assert np.array_equal(moving_mask(flow, conf, out), moving_mask(flow, conf, ref))
+
+
+def assert_same_regions(flow: np.ndarray, conf: np.ndarray) -> None:
+    ref, out = (region_ttc(flow, conf, 0.1, fit=f) for f in (region_fits, region_fits_numba))
+    for field in ("divergence", "expansion", "ttc_frames"):
+        a, b = ref.grid(field), out.grid(field)
+        assert np.array_equal(np.isnan(a), np.isnan(b)) and np.array_equal(np.isinf(a), np.isinf(b)), field
+        finite = np.isfinite(a)
+        np.testing.assert_allclose(b[finite], a[finite], rtol=1e-7 if field == "ttc_frames" else 0, atol=TOL)
+
+
+@pytest.mark.parametrize("flow", [
+    with_block(similarity_flow(1.3, -0.6, 0.0, 1.0)), with_block(similarity_flow(0.4, 0.2, -2.0, 1.02)),
+    with_block(similarity_flow(-0.8, 1.1, 0.7, 0.985), (-3.0, 0.5)),
+    with_block(homography_flow(np.array([[1.01, 0.002, 0.5], [-0.003, 0.99, -0.7], [2e-5, -1e-5, 1.0]]))),
+], ids=["pan", "rotation-zoom", "contraction", "homography"])
+def test_exact_flows_with_a_block(flow: np.ndarray) -> None:
+    assert_same_dominant(flow, ONES)
+    assert_same_regions(flow, ONES)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_random_flows_garbage_and_zero_confidence(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    flow = with_block(similarity_flow(0.5, -0.3, 1.0, 1.01), (4.0, -2.0))
+    garbage = rng.random(ONES.shape) < 0.15
+    flow[garbage] = rng.normal(0.0, 5.0, (int(garbage.sum()), 2)).astype(np.float32)
+    conf = rng.random(ONES.shape).astype(np.float32)
+    conf[:, :40] = 0.0  # a quarter of the image (one column of TTC regions) without support
+    assert_same_dominant(flow, conf)
+    assert_same_regions(flow, conf)
+
+
+def test_no_support_fails_alike() -> None:
+    flow = similarity_flow(1.0, 0.0, 0.0, 1.0)
+    zero = np.zeros_like(ONES)
+    assert_same_dominant(flow, zero)  # both None
+    assert_same_regions(flow, zero)  # every region NaN in both
+    frame_conf = np.zeros(16)
+    from flow_node.pipeline.motion import SampleFrame  # the kernels' direct input
+    from flow_node.pipeline.robust import sample_flow
+    s = sample_flow(flow[:16, :16], np.ones((16, 16), np.float32), 4)
+    frame = SampleFrame(s, (16, 16))
+    for model, start in (("similarity", np.zeros(4)), ("homography", np.array([1, 0, 0, 0, 1, 0, 0, 0.0]))):
+        assert fit_model(model, frame, start, frame_conf, 0) is None
+        assert fit_model_numba(model, frame, start, frame_conf, 0) is None
+
+
+@pytest.mark.parametrize("kind, share, seed", [("pan", 0.2, 3), ("rotation", 0.3, 4), ("approach", 0.0, 5),
+                                               ("zoom", 0.1, 6)])
+def test_rendered_pairs_through_realtime(kind: str, share: float, seed: int) -> None:
+    est = FlowEstimator(FlowConfig.preset("realtime"))
+    scene, _ = motion_scene(kind, (192, 144), np.random.default_rng(seed), share, objects=1)
+    i0, i1, _ = render_grey_pair(scene)
+    res = est.estimate(i0.astype(np.float32), i1.astype(np.float32))
+    conf = flow_confidence(*res.frames, res.flow)
+    assert_same_dominant(res.flow, conf)
+    assert_same_regions(res.flow, conf)
+
+
+def test_analysis_takes_the_backends_fits() -> None:
+    from flow_node.pipeline.stream import FlowStream, StreamSettings
+
+    assert fits_for("numpy") is NUMPY_FITS and fits_for("numba").name == "numba"
+    for backend in ("numpy", "numba"):
+        stream = FlowStream(StreamSettings(config=FlowConfig.preset("realtime").replace(backend=backend)))
+        scene, _ = motion_scene("pan", (96, 72), np.random.default_rng(1), 0.2, objects=1)
+        i0, i1, _ = render_grey_pair(scene)
+        assert stream.process((255 * i0).astype(np.uint8), 0) is None
+        out = stream.process((255 * i1).astype(np.uint8), 100_000_000)
+        assert out is not None and out.backend == backend
+        a = MotionAnalysis.of(out)
+        assert a.fits.name == backend
+        assert a.fits.model is (fit_model if backend == "numpy" else fit_model_numba)
+
+
+def test_warm_fits_compiles_the_kernels() -> None:
+    from flow_node.pipeline import numba_fits
+    from flow_node.pipeline.derived import warm_fits
+
+    assert warm_fits(NUMPY_FITS) >= 0.0
+    warm_fits(fits_for("numba"))  # what the node's warm-up and flow_bag eval --motion run before the first frame
+    assert numba_fits.compiled()
