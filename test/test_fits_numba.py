@@ -1,7 +1,8 @@
 """The derived motion outputs' compiled fits (flow_node.pipeline.numba_fits) against the numpy reference
 (motion.fit_model, expansion.region_fits), the oracle: exact flows with a moving block, random flows with
 garbage and zero confidence, and rendered pairs through the realtime engine; the parameters to 1e-9 (the same
-arithmetic up to summation order), the same inliers and the same mask; failures (no support) alike; and the
+arithmetic up to summation order), the same inliers and the same mask; failures (no support) alike; the moving
+mask's deviating pixels (numba_fits.deviating_numba against motion.deviating_pixels) bit for bit; and the
 wiring: MotionAnalysis.of takes the stream's backend's fits."""
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from flow_node.core import FlowConfig, FlowEstimator
 from flow_node.core.confidence import confidence as flow_confidence
 from flow_node.pipeline.derived import NUMPY_FITS, MotionAnalysis, fits_for
 from flow_node.pipeline.expansion import region_fits, region_ttc
-from flow_node.pipeline.motion import dominant_motion, fit_model, moving_mask
-from flow_node.pipeline.numba_fits import fit_model_numba, region_fits_numba
+from flow_node.pipeline.motion import MaskThreshold, deviating_pixels, dominant_motion, fit_model, moving_mask
+from flow_node.pipeline.numba_fits import deviating_numba, fit_model_numba, region_fits_numba
 
 TOL = 1e-9  # parameters: the reference's arithmetic, summed in another order (the target is ~1e-5)
 
@@ -31,7 +32,23 @@ def assert_same_dominant(flow: np.ndarray, conf: np.ndarray) -> None:
     for name in ("tx", "ty", "rotation_deg", "scale", "residual_px"):
         assert getattr(out, name) == pytest.approx(getattr(ref, name), rel=0, abs=TOL), name
     assert out.inlier_share == ref.inlier_share and out.samples == ref.samples  # the same inliers
-    assert np.array_equal(moving_mask(flow, conf, out), moving_mask(flow, conf, ref))
+    mask = moving_mask(flow, conf, ref)
+    assert np.array_equal(moving_mask(flow, conf, out), mask)
+    assert np.array_equal(moving_mask(flow, conf, ref, deviating=deviating_numba), mask)  # the mask's kernel
+    assert_same_deviating(flow, np.asarray(ref.homography, np.float32))
+
+
+def assert_same_deviating(flow: np.ndarray, hm: np.ndarray, threshold: MaskThreshold | None = None) -> None:
+    """The kernel's deviating pixels equal the reference's bit for bit (with the default and a zero-rel and
+    a large threshold too, unless ``threshold`` is given)."""
+    for t in (threshold,) if threshold is not None else (MaskThreshold(), MaskThreshold(abs_px=0.01, rel=0.0),
+                                                         MaskThreshold(abs_px=3.0, rel=1.5)):
+        args = (hm, np.float32(t.abs_px), np.float32(t.rel))
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a horizon inside, huge values
+            ref = deviating_pixels(flow, *args)
+        out = deviating_numba(flow, *args)
+        assert out.dtype == np.bool_ and out.shape == flow.shape[:2]
+        assert np.array_equal(out, ref), f"{int(np.sum(out != ref))} pixels differ"
 
 
 def assert_same_regions(flow: np.ndarray, conf: np.ndarray) -> None:
@@ -106,6 +123,7 @@ def test_analysis_takes_the_backends_fits() -> None:
         a = MotionAnalysis.of(out)
         assert a.fits.name == backend
         assert a.fits.model is (fit_model if backend == "numpy" else fit_model_numba)
+        assert a.fits.deviating is (deviating_pixels if backend == "numpy" else deviating_numba)
 
 
 def test_warm_fits_compiles_the_kernels() -> None:
@@ -115,3 +133,28 @@ def test_warm_fits_compiles_the_kernels() -> None:
     assert warm_fits(NUMPY_FITS) >= 0.0
     warm_fits(fits_for("numba"))  # what the node's warm-up and flow_bag eval --motion run before the first frame
     assert numba_fits.compiled()
+
+
+def test_deviating_pixels_bit_for_bit_at_the_edges() -> None:
+    """The mask's kernel on what could round differently: deviations within an ulp of the threshold, zero
+    flow and an identity, a homography whose horizon crosses the image (den 0, inf and NaN), a 1 x 1 and a
+    one-row image, a strided float64 flow (the wrapper's conversion), huge values."""
+    rng = np.random.default_rng(7)
+    hm = np.array([[1.01, 0.002, 0.5], [-0.003, 0.99, -0.7], [2e-5, -1e-5, 1.0]], np.float32)
+    predicted = homography_flow(hm.astype(np.float64))
+    t = MaskThreshold()
+    limit = np.float32(t.abs_px) + np.float32(t.rel) * np.sqrt((predicted ** 2).sum(-1), dtype=np.float32)
+    angle = rng.uniform(0, 2 * np.pi, predicted.shape[:2])
+    for factor in (1.0 - 1e-7, 1.0, 1.0 + 1e-7):  # on the threshold, to the ulp
+        ring = np.stack([np.cos(angle), np.sin(angle)], -1) * (factor * limit)[..., None]
+        assert_same_deviating((predicted + ring).astype(np.float32), hm, t)
+    eye = np.eye(3, dtype=np.float32)
+    assert_same_deviating(np.zeros_like(predicted), eye)
+    assert_same_deviating(np.full_like(predicted, 0.5), eye)  # exactly abs_px: not beyond it
+    horizon = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.01, 0.02, -1.5]], np.float32)  # den 0 inside
+    assert_same_deviating(rng.normal(0, 3, predicted.shape).astype(np.float32), horizon)
+    assert_same_deviating(np.full((1, 1, 2), 0.7, np.float32), eye)
+    assert_same_deviating(rng.normal(0, 1, (1, 37, 2)).astype(np.float32), hm)
+    strided = rng.normal(0, 2, (60, 2 * predicted.shape[1], 2))[:, ::2]  # float64, not contiguous
+    assert_same_deviating(strided, hm)
+    assert_same_deviating(np.full_like(predicted, 1e30), hm)

@@ -38,10 +38,12 @@ from .expansion import (
     region_ttc,
 )
 from .motion import (
+    Deviating,
     DominantMotion,
     Hysteresis,
     MaskThreshold,
     ModelFit,
+    deviating_pixels,
     dominant_motion,
     fit_model,
     moving_fraction,
@@ -79,15 +81,17 @@ class MotionSettings:
 
 class Fits(NamedTuple):
     """Who runs the IRLS fits: the dominant motion's (:data:`~flow_node.pipeline.motion.ModelFit`) and the
-    time to contact's (:data:`~flow_node.pipeline.expansion.RegionFit`); the same results either way
-    (test_fits_numba.py)."""
+    time to contact's (:data:`~flow_node.pipeline.expansion.RegionFit`), and the moving mask's deviating
+    pixels (:data:`~flow_node.pipeline.motion.Deviating`); the same results either way (test_fits_numba.py;
+    the mask bit for bit)."""
 
     name: str
     model: ModelFit
     regions: RegionFit
+    deviating: Deviating
 
 
-NUMPY_FITS = Fits("numpy", fit_model, region_fits)
+NUMPY_FITS = Fits("numpy", fit_model, region_fits, deviating_pixels)
 
 
 def fits_for(backend: str) -> Fits:
@@ -95,20 +99,20 @@ def fits_for(backend: str) -> Fits:
     ``numba``, else the numpy reference."""
     if backend != "numba":
         return NUMPY_FITS
-    from .numba_fits import fit_model_numba, region_fits_numba  # numba imported only with its backend
+    from .numba_fits import deviating_numba, fit_model_numba, region_fits_numba  # numba only with its backend
 
-    return Fits("numba", fit_model_numba, region_fits_numba)
+    return Fits("numba", fit_model_numba, region_fits_numba, deviating_numba)
 
 
 def warm_fits(fits: Fits, shape: tuple[int, int] = (48, 64)) -> float:
-    """Run ``fits`` once (the dominant motion and the TTC of a small zoom, (H, W) ``shape``) so that numba
-    compiles its kernels now, or loads them from its cache (~10 s the first time, without a cache), not
-    on the first analysed frame. Returns the seconds it took."""
+    """Run ``fits`` once (the dominant motion, the TTC and the moving mask of a small zoom, (H, W) ``shape``)
+    so that numba compiles its kernels now, or loads them from its cache (~10 s the first time, without a
+    cache), not on the first analysed frame. Returns the seconds it took."""
     start = time.perf_counter()
     ys, xs = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float32)
     flow = 0.01 * np.stack([xs - shape[1] / 2.0, ys - shape[0] / 2.0], axis=-1)
     analysis = MotionAnalysis(flow, np.ones(shape, np.float32), fits=fits)
-    analysis.dominant, analysis.ttc  # noqa: B018
+    analysis.dominant, analysis.ttc, analysis.moving_mask  # noqa: B018
     return time.perf_counter() - start
 
 
@@ -206,7 +210,7 @@ class MotionAnalysis:
         """:func:`~flow_node.pipeline.motion.moving_mask` against :attr:`dominant`, (H, W) uint8 0/255; the
         confidence from the map when it is at hand, else (``confidence_in``) where the mask reads it alone."""
         conf = self.confidence if self._confidence_in is None or self._map_at_hand else self._confidence_in
-        return moving_mask(self.flow, conf, self.dominant, self.settings.mask)
+        return moving_mask(self.flow, conf, self.dominant, self.settings.mask, self.fits.deviating)
 
     @property
     def moving_fraction(self) -> float:

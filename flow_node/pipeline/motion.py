@@ -245,8 +245,34 @@ def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThresh
 MaskConfidence = np.ndarray | Callable[[np.ndarray], np.ndarray]
 
 
+def deviating_pixels(flow: np.ndarray, hm: np.ndarray, abs_px: np.float32, rel: np.float32) -> np.ndarray:
+    """Bool (H, W): where the flow (H, W, 2) px/frame deviates from homography ``hm``'s (3x3 float32 on
+    pixels) predicted flow p by more than ``abs_px + rel x |p|`` (:meth:`MaskThreshold.deviates` with
+    the lengths compared). The reference :data:`Deviating`: every step a float32 numpy pass, rounded as
+    written (no fused multiply-add; lengths by ``np.sqrt``, correctly rounded), so that
+    numba_fits.deviating_numba reproduces it bit for bit."""
+    h, w = flow.shape[:2]
+    # the homography's numerators and denominator are sums of a row and a column term (apply_homography)
+    x, y = np.arange(w, dtype=np.float32)[None, :], np.arange(h, dtype=np.float32)[:, None]
+    den = (hm[2, 0] * x + hm[2, 2]) + hm[2, 1] * y
+    pu = ((hm[0, 0] * x + hm[0, 2]) + hm[0, 1] * y) / den - x  # the predicted flow
+    pv = ((hm[1, 0] * x + hm[1, 2]) + hm[1, 1] * y) / den - y
+    limit = np.sqrt(pu * pu + pv * pv)
+    limit *= rel
+    limit += abs_px
+    u, v = cv2.split(np.ascontiguousarray(flow, dtype=np.float32))
+    np.subtract(u, pu, out=u)
+    np.subtract(v, pv, out=v)
+    return np.sqrt(u * u + v * v) > limit
+
+
+# deviating(flow, hm, abs_px, rel) -> bool (H, W): :func:`deviating_pixels` (the numpy reference) or
+# numba_fits.deviating_numba (one compiled pass, the same bits); derived.Fits chooses
+Deviating = Callable[[np.ndarray, np.ndarray, np.float32, np.float32], np.ndarray]
+
+
 def moving_mask(flow: np.ndarray, confidence: MaskConfidence, motion: DominantMotion | None,
-                threshold: MaskThreshold | None = None) -> np.ndarray:
+                threshold: MaskThreshold | None = None, deviating: Deviating = deviating_pixels) -> np.ndarray:
     """Independently moving pixels: uint8 (H, W), 255 where the flow (H, W, 2) px/frame deviates from
     ``motion``'s predicted flow by more than ``threshold`` (abs px + rel x predicted length) and the
     confidence (H, W) is at least ``threshold.min_confidence``, after a morphological opening (removes
@@ -258,6 +284,7 @@ def moving_mask(flow: np.ndarray, confidence: MaskConfidence, motion: DominantMo
     elsewhere. Its erosion keeps a pixel q only if every pixel of q's element deviates and is confident, so
     only q in the erosion of the deviating pixels, and reads the confidence in q's element then, which lies
     in that erosion's dilation: the opening of the deviating pixels (test_pipeline_motion.py checks it).
+    ``deviating`` finds the deviating pixels (:data:`Deviating`: the numpy reference or the numba kernel).
     """
     if callable(confidence):
         check_flow_shape(flow)
@@ -267,19 +294,8 @@ def moving_mask(flow: np.ndarray, confidence: MaskConfidence, motion: DominantMo
     h, w = flow.shape[:2]
     if motion is None:
         return np.zeros((h, w), np.uint8)
-    # one pass per step, without (H, W, 2) temporaries: the homography's numerators and denominator are
-    # sums of a row and a column term; OpenCV's split and magnitude are single SIMD passes
-    hm = np.asarray(motion.homography, np.float32)
-    x, y = np.arange(w, dtype=np.float32)[None, :], np.arange(h, dtype=np.float32)[:, None]
-    den = (hm[2, 0] * x + hm[2, 2]) + hm[2, 1] * y
-    pu = ((hm[0, 0] * x + hm[0, 2]) + hm[0, 1] * y) / den - x  # the predicted flow (apply_homography)
-    pv = ((hm[1, 0] * x + hm[1, 2]) + hm[1, 1] * y) / den - y
-    limit = cv2.magnitude(pu, pv)  # abs_px + rel x |predicted flow| (MaskThreshold.deviates)
-    limit *= np.float32(threshold.rel)
-    limit += np.float32(threshold.abs_px)
-    u, v = cv2.split(np.ascontiguousarray(flow, dtype=np.float32))
-    deviation = cv2.magnitude(np.subtract(u, pu, out=u), np.subtract(v, pv, out=v))
-    moving = deviation > limit
+    moving = deviating(flow, np.asarray(motion.homography, np.float32), np.float32(threshold.abs_px),
+                       np.float32(threshold.rel))
     opening = None
     if threshold.opening_px > 0:
         r = threshold.opening_px

@@ -247,6 +247,38 @@ def region_fits_numba(X: np.ndarray, Y: np.ndarray, uv: np.ndarray, conf: np.nda
     return _regions(*f64, HUBER_ITERATIONS, TUKEY_ITERATIONS)
 
 
+@njit(**_JIT)
+def _deviating(out, flow, hm, w, abs_px, rel):  # noqa: ANN001, ANN202
+    """motion.deviating_pixels into ``out`` (h w,) bool of flat ``flow`` (h w 2,) u, v interleaved, rows of
+    ``w``: one pass, each float32 step of the reference in its order (no fastmath: no fused multiply-add,
+    np.sqrt correctly rounded, as numpy's), so the same bits. Flat arrays and the homography in locals so
+    that LLVM vectorises the rows (with 2-D views it did not: 0.38 vs 0.04 ms at 320x240)."""
+    h00, h01, h02, h10, h11, h12, h20, h21, h22 = (hm[0, 0], hm[0, 1], hm[0, 2], hm[1, 0], hm[1, 1], hm[1, 2],
+                                                   hm[2, 0], hm[2, 1], hm[2, 2])
+    for i in range(out.size // w):
+        y = np.float32(i)
+        ru, rv, rd = h01 * y, h11 * y, h21 * y  # the row terms of the numerators and the denominator
+        base = i * w
+        for j in range(w):
+            x = np.float32(j)
+            den = (h20 * x + h22) + rd
+            pu = ((h00 * x + h02) + ru) / den - x
+            pv = ((h10 * x + h12) + rv) / den - y
+            limit = np.sqrt(pu * pu + pv * pv) * rel + abs_px
+            du, dv = flow[2 * (base + j)] - pu, flow[2 * (base + j) + 1] - pv
+            out[base + j] = np.sqrt(du * du + dv * dv) > limit
+
+
+def deviating_numba(flow: np.ndarray, hm: np.ndarray, abs_px: np.float32, rel: np.float32) -> np.ndarray:
+    """:func:`flow_node.pipeline.motion.deviating_pixels` in one compiled pass (the same arguments: flow
+    (H, W, 2) px/frame, homography (3x3) on pixels, the threshold's abs px and rel; the same bool (H, W))."""
+    h, w = flow.shape[:2]
+    out = np.empty(h * w, np.bool_)
+    _deviating(out, np.ascontiguousarray(flow, dtype=np.float32).reshape(-1),
+               np.ascontiguousarray(hm, dtype=np.float32), w, np.float32(abs_px), np.float32(rel))
+    return out.reshape(h, w)
+
+
 def compiled() -> bool:
-    """Whether both kernels are compiled (or loaded from numba's cache) in this process (derived.warm_fits)."""
-    return bool(_irls.signatures and _regions.signatures)
+    """Whether the kernels are compiled (or loaded from numba's cache) in this process (derived.warm_fits)."""
+    return bool(_irls.signatures and _regions.signatures and _deviating.signatures)
