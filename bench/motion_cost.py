@@ -14,7 +14,9 @@ consumer) and without it ("+conf", what a topic costs when ~/confidence is not s
 MotionAnalysis.of, the fits take the confidence at their samples alone, FlowEstimator.confidence_at, and
 the mask where it reads it alone, FlowEstimator.confidence with ``where``; both with the estimator's
 backend). "mask, whole map" is the mask +conf as it was before that (the whole map first, the dominant
-motion reading it), timed in the same loop for the comparison. Pairs from
+motion reading it), timed in the same loop for the comparison, and so is the mask +conf with its deviating
+pixels found by the numpy reference instead of the backend's kernel ("mask, numpy deviating": as before
+numba_fits.deviating_numba). Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
 best of ``--repeat`` runs, the engine's and the outputs' interleaved, in reverse order every other run (the
@@ -42,7 +44,7 @@ from flow_node.bag.scenes import render_grey_pair
 from flow_node.core import FlowEstimator, FlowResult
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.derived import MOTION_TOPICS, NUMPY_FITS, Fits, MotionAnalysis, fits_for
-from flow_node.pipeline.motion import MotionDetector
+from flow_node.pipeline.motion import MotionDetector, deviating_pixels
 from flow_node.pipeline.motion_msgs import motion_messages
 from flow_node.process import keep_freed_memory
 from flow_node.ros.motion_outputs import RclpyKit
@@ -54,6 +56,7 @@ CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
 NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "all")
 WHOLE_MAP = "motion/moving_mask+map"  # the mask +conf with the whole map first (before confidence_in)
 NUMPY_FIT_TOPICS = ("motion/dominant", "motion/homography", "motion/ttc")  # also with the numpy fits ("@numpy")
+NUMPY_MASK = "motion/moving_mask+conf+npmask"  # the mask +conf, its deviating pixels by the numpy reference
 
 
 def topic_time(flow: np.ndarray, conf: np.ndarray | Callable[[], np.ndarray], names: tuple[str, ...],
@@ -84,6 +87,8 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
     if name.endswith("@numpy"):  # the numpy reference fits, the confidence given
         return topic_time(res.flow, conf, (name.removesuffix("@numpy"),), fits=NUMPY_FITS)
     fits = fits_for(est.backend)  # as the node's MotionAnalysis.of: the engine's backend's fits
+    if name == NUMPY_MASK:
+        fits, name = fits._replace(deviating=deviating_pixels), name.removesuffix("+npmask")
     topic = name.removesuffix("+conf").removesuffix("+map")
     names = tuple(MOTION_TOPICS) if topic == "all" else (topic,)
     if topic == name:
@@ -106,7 +111,7 @@ def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[d
             conf = est.confidence(*res.frames, res.flow)
             times: dict[str, float] = {}
             names = ("engine", "confidence", *MOTION_TOPICS, "all", *(f"{t}+conf" for t in NEEDS_CONFIDENCE),
-                     WHOLE_MAP, *(f"{t}@numpy" for t in NUMPY_FIT_TOPICS))
+                     WHOLE_MAP, NUMPY_MASK, *(f"{t}@numpy" for t in NUMPY_FIT_TOPICS))
             for r in range(repeat):  # interleaved, so that the machine's load weighs on all of them alike, the
                 for name in names if r % 2 == 0 else names[::-1]:  # order reversed every other time (first: dearer)
                     times[name] = min(times.get(name, math.inf), _time(name, f0, f1, est, res, conf))
@@ -133,8 +138,11 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         out[name] |= {"numpy_fits_ratio_median": float(np.median(t / engine)),
                       "numpy_fits_ms_median": 1e3 * float(np.median(t))}
     tm = np.array([r[f"{WHOLE_MAP}_s"] for r in rows])
+    tn = np.array([r[f"{NUMPY_MASK}_s"] for r in rows])
     out["motion/moving_mask"] |= {"whole_map_ratio_median": float(np.median(tm / engine)),
-                                  "whole_map_ms_median": 1e3 * float(np.median(tm))}
+                                  "whole_map_ms_median": 1e3 * float(np.median(tm)),
+                                  "numpy_deviating_ratio_median": float(np.median(tn / engine)),
+                                  "numpy_deviating_ms_median": 1e3 * float(np.median(tn))}
     return out
 
 
@@ -161,6 +169,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:22s}" + "".join(f"{c:>36s}" for c in cells))
     print(f"{'mask, whole map':22s}" + "".join(
         f"{100 * r['summary']['motion/moving_mask']['whole_map_ratio_median']:48.2f} %" for r in results.values()))
+    print(f"{'mask, numpy deviating':22s}" + "".join(
+        f"{100 * r['summary']['motion/moving_mask']['numpy_deviating_ratio_median']:48.2f} %"
+        for r in results.values()))
     for name in NUMPY_FIT_TOPICS:
         print(f"{name + ' numpy fits':22s}" + "".join(
             f"{100 * r['summary'][name]['numpy_fits_ratio_median']:6.2f} % "
