@@ -21,7 +21,7 @@ accelerate or decelerate exactly. Kinds (one sequence of each per split; the sce
 
 :func:`bag_sequences` gives the bundled bags (bags/README.md: 128x96, 6-10 frames, ground truth on
 /camera/flow_gt) as sequences of kind ``bag``: their images decoded as the node decodes them, then as 8-bit grey
-(BT.601 luma of colour, 16 bit scaled by 1/257) so that DIS runs on the same frames; the ground truth matched by
+(api.to_grey, times 255) so that DIS runs on the same frames; the ground truth matched by
 stamp.
 """
 
@@ -37,6 +37,7 @@ import numpy as np
 from flow_node.bag.bagio import IMAGE, IMAGE_TYPES, deserialize, find_connections, open_bag, read_messages, stamp_ns
 from flow_node.bag.evaluate import DEFAULT_GT_TOPIC, read_ground_truth
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture, make_scene
+from flow_node.core.api import to_grey
 from flow_node.pipeline.codec import decode
 
 from ..common import REPO
@@ -170,14 +171,10 @@ BAGS = REPO / "bags"
 
 
 def grey8(frame: np.ndarray, encoding: str) -> np.ndarray:
-    """A decoded image (codec.decode: (H, W) or (H, W, 3) uint8/uint16/float32 and its encoding label) as
-    (H, W) uint8 grey: colour by BT.601 luma (channel order from the label), 16 bit scaled by 1/257, float
-    (0..1) by 255."""
-    f = frame.astype(np.float64)
-    if f.ndim == 3:
-        f = f[..., :3] @ (LUMA[::-1] if encoding.startswith("bgr") else LUMA)
-    scale = 1 / 257 if frame.dtype == np.uint16 else 255.0 if frame.dtype.kind == "f" else 1.0
-    return np.clip(np.rint(f * scale), 0, 255).astype(np.uint8)
+    """A decoded image (codec.decode: array and encoding label) as (H, W) uint8 grey: the engine's own
+    conversion (api.to_grey: BT.601 luma, channel order from the label, bit depth to [0, 1]), times 255."""
+    g = to_grey(frame, channel_order="bgr" if encoding.startswith("bgr") else "rgb")
+    return np.rint(g * 255.0).astype(np.uint8)
 
 
 def bag_sequence(folder: Path) -> Sequence:
