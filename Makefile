@@ -58,9 +58,12 @@ bench: $(BENCH_STAMP)
 bench-quick: $(BENCH_STAMP)
 	$(BENCH_VENV)/bin/python -m bench.suite --quick
 
-# Middlebury only: every model with quality's schedule (issue 2; presets and peers: the suite's middlebury regime).
+# Middlebury only: every model with quality's schedule (issue 2; presets and peers: the suite's middlebury regime);
+# bench/results/accuracy/accuracy.{json,md}. Choosing the model brings its calibrated weights (config.MODEL_WEIGHTS).
+MODELS := l2_l2 l2_tv l1_tv l1_tv_l2 l1_tv_tv
 bench-accuracy: $(BENCH_STAMP)
-	$(BENCH_VENV)/bin/python -m bench.accuracy
+	$(BENCH_VENV)/bin/python -m bench.suite --regimes middlebury --peers none \
+		$(foreach m,$(MODELS),--method $(m)=quality,model=$(m)) --out bench/results/accuracy/accuracy.json
 
 # The live node over DDS (issues 4, 13; ~5 min, nothing else running): latency and in-node overhead per preset
 # and size with the package's Fast DDS profile in both processes, then delivery of ~/flow to another process per

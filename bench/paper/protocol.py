@@ -34,7 +34,7 @@ from flow_node.core.api import to_grey
 from flow_node.core.flowio import read_flo, read_image
 from flow_node.core.metrics import valid_mask
 
-from ..common import SEQUENCES, Pair
+from ..common import SEQUENCES
 from .render import render
 
 NOISE_SIGMA = 0.002
@@ -99,9 +99,14 @@ def consistency(i0: np.ndarray, i1: np.ndarray, g: np.ndarray) -> float:
 
 
 @dataclass(frozen=True)
-class PaperPair(Pair):
-    """A synthesised pair; ``gt`` is the scaled ground truth (unknown pixels as in flow10.flo)."""
+class PaperPair:
+    """A synthesised pair: grey frames (H, W) float32 in [0, 1]; ``gt`` (H, W, 2) is the scaled ground truth
+    (unknown pixels >= 1e9, as in flow10.flo)."""
 
+    name: str
+    i0: np.ndarray
+    i1: np.ndarray
+    gt: np.ndarray
     scale: float = 1.0  # factor applied to the original ground truth
     colour: np.ndarray | None = None  # the RGB frame 10, for figures
 
