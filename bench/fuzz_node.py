@@ -20,12 +20,9 @@ import argparse
 import array
 import json
 import os
-import signal
 import struct
-import subprocess
 import sys
 import tempfile
-import threading
 import time
 import zlib
 from pathlib import Path
@@ -33,17 +30,12 @@ from typing import Any
 
 import cv2
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.srv import SetParameters
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CompressedImage, Image
 from std_srvs.srv import Trigger
 
-from bench.node_latency import _wait as wait
+from bench.node_rig import NodeProcess, wait
 
 NS, NAME = "/fuzz", "flow_node"
 H, W = 60, 80
@@ -159,49 +151,21 @@ def rss_kb(pid: int) -> int:
     return 0
 
 
-class Campaign:
-    """One node process and the fuzzing client."""
+class Campaign(NodeProcess):
+    """One node process (``realtime`` on numpy, raw or compressed input) and the fuzzing client, with services
+    to set parameters and reset; the node's output goes to ``log``."""
 
     def __init__(self, compressed: bool, log: Path) -> None:
         self.compressed = compressed
         self.log = log.open("w")
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "flow_node.ros.node", "--ros-args", "-p", "preset:=realtime",
-             "-p", "finest_level:=0", "-p", "backend:=numpy", "-p", "diagnostics_period:=0.2",
-             "-p", f"use_compressed:={str(compressed).lower()}", "-r", f"__ns:={NS}", "-r", f"__node:={NAME}"],
-            stdout=self.log, stderr=subprocess.STDOUT)
-        self.ctx = Context()
-        rclpy.init(context=self.ctx)
-        self.node = Node("fuzzer", context=self.ctx)
-        topic = f"{NS}/image" + ("/compressed" if compressed else "")
-        self.pub = self.node.create_publisher(CompressedImage if compressed else Image, topic, 10)
-        self.lock = threading.Lock()
-        self.flows: list[Image] = []
-        self.diag: dict[str, str] = {}
-        self.node.create_subscription(Image, f"{NS}/{NAME}/flow", self._on_flow, 10)
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 10)
-        self.set_cli = self.node.create_client(SetParameters, f"{NS}/{NAME}/set_parameters")
-        self.reset_cli = self.node.create_client(Trigger, f"{NS}/{NAME}/reset")
-        self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self.spin = threading.Thread(target=self.executor.spin, daemon=True)
-        self.spin.start()
-        if not wait(lambda: self.pub.get_subscription_count() > 0 and self.diag.get("_message", "warming")
-                    != "warming up the engine" and self.diag, 120.0):
-            self.close()
-            raise RuntimeError("the node did not come up")
+        params = {"preset": "realtime", "finest_level": "0", "backend": "numpy", "diagnostics_period": "0.2",
+                  "use_compressed": str(compressed).lower()}
+        super().__init__(NS, NAME, params, "fuzzer", input_type=CompressedImage if compressed else Image,
+                         input_topic="image/compressed" if compressed else "image", log=self.log)
+        self.set_cli = self.client.create_client(SetParameters, f"{NS}/{NAME}/set_parameters")
+        self.reset_cli = self.client.create_client(Trigger, f"{NS}/{NAME}/reset")
         self.stamp = 1_700_000_000_000_000_000
         self.sent = 0
-
-    def _on_flow(self, msg: Image) -> None:
-        with self.lock:
-            self.flows.append(msg)
-
-    def _on_diag(self, msg: DiagnosticArray) -> None:
-        for st in msg.status:
-            if st.name == f"{NAME}: optical flow":
-                with self.lock:
-                    self.diag = {kv.key: kv.value for kv in st.values} | {"_message": st.message}
 
     def send(self, msg: Image | CompressedImage, dt_ns: int = 33_000_000) -> None:
         self.stamp += dt_ns
@@ -238,20 +202,8 @@ class Campaign:
         return future.result() if wait(future.done, 10.0) else None
 
     def close(self) -> int | None:
-        """SIGINT the node; its exit code (None if it had to be killed)."""
-        code = self.proc.poll()
-        crashed = code is not None
-        if not crashed:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                code = self.proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-                code = None
-        self.executor.shutdown(timeout_sec=5.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
+        """Stop the node and the client (NodeProcess.close), close the log; the node's exit code."""
+        code = super().close()
         self.log.close()
         return code
 
@@ -292,8 +244,8 @@ def run_phase(compressed: bool, messages: int, seed: int) -> dict[str, Any]:
     alive = c.proc.poll() is None
     rss.append(rss_kb(c.proc.pid))
     with c.lock:
-        flows = list(c.flows)
-        diag = dict(c.diag)
+        flows = [msg for _, msg in c.flows]
+    diag = c.last() or {}
     sent = c.sent
     code = c.close()
     log_text = log.read_text(errors="replace")

@@ -23,30 +23,22 @@ from __future__ import annotations
 
 import argparse
 import array
-import json
-import os
-import platform
-import signal
 import statistics
-import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from sensor_msgs.msg import Image
 
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.codec import array_to_image_fields, image_to_array
+
+from .common import machine, write_json
+from .node_rig import NODE_COMMAND, NodeProcess, wait
 
 SIZES = ((240, 320), (480, 640))
 PRESETS = ("realtime", "quality")
@@ -89,68 +81,26 @@ def interior_aee(flow: np.ndarray) -> float:
     return float(np.hypot(inner[..., 0] - SHIFT[0], inner[..., 1] - SHIFT[1]).mean())
 
 
-def _wait(pred: Any, timeout: float) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if pred():
-            return True
-        time.sleep(0.001)
-    return False
-
-
-class Rig:
-    """The bench side: a client node (publisher, flow and diagnostics subscriptions) in a private context,
-    spun by one single-threaded executor thread. Subclasses place the FlowNode and report its per-frame
-    solve and in-node overhead times."""
+class ProcessRig(NodeProcess):
+    """The node as its own process at /bench/flow_bench with ``preset``, fed by the client /bench/bench_client;
+    per-frame times from its /diagnostics, published every ``PERIOD`` s, so each window holds at most one
+    solve in the closed loop."""
 
     NAME = "flow_bench"
+    PERIOD = 0.05
 
-    def __init__(self) -> None:
-        self.ctx = Context()
-        rclpy.init(context=self.ctx)
-        self.client = Node("bench_client", namespace="/bench", context=self.ctx)
-        self.pub = self.client.create_publisher(Image, "/bench/image", 10)
-        self.lock = threading.Lock()
-        self.got: list[tuple[float, Image]] = []
-        self.diag: list[dict[str, str]] = []
-        self.client.create_subscription(Image, f"/bench/{self.NAME}/flow", self._on_flow, 10)
-        self.client.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
-        self.executor = SingleThreadedExecutor(context=self.ctx)  # as rclpy.spin in main()
-        self.executor.add_node(self.client)
-        self.backend = "?"
-
-    def _start(self) -> None:
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def _on_flow(self, msg: Image) -> None:
-        with self.lock:
-            self.got.append((time.perf_counter(), msg))
-
-    def _on_diag(self, msg: DiagnosticArray) -> None:
-        for st in msg.status:
-            if st.name == f"{self.NAME}: optical flow":
-                with self.lock:
-                    self.diag.append({kv.key: kv.value for kv in st.values} | {"_message": st.message})
-
-    def count(self) -> int:
-        with self.lock:
-            return len(self.got)
-
-    def frame_times(self, published: int, timeout: float) -> tuple[float, float, float]:
-        """(solve, in-node overhead, time in publish) seconds of the ``published``-th output."""
-        raise NotImplementedError
-
-    def handled(self) -> int:
-        """Frames the node has handled (published or started a pair with)."""
-        raise NotImplementedError
+    def __init__(self, preset: str, command: tuple[str, ...] = NODE_COMMAND) -> None:
+        """``command`` starts the node and takes ROS arguments after it (default: the node's own main())."""
+        super().__init__("/bench", self.NAME, {"preset": preset, "diagnostics_period": str(self.PERIOD)},
+                         "bench_client", "/bench", command=command)
+        self.backend = self.last()["backend"]
 
     def closed_loop(self, seq: Frames, n: int, timeout: float, engine: FlowEstimator) -> list[dict[str, float]]:
         """n flows, one frame in flight at a time; per flow: latency, solve and in-node overhead (s), and the
         engine called directly on the same pair just before (same load conditions)."""
         out = []
         stamp = 1
-        while not _wait(lambda: self.handled() >= 1, 2.0):  # best-effort input: resend the first frame
+        while not wait(lambda: self.handled() >= 1, 2.0):  # best-effort input: resend the first frame
             self.pub.publish(image_msg(seq.frame(0), stamp))
         for k in range(n):
             stamp += 1
@@ -158,9 +108,9 @@ class Rig:
             before = self.count()
             t0 = time.perf_counter()
             self.pub.publish(image_msg(seq.frame(k + 1), stamp))
-            if not _wait(lambda b=before: self.count() > b, timeout):
+            if not wait(lambda b=before: self.count() > b, timeout):
                 raise RuntimeError("no flow received (frame lost?)")
-            t1, msg = self.got[-1]
+            t1, msg = self.flows[-1]
             solve, overhead, publish = self.frame_times(k + 1, timeout)
             sign = seq.sign(k)
             out.append({"engine": direct, "latency": t1 - t0, "solve": solve, "node_overhead": overhead,
@@ -189,64 +139,26 @@ class Rig:
                 "seconds": elapsed,
                 "output_rate_hz": outputs / elapsed, "solver_busy_fraction": busy / elapsed}
 
-    def counters(self) -> dict[str, float]:
-        """received, dropped, published (totals) and busy (seconds solved since start)."""
-        raise NotImplementedError
-
-    def close(self) -> None:
-        self.executor.shutdown(timeout_sec=5.0)
-        self.client.destroy_node()
-        rclpy.try_shutdown(context=self.ctx)
-        self.thread.join(timeout=5.0)
-
-
-class ProcessRig(Rig):
-    """``python -m flow_node.ros.node`` as its own process (as ``ros2 run``); times from its /diagnostics,
-    published every 50 ms, so each window holds at most one solve in the closed loop."""
-
-    PERIOD = 0.05
-    NODE_COMMAND = (sys.executable, "-m", "flow_node.ros.node")
-
-    def __init__(self, preset: str, command: tuple[str, ...] = NODE_COMMAND) -> None:
-        """``command`` starts the node and takes ROS arguments after it (default: the node's own main())."""
-        super().__init__()
-        self._start()
-        self.proc = subprocess.Popen(
-            [*command, "--ros-args", "-p", f"preset:={preset}",
-             "-p", f"diagnostics_period:={self.PERIOD}", "-r", "__ns:=/bench", "-r", f"__node:={self.NAME}"],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        ok = _wait(lambda: self.pub.get_subscription_count() > 0 and self._ready(), 120.0)
-        if not ok:
-            self.close()
-            raise RuntimeError("the node process did not come up")
-        self.backend = self._last()["backend"]
-
-    def _last(self) -> dict[str, str] | None:
-        with self.lock:
-            return self.diag[-1] if self.diag else None
-
-    def _ready(self) -> bool:
-        """Warm-up done and our flow subscription matched."""
-        last = self._last()
-        return (last is not None and last["_message"] != "warming up the engine"
-                and self.client.count_publishers(f"/bench/{self.NAME}/flow") > 0)
-
     def handled(self) -> int:
-        last = self._last()
+        """Frames the node has handled (published or started a pair with)."""
+        last = self.last()
         return 0 if last is None else int(last["frames published"]) + int(last["resets"])
 
     def frame_times(self, published: int, timeout: float) -> tuple[float, float, float]:
+        """(solve, in-node overhead, time in publish) seconds of the ``published``-th output."""
+
         def window() -> dict[str, str] | None:
             with self.lock:
                 return next((d for d in self.diag if int(d["frames published"]) == published), None)
-        if not _wait(lambda: window() is not None, timeout):
+        if not wait(lambda: window() is not None, timeout):
             raise RuntimeError(f"no diagnostics for output {published}")
         d = window()
         return tuple(float(d[f"{k} mean (ms)"]) / 1e3 for k in ("solve time", "node overhead", "publish time"))
 
     def counters(self) -> dict[str, float]:
-        """As the base class; busy sums each window's solve time mean times the solves in it (a window can be
-        longer than the timer period when the node is loaded, so its busy % times the period would not do)."""
+        """received, dropped, published (totals) and busy (seconds solved since start): busy sums each window's
+        solve time mean times the solves in it (a window can be longer than the timer period when the node is
+        loaded, so its busy % times the period would not do)."""
         busy, published = 0.0, 0
         with self.lock:
             for d in self.diag:
@@ -257,16 +169,6 @@ class ProcessRig(Rig):
             last = self.diag[-1]
         return {"received": int(last["frames received"]), "dropped": int(last["frames dropped"]),
                 "published": published, "busy": busy}
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        super().close()
 
 
 def run(preset: str, size: tuple[int, int], n: int, motion: str = "alternate") -> dict[str, Any]:
@@ -325,10 +227,8 @@ def main(argv: list[str] | None = None) -> int:
                   f" | throughput {tp['output_rate_hz']:.2f} Hz (solving {tp['solver_busy_fraction']:.2f})"
                   f" | AEE {r['aee_interior_px']:.3f}", flush=True)
     meta = {"command": "python -m bench.node_latency " + " ".join(sys.argv[1:] if argv is None else argv),
-            "python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps({"meta": meta, "results": results}, indent=1))
+            **machine(), "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    write_json(Path(args.out), {"meta": meta, "results": results})
     return 0
 
 

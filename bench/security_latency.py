@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.common import machine, write_json
-from bench.node_latency import ProcessRig, frames
+from bench.node_latency import Frames, ProcessRig
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 from flow_node.ros import security_policy as sp
@@ -67,10 +67,9 @@ def set_security(keystore: Path | None) -> None:
 
 def measure(preset: str, size: tuple[int, int], n: int, engine: FlowEstimator) -> dict[str, float]:
     """Medians (s) over ``n`` closed-loop flows of a fresh node process in the current environment."""
-    f0, f1 = frames(*size)
     rig = ProcessRig(preset)
     try:
-        loop = rig.closed_loop(f0, f1, n, 30.0, engine)
+        loop = rig.closed_loop(Frames(*size), n, 30.0, engine)
     finally:
         rig.close()
     return {"latency": statistics.median(d["latency"] for d in loop),
