@@ -22,11 +22,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from flow_node.core.config import FlowConfig
-
 from ..common import REPO, machine, write_json
 from . import report, targets
-from .methods import PEERS
+from .methods import PEERS, parse_method
 from .regimes import REGIMES
 from .runner import run_suite
 
@@ -71,21 +69,6 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-def method_configs(specs: list[str]) -> dict[str, FlowConfig] | None:
-    """``NAME=BASE[,key=value...]`` strings -> named configs (None: the default set)."""
-    if not specs:
-        return None
-    out = {}
-    for spec in specs:
-        name, sep, rest = spec.partition("=")
-        base, *sets = rest.split(",")
-        if not sep or not name or not base:
-            raise SystemExit(f"--method: expected NAME=BASE[,key=value...], got {spec!r}")
-        cfg = FlowConfig() if base == "default" else FlowConfig.preset(base)
-        out[name] = cfg.with_overrides(sets)
-    return out
-
-
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     if args.from_json is not None:
@@ -97,7 +80,7 @@ def main(argv: list[str] | None = None) -> int:
         head = {"command": ("python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv)).strip(),
                 "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine(),
                 "versions": versions(), "load_average_start": os.getloadavg()}  # as the run starts
-        res = {**head, **run_suite(method_configs(args.method), regimes, args.split, args.quick, peers,
+        res = {**head, **run_suite(dict(map(parse_method, args.method)) or None, regimes, args.split, args.quick, peers,
                                    args.repeats, args.slow_repeats, log=lambda s: print(s, flush=True))}
         out = args.out or RESULTS / ("suite_quick.json" if args.quick else "suite.json")
         res["load_average_end"] = os.getloadavg()

@@ -125,6 +125,16 @@ def default_configs() -> dict[str, FlowConfig]:
     return out
 
 
+def parse_method(spec: str) -> tuple[str, FlowConfig]:
+    """A ``--method NAME=BASE[,key=value...]`` argument -> (name, config); BASE is a preset or ``default``
+    (the plain FlowConfig()). The suite, its stream regime and the stage costs read --method with it."""
+    name, sep, rest = spec.partition("=")
+    base, *sets = rest.split(",")
+    if not sep or not name or not base:
+        raise SystemExit(f"--method: expected NAME=BASE[,key=value...], got {spec!r}")
+    return name, (FlowConfig() if base == "default" else FlowConfig.preset(base)).with_overrides(sets)
+
+
 def build(methods: Mapping[str, FlowConfig | Method] | None, peers: tuple[str, ...]) -> dict[str, Method]:
     """Instantiate the compared methods: ``methods`` (FlowConfigs are wrapped in :class:`FlowNode`, given the
     samples' validity masks when the name ends in MASKED_SUFFIX; None = :func:`default_configs`) followed by

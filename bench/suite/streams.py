@@ -34,7 +34,7 @@ from flow_node.core.metrics import aee
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 
 from ..common import REPO, machine, write_json
-from .methods import DIS_MEDIUM, DIS_ULTRAFAST
+from .methods import DIS_MEDIUM, DIS_ULTRAFAST, parse_method
 from .sequences import FRAMES, KINDS, Sequence, bag_sequences, sequences
 
 RESULTS = REPO / "bench" / "results" / "suite" / "stream"
@@ -205,13 +205,6 @@ def markdown(res: dict[str, Any], command: str) -> str:
     for n, m in res["methods"].items():
         lines.append(f"| {n} | " + " | ".join(f"{m['per_kind'][k]['aee']:.3f}" for k in kinds) + " |")
     return "\n".join(lines) + "\n"
-
-
-def parse_method(text: str) -> tuple[str, FlowConfig]:
-    """``NAME=PRESET[,key=value...]`` -> (name, config)."""
-    name, _, rest = text.partition("=")
-    preset, *assignments = rest.split(",")
-    return name, FlowConfig.preset(preset).with_overrides(assignments)
 
 
 def main(argv: list[str] | None = None) -> int:
