@@ -46,7 +46,8 @@ from flow_node.bag.scenes import SCENES
 from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.config import FlowConfig
 
-REPO = Path(__file__).resolve().parent.parent
+from .common import REPO, run_record, write_json
+
 VARIANTS = ("loop", "dask-1", "dask-2")  # order() pairs them
 
 
@@ -212,15 +213,14 @@ def main(argv: list[str] | None = None) -> int:
         os.execve(sys.executable, [sys.executable, "-m", "bench.batch", *sys.argv[1:]],
                   os.environ | WORKER_ENV | {"NUMBA_CACHE_DIR": os.environ.get("NUMBA_CACHE_DIR",
                                                                                str(REPO / ".venv" / "numba_cache"))})
-    started = time.monotonic()
+    started, head = time.monotonic(), run_record("bench.batch", argv)
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
         sizes = [measure_size(Path(tmp), size, args) for size in args.size or [(160, 120, 24), (320, 240, 12)]]
     fixed = fixed_costs()
-    result = {"command": "python -m bench.batch " + " ".join(argv if argv is not None else sys.argv[1:]),
-              "frames": args.frames, "distinct": args.distinct, "preset": args.preset, "repeats": args.repeats,
-              "machine": platform.platform(), "cores": os.cpu_count(), "load_average_at_end": os.getloadavg(),
-              "bench_seconds": time.monotonic() - started, "sizes": sizes, "fixed_costs": fixed}
-    Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
+    write_json(Path(args.out), {**head, "frames": args.frames, "distinct": args.distinct, "preset": args.preset,
+                                "repeats": args.repeats, "platform": platform.platform(),
+                                "load_average_at_end": os.getloadavg(), "bench_seconds": time.monotonic() - started,
+                                "sizes": sizes, "fixed_costs": fixed})
     for size in sizes:
         print(size["size"], size["bags"], "bags:", json.dumps(size["summary"], indent=1))
     print(json.dumps(fixed, indent=1))

@@ -9,6 +9,9 @@ from __future__ import annotations
 import json
 import os
 import platform
+import shlex
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +23,15 @@ SEQUENCES = ("Dimetrodon", "Grove2", "Grove3", "Hydrangea", "RubberWhale", "Urba
 def machine() -> dict[str, Any]:
     """Where a result was measured (for the JSON files)."""
     return {"python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count()}
+
+
+def run_record(prog: str, argv: list[str] | None) -> dict[str, Any]:
+    """The head of a result file: the command that made it (``python -m PROG ARGS``; ``argv`` None: this
+    process's arguments), when it started (UTC), the machine and its load average (1, 5, 15 min) then."""
+    args = sys.argv[1:] if argv is None else argv
+    return {"command": f"python -m {prog} {shlex.join(args)}".strip(),
+            "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine(),
+            "load_average_start": os.getloadavg()}
 
 
 def write_json(path: Path, payload: dict[str, Any]) -> None:

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import array
-import json
 import os
 import struct
 import sys
@@ -35,6 +34,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import CompressedImage, Image
 from std_srvs.srv import Trigger
 
+from bench.common import run_record, write_json
 from bench.node_rig import NodeProcess, wait
 
 NS, NAME = "/fuzz", "flow_node"
@@ -274,10 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     results = [run_phase(compressed, args.messages, args.seed) for compressed in (False, True)]
-    payload = {"command": "python -m bench.fuzz_node " + " ".join(argv if argv is not None else sys.argv[1:]),
-               "seed": args.seed, "phases": results}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(payload, indent=1) + "\n")
+    write_json(args.out, {**run_record("bench.fuzz_node", argv), "seed": args.seed, "phases": results})
     for r in results:
         n = r["node"]
         print(f"{r['input']}: {r['hostile_messages']} hostile + valid = {r['messages_sent']} sent; node received "

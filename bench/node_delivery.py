@@ -29,6 +29,9 @@ from typing import Any
 
 import numpy as np
 
+from .common import run_record, write_json
+from .node_rig import stop
+
 ROOT = Path(__file__).resolve().parents[1]
 PROFILE = ROOT / "config" / "fastdds_localhost.xml"
 # variant -> (environment of the node and the camera, environment of the subscriber)
@@ -123,17 +126,6 @@ def _popen(args: list[str], env: dict[str, str]) -> subprocess.Popen:
     return subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
 
 
-def _stop(proc: subprocess.Popen, timeout: float = 30.0) -> str:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-    try:
-        out, _ = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        out, _ = proc.communicate()
-    return out
-
-
 def run(size: str, variant: str, seconds: float) -> dict[str, Any]:
     """One run: node, subscriber, then camera for ``seconds``; the counts after everything settled."""
     node_env, sub_env = ({**os.environ, **e} for e in VARIANTS[variant])
@@ -151,8 +143,8 @@ def run(size: str, variant: str, seconds: float) -> dict[str, Any]:
     except (subprocess.TimeoutExpired, IndexError):
         pass  # recorded as a failed run (camera_frames null)
     finally:
-        sub_out = _stop(sub)
-        _stop(node)
+        sub_out, _ = stop(sub)
+        stop(node)
     got = json.loads(sub_out.strip().splitlines()[-1])
     d = got["diagnostics"]
     published = int(d.get("frames published", 0))
@@ -175,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         return camera(args.camera, 30.0, args.seconds)
     if args.subscribe:
         return subscribe(args.seconds)
-    runs = []
+    runs, head = [], run_record("bench.node_delivery", argv)
     for rep in range(args.repeats):
         for size in SIZES:
             for variant in args.variants.split(","):
@@ -183,10 +175,7 @@ def main(argv: list[str] | None = None) -> int:
                 r["repeat"] = rep
                 runs.append(r)
                 print(json.dumps(r), flush=True)
-                payload = {"command": "python -m bench.node_delivery "
-                           + " ".join(argv if argv is not None else sys.argv[1:]),
-                           "seconds": args.seconds, "rate_hz": 30.0, "runs": runs}
-                args.out.write_text(json.dumps(payload, indent=1) + "\n")  # after every run
+                write_json(args.out, {**head, "seconds": args.seconds, "rate_hz": 30.0, "runs": runs})  # every run
     return 0
 
 

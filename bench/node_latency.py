@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import array
 import statistics
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -37,7 +36,7 @@ from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.codec import array_to_image_fields, image_to_array
 
-from .common import machine, write_json
+from .common import run_record, write_json
 from .node_rig import NODE_COMMAND, NodeProcess, wait
 
 SIZES = ((240, 320), (480, 640))
@@ -226,9 +225,7 @@ def main(argv: list[str] | None = None) -> int:
                   f" | end-to-end overhead {100*r['end_to_end_overhead_ratio']:5.2f} %"
                   f" | throughput {tp['output_rate_hz']:.2f} Hz (solving {tp['solver_busy_fraction']:.2f})"
                   f" | AEE {r['aee_interior_px']:.3f}", flush=True)
-    meta = {"command": "python -m bench.node_latency " + " ".join(sys.argv[1:] if argv is None else argv),
-            **machine(), "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
-    write_json(Path(args.out), {"meta": meta, "results": results})
+    write_json(Path(args.out), {"meta": run_record("bench.node_latency", argv), "results": results})
     return 0
 
 

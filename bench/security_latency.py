@@ -18,13 +18,11 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import sys
 import tempfile
-import time
 from pathlib import Path
 from typing import Any
 
-from bench.common import machine, write_json
+from bench.common import run_record, write_json
 from bench.node_latency import Frames, ProcessRig
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
@@ -115,9 +113,8 @@ def main(argv: list[str] | None = None) -> int:
         summary[f"{part}_cost_s"] = statistics.median(rr["secured"][part] - rr["plain"][part] for rr in rounds)
     print("median over rounds: " + ", ".join(f"{k} {v*1e3:.2f} ms" if k.endswith("_s") else f"{k} {v:.3f}"
                                             for k, v in summary.items()))
-    meta = {"command": "python -m bench.security_latency " + " ".join(sys.argv[1:] if argv is None else argv),
-            "rmw": os.environ["RMW_IMPLEMENTATION"], "size": args.size, "preset": args.preset, **machine(),
-            "date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    meta = {**run_record("bench.security_latency", argv), "rmw": os.environ["RMW_IMPLEMENTATION"],
+            "size": args.size, "preset": args.preset}
     write_json(Path(args.out), {"meta": meta, "summary": summary, "rounds": rounds})
     return 0
 

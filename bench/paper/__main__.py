@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from ..common import DEFAULT_DATA, SEQUENCES, machine, write_json
+from ..common import DEFAULT_DATA, SEQUENCES, run_record, write_json
 from . import figures, report
 from .algorithms import BASE, DYNAMIC_FACTORS
 from .protocol import RENDERERS, add_noise, consistency, fill_unknown, load_pairs
@@ -47,8 +46,7 @@ def main(argv: list[str] | None = None) -> None:
     noisy = [add_noise(p) for p in clean]
     runner = Runner(backend=args.backend)
     res: dict[str, Any] = {
-        "command": "python -m bench.paper " + " ".join(argv if argv is not None else sys.argv[1:]),
-        "machine": machine(), "base": BASE, "factors": args.factors, "presmooth_sigma": PRESMOOTH_SIGMA,
+        **run_record("bench.paper", argv), "base": BASE, "factors": args.factors, "presmooth_sigma": PRESMOOTH_SIGMA,
         "renderer": args.renderer,
         "protocol": {p.name: {"gt_scale": p.scale, "consistency": consistency(p.i0, p.i1, fill_unknown(p.gt))}
                      for p in clean},

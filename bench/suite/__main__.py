@@ -15,14 +15,11 @@ import argparse
 import json
 import os
 import platform
-import shlex
 import subprocess
-import sys
-import time
 from pathlib import Path
 from typing import Any
 
-from ..common import REPO, machine, write_json
+from ..common import REPO, run_record, write_json
 from . import report, targets
 from .methods import PEERS, parse_method
 from .regimes import REGIMES
@@ -77,9 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         regimes = [r for r in args.regimes.split(",") if r] or None
         peers = None if not args.peers else ([] if args.peers == "none" else args.peers.split(","))
-        head = {"command": ("python -m bench.suite " + shlex.join(sys.argv[1:] if argv is None else argv)).strip(),
-                "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine(),
-                "versions": versions(), "load_average_start": os.getloadavg()}  # as the run starts
+        head = {**run_record("bench.suite", argv), "versions": versions()}  # as the run starts
         res = {**head, **run_suite(dict(map(parse_method, args.method)) or None, regimes, args.split, args.quick, peers,
                                    args.repeats, args.slow_repeats, log=lambda s: print(s, flush=True))}
         out = args.out or RESULTS / ("suite_quick.json" if args.quick else "suite.json")
