@@ -1,7 +1,7 @@
 """Reproduce the paper's evaluation (issue 6): ``python -m bench.paper`` (or ``make paper``).
 
-Writes bench/paper/results/results.json, the figures (fig1_angular_error.png, fig2_clean.png,
-fig2_noisy.png, fig3_flows.png) and regenerates bench/paper/REPORT.md from them.
+Writes bench/results/paper/results.json, the figures (fig1_angular_error.png, fig2_clean.png,
+fig2_noisy.png, fig3_flows.png) and regenerates REPORT.md beside them (``--out`` another folder: all there).
 """
 
 from __future__ import annotations
@@ -12,14 +12,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..common import DEFAULT_DATA, SEQUENCES, run_record, write_json
+from ..common import DEFAULT_DATA, REPO, SEQUENCES, run_record, write_json
 from . import figures, report
 from .algorithms import BASE, DYNAMIC_FACTORS
 from .protocol import RENDERERS, add_noise, consistency, fill_unknown, load_pairs
 from .report import KINDS
 from .run import FIGURE_SEQUENCES, PRESMOOTH_SIGMA, Runner, ranks, run_peer, run_static_dynamic, run_table2
 
-HERE = Path(__file__).resolve().parent
+RESULTS = REPO / "bench" / "results" / "paper"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -32,12 +32,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--renderer", default="cubic", choices=RENDERERS,
                     help="second-frame synthesis: cubic (the paper's, default: comparable with its figures) or "
                          "bandlimited (exact for frame 1 read as a band-limited image)")
-    ap.add_argument("--out", type=Path, default=HERE / "results")
+    ap.add_argument("--out", type=Path, default=RESULTS)
     ap.add_argument("--report-only", action="store_true", help="re-render REPORT.md from results.json and exit")
     args = ap.parse_args(argv)
     if args.report_only:
         results = json.loads((args.out / "results.json").read_text())
-        (HERE / "REPORT.md").write_text(report.render(results))
+        (args.out / "REPORT.md").write_text(report.render(results))
         return
     start = time.perf_counter()
     args.out.mkdir(parents=True, exist_ok=True)
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> None:
     res["solve_seconds"] = runner.seconds
     res["total_seconds"] = time.perf_counter() - start
     write_json(args.out / "results.json", res)
-    (HERE / "REPORT.md").write_text(report.render(res))
+    (args.out / "REPORT.md").write_text(report.render(res))
     print(f"{runner.solves} solves, {res['total_seconds']:.0f} s; wrote {args.out} and REPORT.md")
 
 

@@ -4,7 +4,7 @@ For each algorithm of Table 1 and each budget of primal-dual iterations per warp
 sequences with the static (mapped) weights, on the clean and the noisy pairs, in the protocol of
 ``python -m bench.paper`` (same pairs, presmoothing, BASE settings). The per-algorithm budgets in
 algorithms.py are read off this table: the smallest budget after which four times more changes the mean AEE
-by less than ~10 %. Writes results/budget.json.
+by less than ~10 %. Writes bench/results/paper/budget.json.
 """
 
 from __future__ import annotations
@@ -15,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..common import DEFAULT_DATA, SEQUENCES, machine, write_json
+from ..common import DEFAULT_DATA, REPO, SEQUENCES, machine, write_json
 from .algorithms import ALGORITHMS
 from .protocol import add_noise, load_pairs
 from .run import Runner
 
-HERE = Path(__file__).resolve().parent
 BUDGETS: dict[str, tuple[int, ...]] = {
     "l2_l2": (50, 200, 1000, 4000),
     "l2_tv": (50, 200, 1000),
@@ -35,7 +34,7 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("--algorithms", nargs="*", default=list(BUDGETS), choices=list(BUDGETS))
-    ap.add_argument("--out", type=Path, default=HERE / "results" / "budget.json")
+    ap.add_argument("--out", type=Path, default=REPO / "bench" / "results" / "paper" / "budget.json")
     args = ap.parse_args(argv)
     clean = load_pairs(args.data, tuple(SEQUENCES), "cubic")  # the paper's synthesis, as budget.json was
     variants = {"clean": clean, "noisy": [add_noise(p) for p in clean]}

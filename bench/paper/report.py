@@ -215,7 +215,7 @@ def differences(res: dict[str, Any]) -> str:
         "* **AE units**: the paper's AE is in radians (Table 2's AE/AEE ratio shows it); ours in degrees.",
         "* **Iteration budgets** differ per algorithm (" + ", ".join(f"{a.label} {its[a.key]}" for a in ALGORITHMS)
         + " primal-dual iterations per warp): each gets the smallest budget after which four times more "
-        "changes its static mean AEE by less than ~10 % (`python -m bench.paper.budget`, results/budget.json; "
+        "changes its static mean AEE by less than ~10 % (`python -m bench.paper.budget`, budget.json; "
         "summarised above ALGORITHMS in bench/paper/algorithms.py). L2-L2 is the slow one: its Horn-Schunck "
         "minimiser smooths across the whole image, which a primal-dual solver reaches only by diffusion; with "
         "50 iterations it stopped far short of it (worst sequence above 0.2 with the static weight, see the "
@@ -242,7 +242,7 @@ def render(res: dict[str, Any]) -> str:
         "",
         f"Backend {', '.join(res['backend'])}; {res['solves']} solves in {res['solve_seconds']:.0f} s, "
         f"{res['total_seconds']:.0f} s in all on {res['machine']['cpus']} CPUs. Raw numbers: "
-        "`results/results.json`.",
+        "`results.json`.",
         "",
         "## Protocol",
         "",
@@ -318,13 +318,13 @@ def render(res: dict[str, Any]) -> str:
     parts += [
         "## Figures",
         "",
-        "![Figure 2, clean](results/fig2_clean.png)",
+        "![Figure 2, clean](fig2_clean.png)",
         "",
-        "![Figure 2, noisy](results/fig2_noisy.png)",
+        "![Figure 2, noisy](fig2_noisy.png)",
         "",
         "Figure 3: ground truth and each algorithm (fixed weights, clean pairs), colour scale 1 px.",
         "",
-        "![Figure 3](results/fig3_flows.png)",
+        "![Figure 3](fig3_flows.png)",
         "",
         "Figure 1, the angular error's drawback: the same absolute error of 0.01 px costs "
         f"{f1['abs']['0.1']:.3f} deg at 0.1 px, {f1['abs']['1.0']:.3f} deg at 1 px and "
@@ -332,7 +332,7 @@ def render(res: dict[str, Any]) -> str:
         f"{f1['rel']['1.0']:.3f} and {f1['rel']['5.0']:.3f} deg. AE over-weights errors on slow "
         "(background) pixels, so on this 1-px protocol it ranks methods almost exactly like AEE (Table 1).",
         "",
-        "![Figure 1](results/fig1_angular_error.png)",
+        "![Figure 1](fig1_angular_error.png)",
         "",
         "## Targets",
         "",
