@@ -64,7 +64,7 @@ def read_float(path: Path) -> np.ndarray:
 
 def middlebury(quick: bool, data: Path = DEFAULT_DATA) -> list[Sample]:
     """The 8 Middlebury training pairs frame10 -> frame11 (quick: 3 of them), grey float32 [0, 1] (BT.601
-    luma, as bench/common.py hands them to every method)."""
+    luma, as flow_node.core.api.to_grey and the paper protocol read them)."""
     if not data.is_dir():
         raise FileNotFoundError(f"Middlebury data not found at {data}")
     names = MIDDLEBURY_QUICK if quick else SEQUENCES
