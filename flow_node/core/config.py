@@ -308,8 +308,9 @@ class FlowConfig:
 
 # The calibrated weights of each model: the defaults of alpha/alpha1 when a model is chosen without them.
 # On normalised pairs (photometric="normalise", the default) with the default pyramid, the best of a grid on the 8
-# Middlebury pairs (the retired `bench.accuracy --model-search`, its grid in docs/engine.md; BENCHMARKS.md, "Model-aware weights"). The census
-# data term wants larger ones, given with it (docs/engine.md, "Model-aware weights").
+# Middlebury pairs (the retired `bench.accuracy --model-search`, its grid in docs/engine.md; BENCHMARKS.md,
+# "Model-aware weights"). The census data term wants larger ones, given with it (docs/engine.md, "Model-aware
+# weights").
 MODEL_WEIGHTS: dict[str, dict[str, float]] = {
     "l2_l2": dict(alpha=0.0003, alpha1=0.5),
     "l2_tv": dict(alpha=0.0002, alpha1=0.5),
