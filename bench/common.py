@@ -12,6 +12,7 @@ import platform
 import shlex
 import sys
 import time
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +33,13 @@ def run_record(prog: str, argv: list[str] | None) -> dict[str, Any]:
     return {"command": f"python -m {prog} {shlex.join(args)}".strip(),
             "started": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "machine": machine(),
             "load_average_start": os.getloadavg()}
+
+
+def md_table(header: Sequence[str], rows: Iterable[Sequence[str]], right: bool = False) -> list[str]:
+    """A Markdown table's lines: ``header``, its rule (every column after the first right-aligned when
+    ``right``) and one line per row of cells."""
+    rule = "|---|" + ("---:|" if right else "---|") * (len(header) - 1)
+    return ["| " + " | ".join(header) + " |", rule, *("| " + " | ".join(row) + " |" for row in rows)]
 
 
 def write_json(path: Path, payload: dict[str, Any]) -> None:

@@ -30,7 +30,7 @@ import numpy as np
 from flow_node.core.config import FlowConfig
 from flow_node.core.volume import VOLUME_CONFIG, estimate_volume
 
-from .common import REPO, machine, write_json
+from .common import REPO, machine, md_table, write_json
 
 RESULTS = REPO / "bench" / "results" / "volume"
 # flow_node's volume defaults (core/volume.py VOLUME_CONFIG), both methods on one thread: the shared 2-core
@@ -160,14 +160,13 @@ def run(sizes: list[int], big_scenes: tuple[str, ...], seed: int) -> dict[str, A
 def markdown(result: dict[str, Any]) -> str:
     lines = [f"`{result['command']}` (seed {result['seed']}); AEE in voxels, time in s (wall clock, both on one "
              f"thread; a shared machine: compare the ratio, measured interleaved). flow_node settings: "
-             f"{result['settings']}; +incompressible: incompressibility={result['incompressibility']}.", "",
-             "| scene | size | flow_node AEE | +incompressible AEE | skimage AEE | flow_node s | skimage s | "
-             "time ratio |", "|---|---|---|---|---|---|---|---|"]
-    for r in result["rows"]:
-        lines.append(f"| {r['scene']} | {r['size']}^3 | {r['flow_node']['aee']} | "
-                     f"{r['flow_node_incompressible']['aee']} | {r['skimage']['aee']} | "
-                     f"{r['flow_node']['seconds']} | {r['skimage']['seconds']} | {r['time_ratio']} |")
-    return "\n".join(lines) + "\n"
+             f"{result['settings']}; +incompressible: incompressibility={result['incompressibility']}.", ""]
+    head = ["scene", "size", "flow_node AEE", "+incompressible AEE", "skimage AEE", "flow_node s", "skimage s",
+            "time ratio"]
+    rows = [[r["scene"], f"{r['size']}^3", str(r["flow_node"]["aee"]), str(r["flow_node_incompressible"]["aee"]),
+             str(r["skimage"]["aee"]), str(r["flow_node"]["seconds"]), str(r["skimage"]["seconds"]),
+             str(r["time_ratio"])] for r in result["rows"]]
+    return "\n".join(lines + md_table(head, rows)) + "\n"
 
 
 def main() -> None:

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ..common import md_table
 from .algorithms import ALGORITHMS, PAPER_RANKS, PAPER_TABLE2, TABLE2_ALPHA_PAPER
 
 L1 = ("l1_tv", "l1_tv_l2", "l1_tv_tv")
@@ -30,9 +31,7 @@ def _mean(per: dict[str, dict[str, float]], metric: str) -> float:
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in rows]
-    return "\n".join(lines)
+    return "\n".join(md_table(header, rows))
 
 
 def per_sequence_table(variant: dict[str, Any], kind: str, metric: str) -> str:

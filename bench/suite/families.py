@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..common import md_table
+
 COLOUR = ("white_balance", "unchanged rgb")
 
 
@@ -28,12 +30,12 @@ def family_table(result: dict, regime: str) -> str:
             by_family[family][m].append(methods[m]["per_pair"][pair["name"]]["aee"])
     unchanged = {f: {m: float(np.mean(by_family[f][m])) for m in names} for f in ("unchanged", "unchanged rgb")
                  if f in by_family}
-    lines = ["| family | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
+    rows = []
     for family, values in by_family.items():
         base = unchanged.get("unchanged rgb" if family in COLOUR else "unchanged", unchanged["unchanged"])
         cells = [f"{np.mean(values[m]):.3f} ({np.mean(values[m]) / base[m]:.2f}x)" for m in names]
-        lines.append(f"| {family} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        rows.append([family, *cells])
+    return "\n".join(md_table(["family", *names], rows, right=True))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from ..common import md_table
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, PEER_NAMES
 
 
@@ -28,8 +29,7 @@ def regime_table(name: str, r: dict[str, Any]) -> str:
     head += ["AE (deg)", "ms/pair", "time / DIS med", "time / DIS uf", "AEE / DIS med"]
     head += [f"AEE {v}" for v in variants] + (["AUSE (rel)"] if has_ause else [])
     head += ["worst pair (AEE)", "beaten by (<= 1.5x time)"]
-    lines = [f"**{name}**: {r['title']} ({len(r['pairs'])} pairs)", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    rows = []
     for n, m in methods.items():
         row = [n if n not in PEER_NAMES else f"peer: {n}", f"**{m['aee']:.4f}**"]
         row += [_num(m.get("aee_noc"), ".4f")] if has_noc else []
@@ -44,15 +44,15 @@ def regime_table(name: str, r: dict[str, Any]) -> str:
             row.append(", ".join(r["beaten_by"].get(n, [])) or "no")
         else:
             row.append("")
-        lines.append("| " + " | ".join(row) + " |")
-    return "\n".join(lines)
+        rows.append(row)
+    return "\n".join([f"**{name}**: {r['title']} ({len(r['pairs'])} pairs)", "", *md_table(head, rows)])
 
 
 def summary_table(res: dict[str, Any]) -> str:
     """One row per regime, one column per method: mean AEE (px) and, in brackets, time / DIS medium of the
     same run (DIS medium itself: its ms per pair)."""
     names = list(dict.fromkeys(n for r in res["regimes"].values() for n in r["methods"]))
-    lines = ["| regime | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
+    rows = []
     for reg, r in res["regimes"].items():
         cells = []
         for n in names:
@@ -63,17 +63,15 @@ def summary_table(res: dict[str, Any]) -> str:
                 cells.append(f"{m['aee']:.3f} ({1e3 * m['seconds']:.1f} ms)")
             else:
                 cells.append(f"{m['aee']:.3f} ({_num(m.get(f'time_vs_{DIS_MEDIUM}'), '.2f')}x)")
-        lines.append(f"| {reg} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        rows.append([reg, *cells])
+    return "\n".join(md_table(["regime", *names], rows, right=True))
 
 
 def targets_table(checks: list[dict[str, Any]]) -> str:
     """Markdown table of the target checks: met / missed / not run, with the numbers."""
-    lines = ["| target | regime | method | result | numbers |", "|---|---|---|---|---|"]
-    for c in checks:
-        verdict = "not run" if c["met"] is None else ("met" if c["met"] else "**missed**")
-        lines.append(f"| {c['target']} | {c['regime']} | {c['method']} | {verdict} | {c['detail']} |")
-    return "\n".join(lines)
+    verdict = {None: "not run", True: "met", False: "**missed**"}
+    rows = [[c["target"], c["regime"], c["method"], verdict[c["met"]], c["detail"]] for c in checks]
+    return "\n".join(md_table(["target", "regime", "method", "result", "numbers"], rows))
 
 
 def markdown(res: dict[str, Any]) -> str:
