@@ -147,6 +147,11 @@ def _ends(a: np.ndarray, axis: int, d: int) -> tuple[np.ndarray, np.ndarray]:
     return a[tuple(lo)], a[tuple(hi)]
 
 
+def slope_span(n: int) -> int:
+    """:func:`median_slopes`' pair distance on a grid axis of ``n`` samples: SLOPE_SPAN of it, at least 1."""
+    return max(1, int(round(SLOPE_SPAN * n)))
+
+
 def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Robust d(field)/dx and d(field)/dy of fields sampled on regular grids, arrays (..., ny, nx): the
     median, over every pair of samples SLOPE_SPAN of the grid apart along x (along y) whose both samples
@@ -156,8 +161,7 @@ def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndar
     ``field``'s shape. Shapes ``field.shape[:-2]``; NaN without pairs."""
     out = []
     for axis, coord in ((-1, x), (-2, y)):
-        n = field.shape[axis]
-        d = max(1, int(round(SLOPE_SPAN * n)))
+        d = slope_span(field.shape[axis])
         df, dc = (second - first for first, second in (_ends(a, axis, d) for a in (field, coord)))
         first, second = _ends(keep, axis, d)
         both = np.broadcast_to(first & second & (dc != 0), df.shape)  # coordinates and keep may be shared
@@ -168,7 +172,7 @@ def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndar
 
 
 @lru_cache(maxsize=32)
-def _spread(m: int, candidates: int) -> tuple[np.ndarray, np.ndarray]:
+def medoid_spread(m: int, candidates: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`medoid_offset`'s candidates and references: ~``candidates`` and ~4 x ``candidates`` indices
     spread evenly over m samples (the same for every frame of a size: computed once)."""
     idx, ref = (np.unique(np.rint(np.linspace(0, m - 1, min(m, c))).astype(np.int64))
@@ -183,7 +187,7 @@ def medoid_offset(rest: np.ndarray, keep: np.ndarray, candidates: int = START_CA
     ~4 x ``candidates`` of them spread over the m) is the least (least median of squares over candidates).
     Unlike the per-component median it is one sample of one group, also when two groups are almost
     equally large. Shape (..., 2); 0 where nothing is kept."""
-    idx, ref = _spread(rest.shape[-2], candidates)
+    idx, ref = medoid_spread(rest.shape[-2], candidates)
     cand, other = rest[..., idx, :], rest[..., ref, :]  # (..., c, 2), (..., r, 2)
     dx, dy = other[..., None, :, 0] - cand[..., :, None, 0], other[..., None, :, 1] - cand[..., :, None, 1]
     d = dx * dx + dy * dy  # squared: the median by rank and the least of them are the distances' (no root)
