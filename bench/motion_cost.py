@@ -93,9 +93,11 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
     names = tuple(MOTION_TOPICS) if topic == "all" else (topic,)
     if topic == name:
         return topic_time(res.flow, conf, names, fits=fits)
-    return topic_time(res.flow, lambda: est.confidence(*res.frames, res.flow), names,
-                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs),
-                      None if name == WHOLE_MAP else lambda where: est.confidence(*res.frames, res.flow, where), fits)
+    shared: dict[str, np.ndarray] = {}  # what the pair's confidence calls share, as FlowOutput keeps it
+    return topic_time(res.flow, lambda: est.confidence(*res.frames, res.flow, shared=shared or None), names,
+                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs, shared=shared),
+                      None if name == WHOLE_MAP else lambda where: est.confidence(*res.frames, res.flow, where,
+                                                                                 shared=shared), fits)
 
 
 def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[dict[str, Any]]:
