@@ -41,6 +41,7 @@ from .motion import (
     Deviating,
     DominantMotion,
     Hysteresis,
+    Inliers,
     MaskThreshold,
     ModelFit,
     SimilarityStart,
@@ -49,6 +50,7 @@ from .motion import (
     fit_model,
     moving_fraction,
     moving_mask,
+    sample_inliers,
     similarity_start,
 )
 from .robust import SAMPLES, Weights, check_flow, check_flow_shape
@@ -84,18 +86,20 @@ class MotionSettings:
 class Fits(NamedTuple):
     """Who runs the IRLS fits: the dominant motion's (:data:`~flow_node.pipeline.motion.ModelFit`) and the
     time to contact's (:data:`~flow_node.pipeline.expansion.RegionFit`), the moving mask's deviating
-    pixels (:data:`~flow_node.pipeline.motion.Deviating`) and the dominant motion's robust start
-    (:data:`~flow_node.pipeline.motion.SimilarityStart`); the same results either way (test_fits_numba.py;
-    the start and the mask bit for bit)."""
+    pixels (:data:`~flow_node.pipeline.motion.Deviating`), the dominant motion's robust start
+    (:data:`~flow_node.pipeline.motion.SimilarityStart`) and its inlier samples
+    (:data:`~flow_node.pipeline.motion.Inliers`); the same results either way (test_fits_numba.py; the
+    start, the inliers and the mask bit for bit)."""
 
     name: str
     model: ModelFit
     regions: RegionFit
     deviating: Deviating
     start: SimilarityStart
+    inliers: Inliers
 
 
-NUMPY_FITS = Fits("numpy", fit_model, region_fits, deviating_pixels, similarity_start)
+NUMPY_FITS = Fits("numpy", fit_model, region_fits, deviating_pixels, similarity_start, sample_inliers)
 
 
 def fits_for(backend: str) -> Fits:
@@ -107,10 +111,12 @@ def fits_for(backend: str) -> Fits:
         deviating_numba,
         fit_model_numba,
         region_fits_numba,
+        sample_inliers_numba,
         similarity_start_numba,
     )
 
-    return Fits("numba", fit_model_numba, region_fits_numba, deviating_numba, similarity_start_numba)
+    return Fits("numba", fit_model_numba, region_fits_numba, deviating_numba, similarity_start_numba,
+                sample_inliers_numba)
 
 
 def warm_fits(fits: Fits, shape: tuple[int, int] = (48, 64)) -> float:
@@ -197,7 +203,7 @@ class MotionAnalysis:
     def dominant(self) -> DominantMotion | None:
         """:func:`~flow_node.pipeline.motion.dominant_motion` (None without confident flow)."""
         return dominant_motion(self.flow, self.weights, self.settings.mask, self.settings.samples, self.fits.model,
-                               self.fits.start)
+                               self.fits.start, self.fits.inliers)
 
     @cached_property
     def divergence(self) -> np.ndarray:

@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .motion import SampleFrame
+from .motion import MaskThreshold, SampleFrame
 from .robust import (
     CONVERGED_PX,
     HUBER_ITERATIONS,
@@ -37,6 +37,7 @@ from .robust import (
     TUKEY_C,
     TUKEY_ITERATIONS,
     RobustFit,
+    Samples,
     medoid_spread,
     slope_span,
 )
@@ -370,6 +371,30 @@ def deviating_numba(flow: np.ndarray, hm: np.ndarray, abs_px: np.float32, rel: n
     return out.reshape(h, w)
 
 
+@njit(**_JIT)
+def _inliers(out, hp, x, y, u, v, abs_px, rel):  # noqa: ANN001, ANN202
+    """motion.sample_inliers into ``out`` (n,) bool of the samples x, y, u, v (n,): apply_homography and
+    MaskThreshold.deviates per sample, each float64 step in the reference's order (the same bits)."""
+    for i in range(out.size):
+        den = hp[2, 0] * x[i] + hp[2, 1] * y[i] + hp[2, 2]
+        pu = (hp[0, 0] * x[i] + hp[0, 1] * y[i] + hp[0, 2]) / den - x[i]
+        pv = (hp[1, 0] * x[i] + hp[1, 1] * y[i] + hp[1, 2]) / den - y[i]
+        du, dv = u[i] - pu, v[i] - pv
+        limit = abs_px + rel * np.sqrt(pu * pu + pv * pv)
+        out[i] = not (du * du + dv * dv > limit * limit)
+
+
+def sample_inliers_numba(hp: np.ndarray, s: Samples, threshold: MaskThreshold) -> np.ndarray:
+    """:func:`flow_node.pipeline.motion.sample_inliers` in one compiled pass (the same arguments, the same
+    bool (ny, nx))."""
+    out = np.empty(s.x.shape, np.bool_)
+    flat = (np.ascontiguousarray(a, np.float64).reshape(-1) for a in (s.x, s.y, s.u, s.v))
+    _inliers(out.reshape(-1), np.ascontiguousarray(hp, np.float64), *flat, float(threshold.abs_px),
+             float(threshold.rel))
+    return out
+
+
 def compiled() -> bool:
     """Whether the kernels are compiled (or loaded from numba's cache) in this process (derived.warm_fits)."""
-    return bool(_irls.signatures and _regions.signatures and _deviating.signatures and _start.signatures)
+    return bool(_irls.signatures and _regions.signatures and _deviating.signatures and _start.signatures
+                and _inliers.signatures)

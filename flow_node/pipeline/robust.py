@@ -83,16 +83,26 @@ class Samples:
     w: np.ndarray
 
 
+@lru_cache(maxsize=32)
+def _grid(h: int, w: int, step: int) -> tuple[np.ndarray, ...]:
+    """:func:`sample_flow`'s points of an (h, w) image: rows yi, columns xi (int) and the same as float64
+    (read-only; computed once per size and step, the same for every frame)."""
+    o = step // 2
+    yi, xi = np.mgrid[o:h:step, o:w:step]
+    out = (yi, xi, xi.astype(np.float64), yi.astype(np.float64))
+    for a in out:
+        a.flags.writeable = False
+    return out
+
+
 def sample_flow(flow: np.ndarray, confidence: Weights, step: int) -> Samples:
     """Every ``step``-th pixel in both directions (offset step // 2, so the grid is centred), of flow (H, W, 2)
     px/frame and confidence (H, W) in [0, 1] (or its values at the points: :data:`Weights`)."""
     check_weights(flow, confidence)
-    h, w = flow.shape[:2]
     o = step // 2
-    yi, xi = np.mgrid[o:h:step, o:w:step]
+    yi, xi, x, y = (a.copy() for a in _grid(*flow.shape[:2], step))  # copies: the caller's to keep
     sub = flow[o::step, o::step].astype(np.float64)
-    return Samples(xi.astype(np.float64), yi.astype(np.float64), sub[..., 0], sub[..., 1],
-                   weights_at(confidence, yi, xi))
+    return Samples(x, y, sub[..., 0], sub[..., 1], weights_at(confidence, yi, xi))
 
 
 def masked_quantile(values: np.ndarray, keep: np.ndarray, q: float = 0.5) -> np.ndarray:
