@@ -13,7 +13,7 @@ confidence map given (~/confidence subscribed anyway: the node computes it once 
 consumer) and without it ("+conf", what a topic costs when ~/confidence is not subscribed: as the node's
 MotionAnalysis.of, the fits take the confidence at their samples alone, FlowEstimator.confidence_at, and
 the mask where it reads it alone, FlowEstimator.confidence with ``where``; both with the estimator's
-backend). "mask, whole map" is the mask +conf as it was before that (the whole map first, the dominant
+backend, one confidence.Shared dict per pair as FlowOutput keeps it: frame 1's planes computed once). "mask, whole map" is the mask +conf as it was before that (the whole map first, the dominant
 motion reading it), timed in the same loop for the comparison, and so is the mask +conf with its deviating
 pixels found by the numpy reference instead of the backend's kernel ("mask, numpy deviating": as before
 numba_fits.deviating_numba). Pairs from
