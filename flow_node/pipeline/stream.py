@@ -166,8 +166,7 @@ class FlowOutput:
     def confidence(self) -> np.ndarray:
         """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`:
         low where the data residual says the flow is wrong or the pixel occluded; ``confidence_of``), cached."""
-        if self._confidence is None:
-            # the planes kept by earlier calls on the pair, if any (none: nothing to keep, the map is read after)
+        if self._confidence is None:  # with the planes kept by the pair's earlier calls, if any (then let go)
             self._confidence = self.confidence_of(*self._judged(), shared=self._shared or None)
             self._shared.clear()
         return self._confidence
