@@ -154,8 +154,10 @@ class FlowEstimator:
         with self._backend.running():
             warm_fusion(self._backend)
             self._backend.splat(np.zeros((2,) + shape, np.float32), np.zeros((4,) + shape, np.float32))  # stream
-        self.confidence(f0, f1, np.zeros(shape + (2,), np.float32))
-        self.confidence_at(f0, f1, np.zeros(shape + (2,), np.float32), np.zeros(1, np.int64), np.zeros(1, np.int64))
+        still = np.zeros(shape + (2,), np.float32)
+        self.confidence(f0, f1, still)
+        self.confidence_at(f0, f1, still, np.zeros(1, np.int64), np.zeros(1, np.int64))  # points alone
+        self.confidence_at(f0, f1, still, *np.mgrid[0:shape[0]:2, 0:shape[1]:2], shared={})  # dense: the map near them
         return time.perf_counter() - start
 
     def confidence(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray,
