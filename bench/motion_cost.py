@@ -9,14 +9,14 @@ dominant motion; the flag the mask) and the rclpy message (flow_node.pipeline.mo
 RclpyKit), publishing excluded (it depends on the subscribers and the middleware: the mask and the
 divergence are images like ~/magnitude). "all" is every topic at once (the dominant motion shared). The
 confidence they take (all but the divergence) is reported on its own; each topic is timed twice: with the
-confidence map given (~/confidence subscribed anyway: the node computes it once per pair for every
-consumer) and without it ("+conf", what a topic costs when ~/confidence is not subscribed: as the node's
-MotionAnalysis.of, the fits take the confidence at their samples alone, FlowEstimator.confidence_at, and
-the mask where it reads it alone, FlowEstimator.confidence with ``where``; both with the estimator's
-backend). "mask, whole map" is the mask +conf as it was before that (the whole map first, the dominant
-motion reading it), timed in the same loop for the comparison, and so is the mask +conf with its deviating
-pixels found by the numpy reference instead of the backend's kernel ("mask, numpy deviating": as before
-numba_fits.deviating_numba). Pairs from
+confidence map given (~/confidence subscribed anyway: the node computes it once per pair for every consumer) and
+without it ("+conf", what a topic costs when ~/confidence is not subscribed: as the node's MotionAnalysis.of, the
+fits take the confidence at their samples alone, FlowEstimator.confidence_at, and the mask where it reads it alone,
+FlowEstimator.confidence with ``where``; both with the estimator's backend, one confidence.Shared dict per pair as
+FlowOutput keeps it: frame 1's planes computed once). "mask, whole map" is the mask +conf as it was before that
+(the whole map first, the dominant motion reading it), timed in the same loop for the comparison, and so is the
+mask +conf with its deviating pixels found by the numpy reference instead of the backend's kernel ("mask, numpy
+deviating": as before numba_fits.deviating_numba). Pairs from
 flow_node.bag.motion_scenes, exactly rendered, 8 bit: pans with an object covering 20 % and approaches.
 The process keeps freed memory as the node does (flow_node.process.keep_freed_memory). Every time is the
 best of ``--repeat`` runs, the engine's and the outputs' interleaved, in reverse order every other run (the
@@ -93,9 +93,11 @@ def _time(name: str, f0: np.ndarray, f1: np.ndarray, est: FlowEstimator, res: Fl
     names = tuple(MOTION_TOPICS) if topic == "all" else (topic,)
     if topic == name:
         return topic_time(res.flow, conf, names, fits=fits)
-    return topic_time(res.flow, lambda: est.confidence(*res.frames, res.flow), names,
-                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs),
-                      None if name == WHOLE_MAP else lambda where: est.confidence(*res.frames, res.flow, where), fits)
+    shared: dict[str, np.ndarray] = {}  # what the pair's confidence calls share, as FlowOutput keeps it
+    return topic_time(res.flow, lambda: est.confidence(*res.frames, res.flow, shared=shared or None), names,
+                      lambda ys, xs: est.confidence_at(*res.frames, res.flow, ys, xs, shared=shared),
+                      None if name == WHOLE_MAP else lambda where: est.confidence(*res.frames, res.flow, where,
+                                                                                 shared=shared), fits)
 
 
 def measure(size: tuple[int, int], pairs: int, repeat: int, seed: int) -> list[dict[str, Any]]:

@@ -139,7 +139,8 @@ def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> Non
 
     kernels = {numba_fusion: ("residual_kernel", "choose_kernel", "near_kernel", "fill_kernel", "gather_kernel",
                               "consistent_kernel"),
-               numba_confidence: ("planes_kernel", "terms_kernel", "confidence_kernel")}
+               numba_confidence: ("planes_kernel", "terms_kernel", "confidence_kernel", "confidence_at_kernel",
+                                  "ratio_at_kernel")}
     for module, names in kernels.items():
         for name in names:
             monkeypatch.setattr(module, name, counting(module, name))

@@ -213,3 +213,65 @@ def test_confidence_rejects_a_where_of_another_shape_or_type(conf) -> None:
     for where in (np.ones((6, 7), bool), np.ones((6, 8), np.uint8)):
         with pytest.raises(InputError, match="where"):
             conf(i0, i0, flow, where)
+
+
+# ------------------------------------------- what the calls on one pair share: frame 1's planes (confidence.Shared)
+@pytest.fixture
+def planes_calls(monkeypatch: pytest.MonkeyPatch) -> list[tuple[int, ...]]:
+    """The shapes of the planes numba_confidence computes, one entry per computation (planes_kernel wrapped)."""
+    calls: list[tuple[int, ...]] = []
+    kernel = numba_confidence.planes_kernel
+    monkeypatch.setattr(numba_confidence, "planes_kernel", lambda out, img: calls.append(img.shape) or kernel(out, img))
+    return calls
+
+
+@pytest.mark.parametrize("shape", [(3, 7), (37, 53), (120, 160)])
+def test_shared_planes_give_the_same_bits_computed_once(shape, rows, planes_calls) -> None:
+    rng = np.random.default_rng(9)
+    i0, i1, j0, j1 = (rng.random(shape, dtype=np.float32) for _ in range(4))
+    flow = rng.normal(0.0, 4.0, shape + (2,)).astype(np.float32)
+    ys, xs = np.mgrid[1:shape[0]:3, 0:shape[1]:3]  # dense: the map near the points (AT_MAP_COVER)
+    assert ys.size * 25 >= numba_confidence.AT_MAP_COVER * i0.size
+    points = np.zeros(shape, bool)
+    points[ys, xs] = True
+    where = specks_and_borders(shape, 4)
+    alone_at, alone_in = confidence_at_numba(i0, i1, flow, ys, xs), confidence_numba(i0, i1, flow, where)
+    # the points' ratio alone: confidence_numba's with ``where`` the points, bit for bit
+    np.testing.assert_array_equal(alone_at, confidence_numba(i0, i1, flow, points)[ys, xs])
+    del planes_calls[:]
+    shared: dict[str, np.ndarray] = {}
+    np.testing.assert_array_equal(confidence_at_numba(i0, i1, flow, ys, xs, shared=shared), alone_at)
+    assert list(shared) == ["numba.planes1"] and len(planes_calls) == 1
+    confidence_numba(j0, j1, flow)  # another pair between the calls: the thread's scratch, not the kept planes
+    np.testing.assert_array_equal(confidence_numba(i0, i1, flow, where, shared=shared), alone_in)
+    np.testing.assert_array_equal(confidence_numba(i0, i1, flow, shared=shared), confidence_numba(i0, i1, flow))
+    assert len(planes_calls) == 3  # the pair's planes once, the other pair's twice (nothing shared there)
+    ref: dict[str, np.ndarray] = {}  # the reference keeps both frames' planes, the same values
+    np.testing.assert_array_equal(confidence_at(i0, i1, flow, ys, xs, shared=ref), confidence_at(i0, i1, flow, ys, xs))
+    np.testing.assert_array_equal(confidence(i0, i1, flow, where, shared=ref), confidence(i0, i1, flow, where))
+    assert sorted(ref) == ["numpy.planes0", "numpy.planes1"]
+
+
+def test_outputs_share_the_planes_between_the_fits_and_the_mask(planes_calls) -> None:
+    from flow_node.pipeline.derived import MotionAnalysis
+    from flow_node.pipeline.motion import moving_mask
+
+    i0, i1, _ = rendered_pair("pan")
+    settings = StreamSettings(config=FlowConfig.preset("realtime").replace(backend="numba"))
+    stream = FlowStream(settings)
+    stream.process((255 * i0).astype(np.uint8), 0)
+    out = stream.process((255 * i1).astype(np.uint8), 100_000_000)
+    del planes_calls[:]
+    a = MotionAnalysis.of(out)
+    mask = a.moving_mask
+    assert mask.any() and not out.confidence_computed and len(planes_calls) == 1  # the fits' and the mask's
+    est = FlowEstimator(settings.config)  # each call on its own: the same mask, bit for bit
+    alone = moving_mask(out.flow, lambda where: est.confidence(*out.frames, out.flow, where), a.dominant)
+    np.testing.assert_array_equal(mask, alone)
+    assert a.dominant == MotionAnalysis(out.flow, lambda: est.confidence(*out.frames, out.flow), 0.1,
+                                        confidence_at=lambda ys, xs: est.confidence_at(*out.frames, out.flow, ys, xs),
+                                        fits=a.fits).dominant
+    del planes_calls[:]
+    conf = out.confidence()  # the map after them: from the kept planes too (then let go), the same bits
+    assert not planes_calls and out.confidence_computed
+    np.testing.assert_array_equal(conf, est.confidence(*out.frames, out.flow))

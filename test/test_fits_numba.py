@@ -2,10 +2,14 @@
 (motion.fit_model, expansion.region_fits), the oracle: exact flows with a moving block, random flows with
 garbage and zero confidence, and rendered pairs through the realtime engine; the parameters to 1e-9 (the same
 arithmetic up to summation order), the same inliers and the same mask; failures (no support) alike; the moving
-mask's deviating pixels (numba_fits.deviating_numba against motion.deviating_pixels) bit for bit; and the
-wiring: MotionAnalysis.of takes the stream's backend's fits."""
+mask's deviating pixels (numba_fits.deviating_numba against motion.deviating_pixels) and the dominant motion's
+robust start (numba_fits.similarity_start_numba against motion.similarity_start) and its inlier samples
+(numba_fits.sample_inliers_numba against motion.sample_inliers) bit for bit; and the wiring:
+MotionAnalysis.of takes the stream's backend's fits."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -17,17 +21,38 @@ from flow_node.core import FlowConfig, FlowEstimator
 from flow_node.core.confidence import confidence as flow_confidence
 from flow_node.pipeline.derived import NUMPY_FITS, MotionAnalysis, fits_for
 from flow_node.pipeline.expansion import region_fits, region_ttc
-from flow_node.pipeline.motion import MaskThreshold, deviating_pixels, dominant_motion, fit_model, moving_mask
-from flow_node.pipeline.numba_fits import deviating_numba, fit_model_numba, region_fits_numba
+from flow_node.pipeline.motion import (
+    MaskThreshold,
+    SampleFrame,
+    apply_homography,
+    deviating_pixels,
+    dominant_motion,
+    fit_model,
+    moving_mask,
+    sample_inliers,
+    similarity_start,
+)
+from flow_node.pipeline.numba_fits import (
+    deviating_numba,
+    fit_model_numba,
+    region_fits_numba,
+    sample_inliers_numba,
+    similarity_start_numba,
+)
+from flow_node.pipeline.robust import SAMPLES, sample_flow, sample_step
 
 TOL = 1e-9  # parameters: the reference's arithmetic, summed in another order (the target is ~1e-5)
 
 
 def assert_same_dominant(flow: np.ndarray, conf: np.ndarray) -> None:
-    ref, out = (dominant_motion(flow, conf, fit=f) for f in (fit_model, fit_model_numba))
+    for samples in (SAMPLES, 300, 64):  # the start's grids: its slopes' pair distances and its candidates vary
+        assert_same_start(flow, conf, samples)
+    ref, out = (dominant_motion(flow, conf, fit=f, start=s, inliers=i) for f, s, i in (
+        (fit_model, similarity_start, sample_inliers), (fit_model_numba, similarity_start_numba, sample_inliers_numba)))
     assert (ref is None) == (out is None)
     if ref is None:
         return
+    assert_same_inliers(flow, conf, np.array(ref.homography))
     np.testing.assert_allclose(np.array(out.homography), np.array(ref.homography), rtol=0, atol=TOL)
     for name in ("tx", "ty", "rotation_deg", "scale", "residual_px"):
         assert getattr(out, name) == pytest.approx(getattr(ref, name), rel=0, abs=TOL), name
@@ -36,6 +61,31 @@ def assert_same_dominant(flow: np.ndarray, conf: np.ndarray) -> None:
     assert np.array_equal(moving_mask(flow, conf, out), mask)
     assert np.array_equal(moving_mask(flow, conf, ref, deviating=deviating_numba), mask)  # the mask's kernel
     assert_same_deviating(flow, np.asarray(ref.homography, np.float32))
+
+
+def assert_same_start(flow: np.ndarray, conf: np.ndarray, samples: int = SAMPLES) -> None:
+    """The compiled start equals the reference's bit for bit (the same selections and arithmetic), also with
+    few or no confident samples (robust.START_CONFIDENCE)."""
+    for c in (conf, np.where(conf > 0.7, conf, 0.0), np.minimum(conf, 0.4)):
+        frame = SampleFrame(sample_flow(flow, c, sample_step(flow.shape, samples)), flow.shape[:2])
+        ref, out = similarity_start(frame), similarity_start_numba(frame)
+        assert out.dtype == np.float64 and out.shape == (4,)
+        np.testing.assert_array_equal(out, ref)
+
+
+def assert_same_inliers(flow: np.ndarray, conf: np.ndarray, hp: np.ndarray) -> None:
+    """The compiled inlier samples equal the reference's bit for bit, with the default threshold and others,
+    also with the samples' flow placed on the threshold to the ulp."""
+    s = sample_flow(flow, conf, sample_step(flow.shape, SAMPLES))
+    pu, pv = apply_homography(hp, s.x, s.y)
+    angle = np.random.default_rng(0).uniform(0, 2 * np.pi, s.x.shape)
+    for t in (MaskThreshold(), MaskThreshold(abs_px=0.01, rel=0.0), MaskThreshold(abs_px=3.0, rel=1.5)):
+        limit = t.abs_px + t.rel * np.sqrt(pu * pu + pv * pv)
+        for samples in (s, *(replace(s, u=pu + f * limit * np.cos(angle), v=pv + f * limit * np.sin(angle))
+                             for f in (1.0 - 1e-15, 1.0, 1.0 + 1e-15))):
+            ref = sample_inliers(hp, samples, t)
+            assert ref.dtype == np.bool_ and ref.shape == s.x.shape
+            np.testing.assert_array_equal(sample_inliers_numba(hp, samples, t), ref)
 
 
 def assert_same_deviating(flow: np.ndarray, hm: np.ndarray, threshold: MaskThreshold | None = None) -> None:
@@ -124,6 +174,8 @@ def test_analysis_takes_the_backends_fits() -> None:
         assert a.fits.name == backend
         assert a.fits.model is (fit_model if backend == "numpy" else fit_model_numba)
         assert a.fits.deviating is (deviating_pixels if backend == "numpy" else deviating_numba)
+        assert a.fits.start is (similarity_start if backend == "numpy" else similarity_start_numba)
+        assert a.fits.inliers is (sample_inliers if backend == "numpy" else sample_inliers_numba)
 
 
 def test_warm_fits_compiles_the_kernels() -> None:
@@ -158,3 +210,27 @@ def test_deviating_pixels_bit_for_bit_at_the_edges() -> None:
     strided = rng.normal(0, 2, (60, 2 * predicted.shape[1], 2))[:, ::2]  # float64, not contiguous
     assert_same_deviating(strided, hm)
     assert_same_deviating(np.full_like(predicted, 1e30), hm)
+
+
+def test_start_bit_for_bit_in_the_medoids_edge_cases() -> None:
+    """The start's medoid where the reference's np.nan_to_num decides: a kept candidate without a kept
+    reference (its median NaN -> inf), candidates not kept (inf -> the largest float), ties (the first)."""
+    from flow_node.pipeline.robust import START_CANDIDATES, START_CONFIDENCE, medoid_spread
+
+    rng = np.random.default_rng(11)
+    flow = rng.normal(0.0, 2.0, ONES.shape + (2,)).astype(np.float32)
+    step = sample_step(flow.shape, SAMPLES)
+    o = step // 2
+    ny, nx = len(range(o, flow.shape[0], step)), len(range(o, flow.shape[1], step))
+    idx, ref = medoid_spread(ny * nx, START_CANDIDATES)
+    lonely = [int(i) for i in idx if i not in set(ref.tolist())]
+    assert lonely  # a candidate that is no reference
+    for kept in ([lonely[0]], [lonely[0], int(idx[0])], [int(i) for i in ref[:3]], [int(idx[2]), int(idx[5])]):
+        conf = np.zeros(ONES.shape, np.float32)
+        ys, xs = np.unravel_index(kept, (ny, nx))
+        conf[o + step * ys, o + step * xs] = START_CONFIDENCE
+        frame = SampleFrame(sample_flow(flow, conf, step), flow.shape[:2])
+        np.testing.assert_array_equal(similarity_start_numba(frame), similarity_start(frame))
+    same = np.zeros_like(flow) + np.float32(0.25)  # every distance 0: ties everywhere
+    frame = SampleFrame(sample_flow(same, ONES, step), flow.shape[:2])
+    np.testing.assert_array_equal(similarity_start_numba(frame), similarity_start(frame))

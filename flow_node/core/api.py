@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .backends import Backend, select_backend
+from .confidence import Shared
 from .config import FlowConfig
 from .engine import Judged, estimate_pair, solve_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
@@ -153,25 +154,27 @@ class FlowEstimator:
         with self._backend.running():
             warm_fusion(self._backend)
             self._backend.splat(np.zeros((2,) + shape, np.float32), np.zeros((4,) + shape, np.float32))  # stream
-        self.confidence(f0, f1, np.zeros(shape + (2,), np.float32))
-        self.confidence_at(f0, f1, np.zeros(shape + (2,), np.float32), np.zeros(1, np.int64), np.zeros(1, np.int64))
+        still = np.zeros(shape + (2,), np.float32)
+        self.confidence(f0, f1, still)
+        self.confidence_at(f0, f1, still, np.zeros(1, np.int64), np.zeros(1, np.int64))  # points alone
+        self.confidence_at(f0, f1, still, *np.mgrid[0:shape[0]:2, 0:shape[1]:2], shared={})  # dense: the map near them
         return time.perf_counter() - start
 
     def confidence(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray,
-                   where: np.ndarray | None = None) -> np.ndarray:
+                   where: np.ndarray | None = None, shared: Shared | None = None) -> np.ndarray:
         """The per-pixel confidence of ``flow`` (H, W, 2) px/frame between grey frames i0, i1 (H, W):
         (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`; with ``where`` (H, W) bool
-        its values there alone, 0 elsewhere), with this estimator's backend on its threads."""
+        its values there alone, 0 elsewhere; ``shared``: a dict kept for the pair's calls, in which the
+        backend keeps what they share, confidence.Shared), with this estimator's backend on its threads."""
         with self._backend.running():
-            return self._backend.confidence(i0, i1, flow) if where is None else \
-                self._backend.confidence(i0, i1, flow, where)
+            return self._backend.confidence(i0, i1, flow, where, shared=shared)
 
     def confidence_at(self, i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray,
-                      xs: np.ndarray) -> np.ndarray:
+                      xs: np.ndarray, shared: Shared | None = None) -> np.ndarray:
         """:meth:`confidence` at the pixels (ys, xs) only (integer arrays of one shape, inside the image):
         float32 of that shape (:func:`flow_node.core.confidence.confidence_at`), with this backend."""
         with self._backend.running():
-            return self._backend.confidence_at(i0, i1, flow, ys, xs)
+            return self._backend.confidence_at(i0, i1, flow, ys, xs, shared=shared)
 
     def estimate(self, frame0: np.ndarray, frame1: np.ndarray, initial_flow: np.ndarray | None = None,
                  channel_order: str = "rgb", mask: MaskInput = None) -> FlowResult:

@@ -18,17 +18,33 @@ from .fusion import box_mean, planes, warp_residual
 CONFIDENCE_WINDOW = 5
 CONFIDENCE_SCALE_PX = 1.0  # estimated endpoint error (px) at which the confidence is 1/2
 
-# confidence(i0, i1, flow[, where]) -> (H, W) float32 in [0, 1]: a backend's field (backends.Backend.confidence);
-# :func:`confidence` is the numpy reference, numba_confidence.confidence_numba the numba kernels; ``where``
-# (H, W) bool, optional: the map at those pixels, 0 elsewhere (a backend may then compute those alone)
+# confidence(i0, i1, flow[, where][, shared=]) -> (H, W) float32 in [0, 1]: a backend's field
+# (backends.Backend.confidence); :func:`confidence` is the numpy reference, numba_confidence.confidence_numba the
+# numba kernels; ``where`` (H, W) bool, optional: the map at those pixels, 0 elsewhere (a backend may then
+# compute those alone); ``shared`` (:data:`Shared`), optional: what calls on one pair have in common
 Confidence = Callable[..., np.ndarray]
-# confidence_at(i0, i1, flow, ys, xs) -> float32 of ys' shape: the same confidence at integer pixel points only
-# (what the derived motion outputs' fits read); :func:`confidence_at` is the reference, a backend's field
-# (backends.Backend.confidence_at) may compute the points alone (numba_confidence.confidence_at_numba)
-ConfidenceAt = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+# confidence_at(i0, i1, flow, ys, xs[, shared=]) -> float32 of ys' shape: the same confidence at integer pixel
+# points only (what the derived motion outputs' fits read); :func:`confidence_at` is the reference, a backend's
+# field (backends.Backend.confidence_at) may compute the points alone (numba_confidence.confidence_at_numba)
+ConfidenceAt = Callable[..., np.ndarray]
+# shared: a dict one caller keeps for one pair (the same frames and flow: FlowOutput keeps one) and passes to
+# each confidence call on it, in which the backend keeps what those calls have in common (the frames' planes:
+# the fits' points and then the mask's pixels need frame 1's whole planes each), under keys of its own
+Shared = dict[str, np.ndarray]
 
 
-def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+def kept(shared: Shared | None, key: str, make: Callable[[], np.ndarray]) -> np.ndarray:
+    """``shared[key]``, made by ``make()`` and kept there the first time; ``make()`` when ``shared`` is None.
+    ``make`` must return an array of its own (not a scratch buffer that a later call overwrites)."""
+    if shared is None:
+        return make()
+    if key not in shared:
+        shared[key] = make()
+    return shared[key]
+
+
+def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np.ndarray | None = None,
+               shared: Shared | None = None) -> np.ndarray:
     """Confidence of ``flow`` (H, W, 2) between frames i0, i1 (H, W): float32 (H, W) in [0, 1].
 
     The local data residual (:func:`warp_residual`, a CONFIDENCE_WINDOW box) divided by the local image
@@ -40,11 +56,12 @@ def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np.ndarr
 
     ``where`` (H, W) bool, optional: the values at those pixels, 0 elsewhere (the reference computes the
     whole map and clears the rest; numba_confidence.confidence_numba computes near ``where`` alone).
+    ``shared`` (:data:`Shared`), optional: the frames' planes are kept there for the pair's next call.
     """
     check_where(flow.shape[:2], where)
     f = np.moveaxis(flow, -1, 0)
-    s0 = planes(i0)  # I0 and its gradient: the residual's and the normalisation's
-    r, inside = warp_residual(i0, i1, f, (s0, planes(i1)))
+    s0 = kept(shared, "numpy.planes0", lambda: planes(i0))  # I0 and its gradient: the residual's, the normalisation's
+    r, inside = warp_residual(i0, i1, f, (s0, kept(shared, "numpy.planes1", lambda: planes(i1))))
     g = box_mean(np.abs(s0[..., 1]) + np.abs(s0[..., 2]), CONFIDENCE_WINDOW)
     err = box_mean(r, CONFIDENCE_WINDOW) / (g + 1e-3)
     conf = 1.0 / (1.0 + (err / CONFIDENCE_SCALE_PX) ** 2)
@@ -54,12 +71,13 @@ def confidence(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np.ndarr
     return conf.astype(np.float32, copy=False)
 
 
-def confidence_at(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+def confidence_at(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray, xs: np.ndarray,
+                  shared: Shared | None = None) -> np.ndarray:
     """:func:`confidence` at the pixels (ys, xs) (integer arrays of one shape, rows and columns inside the
     image): float32 of that shape. The reference: the whole map, read at the points (the oracle of
-    numba_confidence.confidence_at_numba, which computes the points alone)."""
+    numba_confidence.confidence_at_numba, which computes the points alone); ``shared`` as :func:`confidence`'s."""
     check_points(flow.shape[:2], ys, xs)
-    return confidence(i0, i1, flow)[ys, xs]
+    return confidence(i0, i1, flow, shared=shared)[ys, xs]
 
 
 def check_where(shape: tuple[int, ...], where: np.ndarray | None) -> None:

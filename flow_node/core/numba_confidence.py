@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import numba_backend as nb
-from .confidence import CONFIDENCE_SCALE_PX, CONFIDENCE_WINDOW, check_points, check_where
+from .confidence import CONFIDENCE_SCALE_PX, CONFIDENCE_WINDOW, Shared, check_points, check_where, kept
 from .workspace import scratch
 
 _F32 = np.float32
@@ -33,6 +33,7 @@ _EPS = _F32(1e-3)  # confidence.confidence: the gradient floor of the division
 # instead of every box summed from its own terms (measured: 972 points at 320x240 0.66 vs 0.70 ms, 1296
 # 0.71 vs 0.92 ms; 1064 at 640x480 1.74 vs 0.80 ms)
 AT_MAP_COVER = 0.25
+_NONE = np.zeros((0, 0), np.bool_)  # the kernels' "no mask": every pixel
 
 
 @njit(**_JIT)
@@ -173,32 +174,52 @@ def confidence_kernel(conf, boxed, flow, where, inv_scale):  # noqa: ANN001, ANN
         _confidence_row(conf, boxed, flow, where, inv_scale, i)
 
 
-def confidence_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+def confidence_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np.ndarray | None = None,
+                     shared: Shared | None = None) -> np.ndarray:
     """confidence.confidence with the kernels above: same arguments (frames (H, W), flow (H, W, 2), ``where``
-    (H, W) bool or None), same result up to float32 rounding; float32 (H, W) in [0, 1]. With ``where``
-    the residual terms are computed only within the box's reach of it (its CONFIDENCE_WINDOW dilation;
-    0 beyond, which no box of a ``where`` pixel reads, also where the border is reflected), the box filter
-    on the rows of that reach (:func:`_band`) and the ratio only at ``where``: what the moving mask needs,
-    about that share of the terms pass (the bulk of the cost)."""
+    (H, W) bool or None, ``shared``: frame 1's planes kept there for the pair's next call), same result up
+    to float32 rounding; float32 (H, W) in [0, 1]. With ``where`` the residual terms are computed only
+    within the box's reach of it (:func:`_box_means`) and the ratio only at ``where``: what the moving mask
+    needs, about that share of the terms pass (the bulk of the cost)."""
     flow = np.ascontiguousarray(flow, dtype=_F32)
     h, w = flow.shape[:2]
     check_where((h, w), where)
-    none = np.zeros((0, 0), np.bool_)
-    need = none if where is None else cv2.dilate(where.view(np.uint8), np.ones(
-        (CONFIDENCE_WINDOW, CONFIDENCE_WINDOW), np.uint8)).view(np.bool_)
-    # the temporaries are the calling thread's scratch (fresh ~1 MB arrays cost page faults every frame)
-    s1 = scratch("confidence_s1", (h, w, 3))  # frame 0's planes are computed where they are used
-    boxed = scratch("confidence_boxed", (h, w, 2))
     conf = np.empty((h, w), _F32)
     with nb.thread_count(nb.threads() if h * w >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
-        planes_kernel(s1, np.ascontiguousarray(i1, dtype=_F32))
-        terms_kernel(boxed, np.ascontiguousarray(i0, dtype=_F32), s1, flow, need)
-        band = boxed if where is None else boxed[_band(need)]  # where: the rows within the box's reach alone
-        if band.size:
-            cv2.boxFilter(band, -1, (CONFIDENCE_WINDOW, CONFIDENCE_WINDOW), dst=band, borderType=cv2.BORDER_REFLECT)
-        confidence_kernel(conf, boxed, flow, none if where is None else np.ascontiguousarray(where),
+        boxed = _box_means(i0, i1, flow, where, shared)
+        confidence_kernel(conf, boxed, flow, _NONE if where is None else np.ascontiguousarray(where),
                           _F32(1.0 / CONFIDENCE_SCALE_PX))
     return conf
+
+
+def _box_means(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np.ndarray | None,
+               shared: Shared | None) -> np.ndarray:
+    """The CONFIDENCE_WINDOW box means of the residual and of the gradient magnitude (h, w, 2) float32 (the
+    thread's scratch), right at least where ``where`` (H, W) bool is True (None: everywhere): the terms
+    (:func:`terms_kernel`) computed only within the box's reach of it (its CONFIDENCE_WINDOW dilation; 0
+    beyond, which no box of a ``where`` pixel reads, also where the border is reflected), the box filter on
+    the rows of that reach (:func:`_band`). Frame 1's planes from ``shared`` when a call on the pair has
+    computed them (else computed, and kept there); run under the caller's thread count."""
+    h, w = flow.shape[:2]
+    need = _NONE if where is None else cv2.dilate(where.view(np.uint8), np.ones(
+        (CONFIDENCE_WINDOW, CONFIDENCE_WINDOW), np.uint8)).view(np.bool_)
+    i1 = np.ascontiguousarray(i1, dtype=_F32)
+    # the temporaries are the calling thread's scratch (fresh ~1 MB arrays cost page faults every frame), but
+    # for planes kept in ``shared``, which a later call (on another pair) must not overwrite
+    s1 = _planes(i1, scratch("confidence_s1", (h, w, 3))) if shared is None else \
+        kept(shared, "numba.planes1", lambda: _planes(i1, np.empty((h, w, 3), _F32)))
+    boxed = scratch("confidence_boxed", (h, w, 2))  # frame 0's planes are computed where they are used
+    terms_kernel(boxed, np.ascontiguousarray(i0, dtype=_F32), s1, flow, need)
+    band = boxed if where is None else boxed[_band(need)]  # where: the rows within the box's reach alone
+    if band.size:
+        cv2.boxFilter(band, -1, (CONFIDENCE_WINDOW, CONFIDENCE_WINDOW), dst=band, borderType=cv2.BORDER_REFLECT)
+    return boxed
+
+
+def _planes(img: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """fusion.planes of ``img`` (h, w) float32 into ``out`` (h, w, 3) (:func:`planes_kernel`); ``out``."""
+    planes_kernel(out, img)
+    return out
 
 
 def _band(need: np.ndarray) -> slice:
@@ -229,22 +250,37 @@ def confidence_at_kernel(out, i0, i1, flow, ys, xs, inv_scale):  # noqa: ANN001,
         out[n] = c if _inside(flow, i, j, right, bottom) else _F32(0)
 
 
-def confidence_at_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray,
-                        xs: np.ndarray) -> np.ndarray:
+@njit(**_JIT)
+def ratio_at_kernel(out, boxed, flow, ys, xs, inv_scale):  # noqa: ANN001, ANN201
+    """:func:`_confidence_row`'s value at the points (ys[n], xs[n]) alone into ``out`` (n,): :func:`_ratio` of
+    the box means ``boxed`` (h, w, 2) there, 0 where x + f leaves the image."""
+    h, w = boxed.shape[:2]
+    right, bottom = _F32(w - 1), _F32(h - 1)
+    for n in range(ys.size):
+        i, j = ys[n], xs[n]
+        out[n] = _ratio(boxed[i, j, 0], boxed[i, j, 1], inv_scale) if _inside(flow, i, j, right, bottom) else _F32(0)
+
+
+def confidence_at_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np.ndarray, xs: np.ndarray,
+                        shared: Shared | None = None) -> np.ndarray:
     """confidence.confidence_at with :func:`confidence_at_kernel`: the confidence at the pixels (ys, xs)
     (integer arrays of one shape, inside the image) alone, ~25 x 5 plane evaluations per point instead of
-    whole-image passes, or, for points dense enough (AT_MAP_COVER), the map near them; float32 of ys' shape,
-    the full map's values up to float32 rounding."""
+    whole-image passes, or, for points dense enough (AT_MAP_COVER), the box means near them
+    (:func:`_box_means`, frame 1's planes kept in ``shared``) and the ratio at the points alone (the values
+    of confidence_numba with ``where`` the points, bit for bit); float32 of ys' shape, the full map's values
+    up to float32 rounding."""
     flow = np.ascontiguousarray(flow, dtype=_F32)
     h, w = flow.shape[:2]
     check_points((h, w), ys, xs)
     yi, xi = (np.ascontiguousarray(np.ravel(a), dtype=np.int64) for a in (ys, xs))
     work = yi.size * CONFIDENCE_WINDOW * CONFIDENCE_WINDOW
+    out = np.empty(yi.size, _F32)
     if work >= AT_MAP_COVER * h * w:  # dense points: the map near them
         where = np.zeros((h, w), np.bool_)
         where[yi, xi] = True
-        return confidence_numba(i0, i1, flow, where)[yi, xi].reshape(np.shape(ys))
-    out = np.empty(yi.size, _F32)
+        with nb.thread_count(nb.threads() if h * w >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
+            ratio_at_kernel(out, _box_means(i0, i1, flow, where, shared), flow, yi, xi, _F32(1.0 / CONFIDENCE_SCALE_PX))
+        return out.reshape(np.shape(ys))
     with nb.thread_count(nb.threads() if work >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
         confidence_at_kernel(out, np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32),
                              flow, yi, xi, _F32(1.0 / CONFIDENCE_SCALE_PX))

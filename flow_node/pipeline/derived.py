@@ -41,13 +41,17 @@ from .motion import (
     Deviating,
     DominantMotion,
     Hysteresis,
+    Inliers,
     MaskThreshold,
     ModelFit,
+    SimilarityStart,
     deviating_pixels,
     dominant_motion,
     fit_model,
     moving_fraction,
     moving_mask,
+    sample_inliers,
+    similarity_start,
 )
 from .robust import SAMPLES, Weights, check_flow, check_flow_shape
 from .stream import FlowOutput
@@ -81,17 +85,21 @@ class MotionSettings:
 
 class Fits(NamedTuple):
     """Who runs the IRLS fits: the dominant motion's (:data:`~flow_node.pipeline.motion.ModelFit`) and the
-    time to contact's (:data:`~flow_node.pipeline.expansion.RegionFit`), and the moving mask's deviating
-    pixels (:data:`~flow_node.pipeline.motion.Deviating`); the same results either way (test_fits_numba.py;
-    the mask bit for bit)."""
+    time to contact's (:data:`~flow_node.pipeline.expansion.RegionFit`), the moving mask's deviating
+    pixels (:data:`~flow_node.pipeline.motion.Deviating`), the dominant motion's robust start
+    (:data:`~flow_node.pipeline.motion.SimilarityStart`) and its inlier samples
+    (:data:`~flow_node.pipeline.motion.Inliers`); the same results either way (test_fits_numba.py; the
+    start, the inliers and the mask bit for bit)."""
 
     name: str
     model: ModelFit
     regions: RegionFit
     deviating: Deviating
+    start: SimilarityStart
+    inliers: Inliers
 
 
-NUMPY_FITS = Fits("numpy", fit_model, region_fits, deviating_pixels)
+NUMPY_FITS = Fits("numpy", fit_model, region_fits, deviating_pixels, similarity_start, sample_inliers)
 
 
 def fits_for(backend: str) -> Fits:
@@ -99,9 +107,16 @@ def fits_for(backend: str) -> Fits:
     ``numba``, else the numpy reference."""
     if backend != "numba":
         return NUMPY_FITS
-    from .numba_fits import deviating_numba, fit_model_numba, region_fits_numba  # numba only with its backend
+    from .numba_fits import (  # numba only with its backend
+        deviating_numba,
+        fit_model_numba,
+        region_fits_numba,
+        sample_inliers_numba,
+        similarity_start_numba,
+    )
 
-    return Fits("numba", fit_model_numba, region_fits_numba, deviating_numba)
+    return Fits("numba", fit_model_numba, region_fits_numba, deviating_numba, similarity_start_numba,
+                sample_inliers_numba)
 
 
 def warm_fits(fits: Fits, shape: tuple[int, int] = (48, 64)) -> float:
@@ -187,7 +202,8 @@ class MotionAnalysis:
     @cached_property
     def dominant(self) -> DominantMotion | None:
         """:func:`~flow_node.pipeline.motion.dominant_motion` (None without confident flow)."""
-        return dominant_motion(self.flow, self.weights, self.settings.mask, self.settings.samples, self.fits.model)
+        return dominant_motion(self.flow, self.weights, self.settings.mask, self.settings.samples, self.fits.model,
+                               self.fits.start, self.fits.inliers)
 
     @cached_property
     def divergence(self) -> np.ndarray:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -163,28 +164,43 @@ class SampleFrame:
         jac[6:8] = basis[:2, None, :] * g  # (2, 2, n)
         return jac.reshape(8, -1), self.target - p.reshape(-1)
 
-    def similarity_start(self) -> np.ndarray:
-        """A robust start (tx, ty, a, b) for :meth:`similarity`: a and b from the median slopes of the
-        confident samples (du/dx and dv/dy both estimate a, dv/dx and -du/dy both b), the translation the
-        :func:`~flow_node.pipeline.robust.medoid_offset` of what they leave; zeros where nothing is
-        confident enough."""
-        s = self.s
-        keep = s.w >= START_CONFIDENCE
-        (dudx, dvdx), (dudy, dvdy) = median_slopes(np.stack([s.u, s.v]), s.x, s.y, keep)  # u and v at once
-        a, b = (0.0 if math.isnan(v) else float(v) for v in ((dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0))
-        X, Y = self.X * self.half, self.Y * self.half
-        rest = np.stack([s.u.ravel() - a * X + b * Y, s.v.ravel() - b * X - a * Y], axis=-1)
-        tx, ty = medoid_offset(rest, keep.ravel())
-        return np.array([tx / self.half, ty / self.half, a, b])
-
     def to_pixels(self, h: np.ndarray) -> np.ndarray:
         """The normalised homography h (8,) as a 3x3 on pixels, h33 = 1: T^-1 H T with T: px -> normalised."""
         hn = np.append(h, 1.0).reshape(3, 3)
-        t = np.array([[1 / self.half, 0.0, -self.cx / self.half], [0.0, 1 / self.half, -self.cy / self.half],
-                      [0.0, 0.0, 1.0]])
-        hp = np.linalg.inv(t) @ hn @ t
+        t, t_inv = normalising(self.cx, self.cy, self.half)
+        hp = t_inv @ hn @ t
         return hp / hp[2, 2]
 
+
+@lru_cache(maxsize=32)
+def normalising(cx: float, cy: float, half: float) -> tuple[np.ndarray, np.ndarray]:
+    """:class:`SampleFrame`'s T (3x3: px -> normalised, about (cx, cy) by ``half``) and its inverse (LAPACK's, as
+    np.linalg.inv gives it; read-only, computed once per image size: ~0.08 ms a call right after a solve)."""
+    t = np.array([[1 / half, 0.0, -cx / half], [0.0, 1 / half, -cy / half], [0.0, 0.0, 1.0]])
+    t_inv = np.linalg.inv(t)
+    t.flags.writeable = t_inv.flags.writeable = False
+    return t, t_inv
+
+
+def similarity_start(frame: SampleFrame) -> np.ndarray:
+    """A robust start (tx, ty, a, b) for :meth:`SampleFrame.similarity` (normalised): a and b from the median
+    slopes of the confident samples (du/dx and dv/dy both estimate a, dv/dx and -du/dy both b), the
+    translation the :func:`~flow_node.pipeline.robust.medoid_offset` of what they leave; zeros where nothing
+    is confident enough. The reference :data:`SimilarityStart` (numba_fits.similarity_start_numba: the same
+    values in one compiled call)."""
+    s = frame.s
+    keep = s.w >= START_CONFIDENCE
+    (dudx, dvdx), (dudy, dvdy) = median_slopes(np.stack([s.u, s.v]), s.x, s.y, keep)  # u and v at once
+    a, b = (0.0 if math.isnan(v) else float(v) for v in ((dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0))
+    X, Y = frame.X * frame.half, frame.Y * frame.half
+    rest = np.stack([s.u.ravel() - a * X + b * Y, s.v.ravel() - b * X - a * Y], axis=-1)
+    tx, ty = medoid_offset(rest, keep.ravel())
+    return np.array([tx / frame.half, ty / frame.half, a, b])
+
+
+# start(frame) -> (tx, ty, a, b): the similarity's robust start, :func:`similarity_start` (the numpy reference)
+# or numba_fits.similarity_start_numba (compiled); derived.Fits chooses
+SimilarityStart = Callable[[SampleFrame], np.ndarray]
 
 # fit(model, frame, start, confidence, huber_iterations) -> RobustFit | None: the IRLS fit of one of
 # SampleFrame's models ("similarity", "homography") from ``start`` with confidence (n,) (fit_robust's semantics,
@@ -201,19 +217,34 @@ def fit_model(model: str, frame: SampleFrame, start: np.ndarray, confidence: np.
     return fit_robust(getattr(frame, model), start, confidence, huber_iterations=huber_iterations)
 
 
+def sample_inliers(hp: np.ndarray, s: Samples, threshold: MaskThreshold) -> np.ndarray:
+    """Bool (ny, nx): the samples ``s`` whose flow homography ``hp`` (3x3 on pixels, float64) explains within
+    ``threshold`` (:meth:`MaskThreshold.deviates` false). The reference :data:`Inliers`."""
+    pu, pv = apply_homography(hp, s.x, s.y)
+    return ~threshold.deviates(s.u - pu, s.v - pv, pu, pv)
+
+
+# inliers(hp, samples, threshold) -> bool (ny, nx): :func:`sample_inliers` (the numpy reference) or
+# numba_fits.sample_inliers_numba (one compiled pass, the same bits); derived.Fits chooses
+Inliers = Callable[[np.ndarray, Samples, MaskThreshold], np.ndarray]
+
+
 def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThreshold | None = None,
-                    samples: int = SAMPLES, fit: ModelFit = fit_model) -> DominantMotion | None:
+                    samples: int = SAMPLES, fit: ModelFit = fit_model, start: SimilarityStart = similarity_start,
+                    inliers: Inliers = sample_inliers) -> DominantMotion | None:
     """The dominant motion of ``flow`` (H, W, 2) px/frame weighted by ``confidence`` (H, W) in [0, 1].
 
     On a regular grid of ~``samples`` points (so the cost hardly depends on the image size): a similarity
-    from a robust start (median slopes, :meth:`SampleFrame.similarity_start`) refined by IRLS (one Huber step,
+    from a robust start (median slopes, ``start``: :data:`SimilarityStart`) refined by IRLS (one Huber step,
     then Tukey's biweight; confidence times the robust weight), then from it a homography by Gauss-Newton
     IRLS (biweight) on the endpoint error in px; where that fails, the similarity stands in for it. The
     similarity gives tx, ty, rotation and scale; the homography the inlier share (within ``threshold``,
     default :class:`MaskThreshold`) and what :func:`moving_mask` compares against. None when fewer than 8
     samples have confidence > 0 or the similarity has no support. ``confidence`` may be given as its values
     at the samples (:data:`~flow_node.pipeline.robust.Weights`). ``fit`` runs the IRLS fits (:data:`ModelFit`:
-    the numpy reference, or numba_fits.fit_model_numba).
+    the numpy reference, or numba_fits.fit_model_numba), ``start`` their start (the reference
+    :func:`similarity_start` or numba_fits.similarity_start_numba), ``inliers`` the samples within the
+    threshold (:func:`sample_inliers` or numba_fits.sample_inliers_numba).
     """
     check_weights(flow, confidence)
     threshold = threshold if threshold is not None else MaskThreshold()
@@ -223,7 +254,7 @@ def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThresh
     if support < 8:
         return None
     frame = SampleFrame(s, flow.shape[:2])
-    sim = fit("similarity", frame, frame.similarity_start(), w, HUBER_ITERATIONS)
+    sim = fit("similarity", frame, start(frame), w, HUBER_ITERATIONS)
     if sim is None:
         return None
     tx, ty, a, b = sim.params
@@ -232,9 +263,7 @@ def dominant_motion(flow: np.ndarray, confidence: Weights, threshold: MaskThresh
     if hom is None or not np.all(np.isfinite(hom.params)):
         hom = sim  # the similarity stands in (its residual scale with it)
     hp = frame.to_pixels(hom.params if hom is not sim else start)
-    pu, pv = apply_homography(hp, s.x, s.y)
-    inlier = ~threshold.deviates(s.u - pu, s.v - pv, pu, pv)
-    share = float(np.sum(s.w * inlier) / np.sum(s.w))
+    share = float(np.sum(s.w * inliers(hp, s, threshold)) / np.sum(s.w))
     return DominantMotion(float(tx * frame.half), float(ty * frame.half), math.degrees(math.atan2(b, 1 + a)),
                           math.hypot(1 + a, b), tuple(tuple(float(v) for v in row) for row in hp), share,
                           hom.scale, support, (frame.cx, frame.cy))

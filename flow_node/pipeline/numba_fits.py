@@ -25,32 +25,46 @@ import math
 import numpy as np
 from numba import njit
 
-from .motion import SampleFrame
+from .motion import MaskThreshold, SampleFrame
 from .robust import (
     CONVERGED_PX,
     HUBER_ITERATIONS,
     HUBER_K,
     MIN_SCALE_PX,
+    START_CANDIDATES,
+    START_CONFIDENCE,
     START_QUANTILE,
     TUKEY_C,
     TUKEY_ITERATIONS,
     RobustFit,
+    Samples,
+    medoid_spread,
+    slope_span,
 )
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")  # no fastmath: the reference's arithmetic, in order
 MODEL_CODES = {"similarity": 0, "homography": 1}  # SampleFrame's models -> the kernel's flag
+_MAX_FLOAT = float(np.finfo(np.float64).max)  # what np.nan_to_num makes of inf
 _SCALE_FACTOR = tuple(1.4826 * math.sqrt(math.log(2.0) / -math.log(1.0 - q)) for q in (0.5, START_QUANTILE))
 
 
 @njit(**_JIT)
-def _scale(residual, keep, q, factor):  # noqa: ANN001, ANN202
-    """robust.robust_scale of residual (n,) over keep (n,) bool: factor x the lower ``q`` quantile (rank
-    floor((k - 1) q) of the k kept), at least MIN_SCALE_PX (also when nothing is kept)."""
-    kept = residual[keep]
+def _quantile(values, keep, q):  # noqa: ANN001, ANN202
+    """robust.masked_quantile of values (n,) over keep (n,) bool: the lower ``q`` quantile, the entry of rank
+    floor((k - 1) q) of the k kept (a selection: the reference's value exactly); NaN when none is kept."""
+    kept = values[keep]
     if kept.size == 0:
-        return MIN_SCALE_PX
+        return np.nan
     k = int((kept.size - 1) * q)
-    return max(MIN_SCALE_PX, factor * np.partition(kept, k)[k])
+    return np.partition(kept, k)[k]
+
+
+@njit(**_JIT)
+def _scale(residual, keep, q, factor):  # noqa: ANN001, ANN202
+    """robust.robust_scale of residual (n,) over keep (n,) bool: factor x the lower ``q`` quantile
+    (:func:`_quantile`), at least MIN_SCALE_PX (also when nothing is kept)."""
+    kept = _quantile(residual, keep, q)
+    return MIN_SCALE_PX if np.isnan(kept) else max(MIN_SCALE_PX, factor * kept)
 
 
 @njit(**_JIT)
@@ -199,6 +213,82 @@ def fit_model_numba(model: str, frame: SampleFrame, start: np.ndarray, confidenc
 
 
 @njit(**_JIT)
+def _median_slopes(u, v, x, y, keep, d, along_x):  # noqa: ANN001, ANN202
+    """robust.median_slopes of the grids u and v (ny, nx) along x (``along_x``) or y, pairs ``d`` apart:
+    (d u / d coord, d v / d coord), the medians (:func:`_quantile`) of the kept pairs' slopes; NaN without."""
+    ny, nx = u.shape
+    m = ny * (nx - d) if along_x else (ny - d) * nx
+    su, sv, both = np.empty(m), np.empty(m), np.empty(m, np.bool_)
+    k = 0
+    for i in range(ny - (0 if along_x else d)):
+        for j in range(nx - (d if along_x else 0)):
+            i2, j2 = (i, j + d) if along_x else (i + d, j)
+            dc = x[i2, j2] - x[i, j] if along_x else y[i2, j2] - y[i, j]
+            both[k] = keep[i, j] and keep[i2, j2] and dc != 0.0
+            div = dc if dc != 0.0 else 1.0
+            su[k], sv[k] = (u[i2, j2] - u[i, j]) / div, (v[i2, j2] - v[i, j]) / div
+            k += 1
+    return _quantile(su, both, 0.5), _quantile(sv, both, 0.5)
+
+
+@njit(**_JIT)
+def _medoid(ru, rv, keep, idx, ref):  # noqa: ANN001, ANN202
+    """robust.medoid_offset of the vectors (ru, rv) (m,) over keep (m,) bool with its candidates ``idx`` and
+    references ``ref`` (robust.medoid_spread): the candidate of least median squared distance to the kept
+    references, the reference's ties and edge cases alike (its np.nan_to_num: a candidate not kept scores
+    the largest float, one without kept references inf; the first least); (0, 0) when nothing is kept."""
+    if not np.any(keep):
+        return 0.0, 0.0
+    d, kept = np.empty(ref.size), np.empty(ref.size, np.bool_)
+    best, best_score = 0, np.inf
+    for a in range(idx.size):
+        c = idx[a]
+        if keep[c]:
+            for b in range(ref.size):
+                dx, dy = ru[ref[b]] - ru[c], rv[ref[b]] - rv[c]
+                d[b], kept[b] = dx * dx + dy * dy, keep[ref[b]]
+            score = _quantile(d, kept, 0.5)
+            score = np.inf if np.isnan(score) else (_MAX_FLOAT if score == np.inf else score)
+        else:
+            score = _MAX_FLOAT
+        if a == 0 or score < best_score:
+            best, best_score = a, score
+    return ru[idx[best]], rv[idx[best]]
+
+
+@njit(**_JIT)
+def _start(u, v, x, y, w, X, Y, half, dx, dy, idx, ref):  # noqa: ANN001, ANN202
+    """motion.similarity_start: (tx, ty, a, b) normalised from the samples' grids u, v, x, y, w (ny, nx)
+    and their normalised coordinates X, Y (ny nx,); ``dx``, ``dy`` the slopes' pair distances along x and y."""
+    keep = w >= START_CONFIDENCE
+    dudx, dvdx = _median_slopes(u, v, x, y, keep, dx, True)
+    dudy, dvdy = _median_slopes(u, v, x, y, keep, dy, False)
+    a, b = (dudx + dvdy) / 2.0, (dvdx - dudy) / 2.0
+    a, b = 0.0 if np.isnan(a) else a, 0.0 if np.isnan(b) else b
+    n = X.size
+    ru, rv = np.empty(n), np.empty(n)
+    uf, vf, kf = u.ravel(), v.ravel(), keep.ravel()
+    for i in range(n):
+        xh, yh = X[i] * half, Y[i] * half
+        ru[i] = uf[i] - a * xh + b * yh
+        rv[i] = vf[i] - b * xh - a * yh
+    tx, ty = _medoid(ru, rv, kf, idx, ref)
+    out = np.empty(4)
+    out[0], out[1], out[2], out[3] = tx / half, ty / half, a, b
+    return out
+
+
+def similarity_start_numba(frame: SampleFrame) -> np.ndarray:
+    """:func:`flow_node.pipeline.motion.similarity_start` in one compiled call (the same argument and result:
+    (tx, ty, a, b) normalised, the reference's values exactly: the same selections and arithmetic)."""
+    s = frame.s
+    ny, nx = s.u.shape
+    idx, ref = medoid_spread(ny * nx, START_CANDIDATES)
+    grids = (np.ascontiguousarray(g, np.float64) for g in (s.u, s.v, s.x, s.y, s.w))
+    return _start(*grids, frame.X, frame.Y, float(frame.half), slope_span(nx), slope_span(ny), idx, ref)
+
+
+@njit(**_JIT)
 def _regions(X, Y, uv, conf, start, huber_iterations, tukey_iterations):  # noqa: ANN001, ANN202
     """expansion.region_fits: (coef (R, 3, 2), ok (R,))."""
     count, m = X.shape
@@ -281,6 +371,30 @@ def deviating_numba(flow: np.ndarray, hm: np.ndarray, abs_px: np.float32, rel: n
     return out.reshape(h, w)
 
 
+@njit(**_JIT)
+def _inliers(out, hp, x, y, u, v, abs_px, rel):  # noqa: ANN001, ANN202
+    """motion.sample_inliers into ``out`` (n,) bool of the samples x, y, u, v (n,): apply_homography and
+    MaskThreshold.deviates per sample, each float64 step in the reference's order (the same bits)."""
+    for i in range(out.size):
+        den = hp[2, 0] * x[i] + hp[2, 1] * y[i] + hp[2, 2]
+        pu = (hp[0, 0] * x[i] + hp[0, 1] * y[i] + hp[0, 2]) / den - x[i]
+        pv = (hp[1, 0] * x[i] + hp[1, 1] * y[i] + hp[1, 2]) / den - y[i]
+        du, dv = u[i] - pu, v[i] - pv
+        limit = abs_px + rel * np.sqrt(pu * pu + pv * pv)
+        out[i] = not (du * du + dv * dv > limit * limit)
+
+
+def sample_inliers_numba(hp: np.ndarray, s: Samples, threshold: MaskThreshold) -> np.ndarray:
+    """:func:`flow_node.pipeline.motion.sample_inliers` in one compiled pass (the same arguments, the same
+    bool (ny, nx))."""
+    out = np.empty(s.x.shape, np.bool_)
+    flat = (np.ascontiguousarray(a, np.float64).reshape(-1) for a in (s.x, s.y, s.u, s.v))
+    _inliers(out.reshape(-1), np.ascontiguousarray(hp, np.float64), *flat, float(threshold.abs_px),
+             float(threshold.rel))
+    return out
+
+
 def compiled() -> bool:
     """Whether the kernels are compiled (or loaded from numba's cache) in this process (derived.warm_fits)."""
-    return bool(_irls.signatures and _regions.signatures and _deviating.signatures)
+    return bool(_irls.signatures and _regions.signatures and _deviating.signatures and _start.signatures
+                and _inliers.signatures)

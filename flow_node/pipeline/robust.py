@@ -83,16 +83,26 @@ class Samples:
     w: np.ndarray
 
 
+@lru_cache(maxsize=32)
+def _grid(h: int, w: int, step: int) -> tuple[np.ndarray, ...]:
+    """:func:`sample_flow`'s points of an (h, w) image: rows yi, columns xi (int) and the same as float64
+    (read-only; computed once per size and step, the same for every frame)."""
+    o = step // 2
+    yi, xi = np.mgrid[o:h:step, o:w:step]
+    out = (yi, xi, xi.astype(np.float64), yi.astype(np.float64))
+    for a in out:
+        a.flags.writeable = False
+    return out
+
+
 def sample_flow(flow: np.ndarray, confidence: Weights, step: int) -> Samples:
     """Every ``step``-th pixel in both directions (offset step // 2, so the grid is centred), of flow (H, W, 2)
     px/frame and confidence (H, W) in [0, 1] (or its values at the points: :data:`Weights`)."""
     check_weights(flow, confidence)
-    h, w = flow.shape[:2]
     o = step // 2
-    yi, xi = np.mgrid[o:h:step, o:w:step]
+    yi, xi, x, y = (a.copy() for a in _grid(*flow.shape[:2], step))  # copies: the caller's to keep
     sub = flow[o::step, o::step].astype(np.float64)
-    return Samples(xi.astype(np.float64), yi.astype(np.float64), sub[..., 0], sub[..., 1],
-                   weights_at(confidence, yi, xi))
+    return Samples(x, y, sub[..., 0], sub[..., 1], weights_at(confidence, yi, xi))
 
 
 def masked_quantile(values: np.ndarray, keep: np.ndarray, q: float = 0.5) -> np.ndarray:
@@ -147,6 +157,11 @@ def _ends(a: np.ndarray, axis: int, d: int) -> tuple[np.ndarray, np.ndarray]:
     return a[tuple(lo)], a[tuple(hi)]
 
 
+def slope_span(n: int) -> int:
+    """:func:`median_slopes`' pair distance on a grid axis of ``n`` samples: SLOPE_SPAN of it, at least 1."""
+    return max(1, int(round(SLOPE_SPAN * n)))
+
+
 def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Robust d(field)/dx and d(field)/dy of fields sampled on regular grids, arrays (..., ny, nx): the
     median, over every pair of samples SLOPE_SPAN of the grid apart along x (along y) whose both samples
@@ -156,8 +171,7 @@ def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndar
     ``field``'s shape. Shapes ``field.shape[:-2]``; NaN without pairs."""
     out = []
     for axis, coord in ((-1, x), (-2, y)):
-        n = field.shape[axis]
-        d = max(1, int(round(SLOPE_SPAN * n)))
+        d = slope_span(field.shape[axis])
         df, dc = (second - first for first, second in (_ends(a, axis, d) for a in (field, coord)))
         first, second = _ends(keep, axis, d)
         both = np.broadcast_to(first & second & (dc != 0), df.shape)  # coordinates and keep may be shared
@@ -168,7 +182,7 @@ def median_slopes(field: np.ndarray, x: np.ndarray, y: np.ndarray, keep: np.ndar
 
 
 @lru_cache(maxsize=32)
-def _spread(m: int, candidates: int) -> tuple[np.ndarray, np.ndarray]:
+def medoid_spread(m: int, candidates: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`medoid_offset`'s candidates and references: ~``candidates`` and ~4 x ``candidates`` indices
     spread evenly over m samples (the same for every frame of a size: computed once)."""
     idx, ref = (np.unique(np.rint(np.linspace(0, m - 1, min(m, c))).astype(np.int64))
@@ -183,7 +197,7 @@ def medoid_offset(rest: np.ndarray, keep: np.ndarray, candidates: int = START_CA
     ~4 x ``candidates`` of them spread over the m) is the least (least median of squares over candidates).
     Unlike the per-component median it is one sample of one group, also when two groups are almost
     equally large. Shape (..., 2); 0 where nothing is kept."""
-    idx, ref = _spread(rest.shape[-2], candidates)
+    idx, ref = medoid_spread(rest.shape[-2], candidates)
     cand, other = rest[..., idx, :], rest[..., ref, :]  # (..., c, 2), (..., r, 2)
     dx, dy = other[..., None, :, 0] - cand[..., :, None, 0], other[..., None, :, 1] - cand[..., :, None, 1]
     d = dx * dx + dy * dy  # squared: the median by rank and the least of them are the distances' (no root)

@@ -39,7 +39,7 @@ import cv2
 import numpy as np
 
 from ..core.api import FlowEstimator, to_grey, to_planes
-from ..core.confidence import Confidence, ConfidenceAt, confidence, confidence_at
+from ..core.confidence import Confidence, ConfidenceAt, Shared, confidence, confidence_at
 from ..core.config import FlowConfig
 from ..core.errors import ConfigError, InputError
 from ..core.flowio import flow_to_color
@@ -143,6 +143,7 @@ class FlowOutput:
     frame_flow: np.ndarray | None = field(default=None, repr=False)  # px/frame when ``flow`` is not (units)
     confidence_of: Confidence = field(default=confidence, repr=False)
     confidence_at_of: ConfidenceAt = field(default=confidence_at, repr=False)  # the same at points only
+    _shared: Shared = field(default_factory=dict, repr=False)  # what the pair's confidence calls share (planes)
     _confidence: np.ndarray | None = field(default=None, repr=False)
     _magnitude: np.ndarray | None = field(default=None, repr=False)
     _color: np.ndarray | None = field(default=None, repr=False)
@@ -165,8 +166,9 @@ class FlowOutput:
     def confidence(self) -> np.ndarray:
         """Per-pixel confidence of the flow, (H, W) float32 in [0, 1] (:func:`flow_node.core.confidence.confidence`:
         low where the data residual says the flow is wrong or the pixel occluded; ``confidence_of``), cached."""
-        if self._confidence is None:
-            self._confidence = self.confidence_of(*self._judged())
+        if self._confidence is None:  # with the planes kept by the pair's earlier calls, if any (then let go)
+            self._confidence = self.confidence_of(*self._judged(), shared=self._shared or None)
+            self._shared.clear()
         return self._confidence
 
     def _judged(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -180,12 +182,13 @@ class FlowOutput:
         is computed already, else computed at the points alone (``confidence_at_of``; not cached)."""
         if self._confidence is not None:
             return self._confidence[ys, xs]
-        return self.confidence_at_of(*self._judged(), ys, xs)
+        return self.confidence_at_of(*self._judged(), ys, xs, shared=self._shared)
 
     def confidence_in(self, where: np.ndarray) -> np.ndarray:
         """:meth:`confidence`, right at least where ``where`` (H, W) bool is True: the map when it is computed
         already, else computed there alone (``confidence_of`` with ``where``: 0 elsewhere; not cached)."""
-        return self._confidence if self._confidence is not None else self.confidence_of(*self._judged(), where)
+        return self._confidence if self._confidence is not None else \
+            self.confidence_of(*self._judged(), where, shared=self._shared)
 
     def color(self) -> np.ndarray:
         """Middlebury colour coding, (H, W, 3) uint8 in B, G, R order (bgr8), cached."""
