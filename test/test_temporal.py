@@ -127,3 +127,19 @@ def test_an_exposure_step_is_solved_in_full() -> None:
     res = est.estimate_next(seq[1], stepped, Prior(prev.state, prev.unexplained))
     assert res.stats.stream == FULL + ": exposure step"
     assert est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained)).stats.stream == PREDICTED
+
+
+def test_the_finest_level_takes_its_own_stream_schedule() -> None:
+    """stream_finest_warps / stream_finest_iterations set the finest solved level's warps and iterations of a
+    predicted pair (0: stream_warps / stream_iterations, as on the coarser stream levels)."""
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba", stream_warps=3, stream_iterations=10,
+                                                   stream_finest_warps=2, stream_finest_iterations=7)
+    seq = frames(pan(3), 3)
+    est = FlowEstimator(cfg)
+    prev = est.estimate_next(seq[0], seq[1], None)
+    res = est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained))
+    assert res.stats.stream == PREDICTED
+    assert res.stats.iterations[cfg.finest_level:] == [2 * 7, 3 * 10]
+    est.config = cfg.replace(stream_finest_warps=0, stream_finest_iterations=0)
+    res = est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained))
+    assert res.stats.iterations[cfg.finest_level:] == [3 * 10, 3 * 10]

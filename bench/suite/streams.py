@@ -14,11 +14,17 @@ timed on ``FlowStream.process(frame)`` (one frame's conversion, the solve and it
 pair with ground truth (not the pair across a scene cut), its mean over the pairs, per kind, and the AEE on
 the pairs right after a cut or exposure step over that of the stream's own preset solving single pairs
 (``event_ratio``; the stream presets' base: STREAM_BASE).
+
+The process keeps freed memory as the node's and ``flow_bag``'s ``main()`` do
+(flow_node.process.keep_freed_memory; ``--malloc-defaults`` runs with glibc's defaults instead, as runs before
+issue 26's third round did). The 1-minute load average is recorded before each sequence and at the end
+(``load`` in the JSON, its range in the table): time ratios on a shared machine move with it.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -32,6 +38,7 @@ from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 from flow_node.core.metrics import aee
 from flow_node.pipeline.stream import FlowStream, StreamSettings
+from flow_node.process import keep_freed_memory
 
 from ..common import REPO, machine, write_json
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST
@@ -175,15 +182,17 @@ def run(methods: Mapping[str, FlowConfig], split: str, size: tuple[int, int], ki
     runners = build(methods)
     per_seq: dict[str, Any] = {}
     seqs = []
+    load = []
     started = time.time()
     for seq in sequences(split, size, kinds, frames) if source is None else source:
         seqs.append(seq)
+        load.append(os.getloadavg()[0])
         per_seq[seq.name] = run_sequence(seq, runners)
         log(f"  {seq.name}: " + ", ".join(f"{n} {_mean(r['aee']):.3f}/{1000 * np.mean(r['seconds']):.1f}ms"
                                           for n, r in per_seq[seq.name].items()))
     return {"split": split, "size": list(size), "frames": frames, "machine": machine(),
             "methods_config": {n: c.to_dict() for n, c in methods.items()}, "methods": summarise(per_seq, seqs),
-            "per_sequence": per_seq, "wall_seconds": time.time() - started}
+            "per_sequence": per_seq, "wall_seconds": time.time() - started, "load": load + [os.getloadavg()[0]]}
 
 
 def markdown(res: dict[str, Any], command: str) -> str:
@@ -204,6 +213,9 @@ def markdown(res: dict[str, Any], command: str) -> str:
               "|---|" + "---|" * len(kinds)]
     for n, m in res["methods"].items():
         lines.append(f"| {n} | " + " | ".join(f"{m['per_kind'][k]['aee']:.3f}" for k in kinds) + " |")
+    if res.get("load"):
+        lines += ["", f"Load (1-min average, before each sequence and at the end): {min(res['load']):.1f}-"
+                      f"{max(res['load']):.1f}" + ("; glibc's malloc defaults" if res.get("malloc_defaults") else "")]
     return "\n".join(lines) + "\n"
 
 
@@ -226,7 +238,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--method", action="append", default=[], metavar="NAME=PRESET[,key=value...]",
                     help=f"replaces the default methods ({', '.join(DEFAULT_METHODS)})")
     ap.add_argument("--out", type=Path, default=None, help="directory for <split>_<size>.{json,md}")
+    ap.add_argument("--malloc-defaults", action="store_true", help="glibc's malloc defaults (not the node's "
+                    "keep_freed_memory): fresh pages for every large per-frame array")
     args = ap.parse_args(argv)
+    if not args.malloc_defaults:
+        keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
     w, h = (int(x) for x in args.size.split("x"))
     methods = dict(parse_method(m) for m in args.method) or {
         n: FlowConfig.preset(p).replace(**kw) for n, (p, kw) in DEFAULT_METHODS.items()}
@@ -238,6 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         res = run(methods, args.split, (w, h), tuple(args.kinds.split(",")), args.frames)
     command = "python -m bench.suite.streams " + " ".join(argv if argv is not None else sys.argv[1:])
     res["command"] = command
+    res["malloc_defaults"] = args.malloc_defaults
     md = markdown(res, command)
     print(md)
     if args.out is not None:
