@@ -3,7 +3,7 @@ their serial ones on the small levels a stream refines (issue 26: does a lower `
 the stream at 320x240 faster?).
 
     python -m bench.suite.parallel_levels                       # 160x120 and 80x60, 400 rounds
-    python -m bench.suite.parallel_levels --shapes 120x160,240x320 --out bench/results/suite/stream
+    python -m bench.suite.parallel_levels --shapes 120x160,60x80,240x320 --out bench/results/suite/stream/stream320
 
 On each level shape (H x W) one random L1-TV problem is solved for 10 primal-dual iterations
 (numba_backend.solve_numba) and one pair linearised (linearise_numba, interpolated gradients, bspline), each
