@@ -18,7 +18,10 @@ the pairs right after a cut or exposure step over that of the stream's own prese
 The process keeps freed memory as the node's and ``flow_bag``'s ``main()`` do
 (flow_node.process.keep_freed_memory; ``--malloc-defaults`` runs with glibc's defaults instead, as runs before
 issue 26's third round did). The 1-minute load average is recorded before each sequence and at the end
-(``load`` in the JSON, its range in the table): time ratios on a shared machine move with it.
+(``load`` in the JSON, its range in the table): time ratios on a shared machine move with it. "CPU ms/frame"
+is each call's ``time.process_time`` (every thread of the process): for flow_node's presets, whose small
+levels run serial, about the wall time they take on a quiet machine whatever the load; for OpenCV DIS, which
+runs on all cores, the sum over its threads (more than its quiet wall time).
 """
 
 from __future__ import annotations
@@ -119,19 +122,20 @@ def run_sequence(seq: Sequence, runners: Mapping[str, Runner]) -> dict[str, dict
     names = list(runners)
     for r in runners.values():
         r.start()
-    rows: dict[str, dict[str, list[Any]]] = {n: {"aee": [], "seconds": [], "stream": []} for n in names}
+    rows: dict[str, dict[str, list[Any]]] = {n: {"aee": [], "seconds": [], "cpu": [], "stream": []} for n in names}
     for n in names:  # the first frame: a stream starts its pair
         if runners[n].kind == "stream":
             runners[n].step(seq.frames[0], seq.frames[0], 0)
     for t in range(1, len(seq.frames)):
         k = t % len(names)
         for n in names[k:] + names[:k]:
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             flow, label = runners[n].step(seq.frames[t - 1], seq.frames[t], t)
-            seconds = time.perf_counter() - start
+            seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
             gt = seq.gt[t - 1]
             rows[n]["aee"].append(None if gt is None else aee(np.asarray(flow, np.float32), gt))
             rows[n]["seconds"].append(seconds)
+            rows[n]["cpu"].append(cpu)
             rows[n]["stream"].append(label)
     return rows
 
@@ -155,7 +159,8 @@ def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Se
         aees = [a for s in seqs for a in per_seq[s.name][n]["aee"]]
         secs = [x for s in seqs for x in per_seq[s.name][n]["seconds"]]
         labels = [x for s in seqs for x in per_seq[s.name][n]["stream"]]
-        out[n] = {"aee": _mean(aees), "seconds": float(np.mean(secs)),
+        cpu = [x for s in seqs for x in per_seq[s.name][n].get("cpu", [])]
+        out[n] = {"aee": _mean(aees), "seconds": float(np.mean(secs)), "cpu_seconds": _mean(cpu),
                   "per_kind": {_kind(s): {"aee": _mean(per_seq[s.name][n]["aee"]),
                                         "seconds": float(np.mean(per_seq[s.name][n]["seconds"]))} for s in seqs},
                   "predicted": labels.count("predicted"),
@@ -201,13 +206,13 @@ def markdown(res: dict[str, Any], command: str) -> str:
     lines = [f"# Stream regime, {res['split']} split, {w}x{h} (up to {res['frames']} frames per sequence)", "",
              f"`{command}`", "",
              "| method | mean AEE | ms/frame | time vs DIS medium | time vs DIS ultrafast | AEE vs DIS medium "
-             "| predicted / full | worst event ratio |", "|---|---|---|---|---|---|---|---|"]
+             "| predicted / full | worst event ratio | CPU ms/frame |", "|---|---|---|---|---|---|---|---|---|"]
     for n, m in res["methods"].items():
         ev = [r for rs in m.get("event_ratio", {}).values() for r in rs]
         worst = f"{max(ev):.2f}" if ev else ""
         lines.append(f"| {n} | {m['aee']:.3f} | {1000 * m['seconds']:.1f} | {m['time_vs_dis_medium']:.2f} | "
                      f"{m['time_vs_dis_ultrafast']:.2f} | {m['aee_vs_dis_medium']:.2f} | "
-                     f"{m['predicted']} / {m['fallbacks']} | {worst} |")
+                     f"{m['predicted']} / {m['fallbacks']} | {worst} | {1000 * m.get('cpu_seconds', np.nan):.1f} |")
     kinds = list(next(iter(res["methods"].values()))["per_kind"])
     lines += ["", "Mean AEE per kind:", "", "| method | " + " | ".join(kinds) + " |",
               "|---|" + "---|" * len(kinds)]
