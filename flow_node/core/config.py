@@ -183,6 +183,8 @@ class FlowConfig:
                                   "level that costs the most per warp", lo=0, hi=100)
     stream_finest_iterations: int = _f(0, "stream mode: primal-dual iterations per warp on the finest solved level "
                                        "(0 = stream_iterations)", lo=0, hi=100000)
+    stream_alpha: float = _f(0.0, "stream mode: regularisation weight of the refinement from the prediction (0 = "
+                             "alpha; a pair solved in full always uses alpha)", lo=0.0, hi=1000.0)
     stream_max_predicted: float = _f(0.5, "stream mode: the pair is solved in full when more than this fraction "
                                      "of the prediction's pixels is unexplained (its robust data cost on its "
                                      "start level: a scene cut, a jump)", lo=0.0, hi=1.0)
