@@ -113,21 +113,61 @@ def test_same_early_stop(model: str) -> None:
 
 
 def test_parallel_and_serial_kernels_agree() -> None:
-    """Large levels run the prange kernels, small ones the serial variant: same numbers either way."""
+    """Large levels run the prange kernels, small ones the serial variant (the threshold ``min_pixels``):
+    the same numbers either way, bit for bit (each pixel's update is the same arithmetic)."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one core: no parallel kernels")
     prob, st0 = random_case("l1_tv_tv", True, seed=3)
     params = SolveParams(MODEL_SPECS["l1_tv_tv"], 0.05, 0.3, "isotropic", 20, 0.0)
-    saved = numba_backend.PARALLEL_MIN_PIXELS
+    iterate, seen = numba_backend.nk.iterate, []
+    parallel = list(inspect.signature(iterate.py_func).parameters).index("parallel")
+    states: dict[int | None, PDState] = {}
+    with numba_backend.thread_count(2):
+        for min_pixels in (0, H * W, H * W + 1, None):
+            states[min_pixels] = copy_state(st0)
+            with _spy_parallel(iterate, parallel, seen):
+                solve_numba(prob, states[min_pixels], params, min_pixels=min_pixels)
+    assert seen == [True, True, False, False]  # None: PARALLEL_MIN_PIXELS, above this level's H * W
+    for min_pixels in (H * W, H * W + 1, None):
+        for p, s in zip(variables(states[0]), variables(states[min_pixels]), strict=True):
+            np.testing.assert_array_equal(p, s)
+
+
+@contextlib.contextmanager
+def _spy_parallel(iterate: object, index: int, seen: list[bool]) -> Iterator[None]:
+    """numba_backend.nk.iterate replaced for the block by a wrapper recording its ``parallel`` argument."""
+    def spy(*args: object) -> int:
+        seen.append(bool(args[index]))
+        return iterate(*args)
+
+    numba_backend.nk.iterate = spy
     try:
-        numba_backend.PARALLEL_MIN_PIXELS = 0
-        par = copy_state(st0)
-        solve_numba(prob, par, params)
-        numba_backend.PARALLEL_MIN_PIXELS = 10**9
-        ser = copy_state(st0)
-        solve_numba(prob, ser, params)
+        yield
     finally:
-        numba_backend.PARALLEL_MIN_PIXELS = saved
-    for p, s in zip(variables(par), variables(ser), strict=True):
-        np.testing.assert_allclose(p, s, rtol=0, atol=1e-6)
+        numba_backend.nk.iterate = iterate
+
+
+def test_parallel_min_pixels_selects_the_parallel_kernels_for_an_estimator() -> None:
+    """FlowConfig.parallel_min_pixels binds the threshold to the estimator's backend (not a module global):
+    with it at 1 every level runs the parallel solver and linearisation, and the flow is the same bit for bit
+    as with the defaults (every level of this small pair serial); a config change selects the backend again."""
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one core: no parallel kernels")
+    t = texture(60, 80, seed=2).image
+    t1 = np.roll(t, 1, axis=1)
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba", threads=2, levels=3)
+    est = FlowEstimator(cfg)
+    default = est.estimate(t, t1)
+    assert select_backend("numba", 2).solve is solve_numba
+    bound = select_backend("numba", 2, parallel_min_pixels=1)
+    assert bound.solve.keywords == {"min_pixels": 1} and bound.linearise.keywords == {"min_pixels": 1}
+    est.config = cfg.replace(parallel_min_pixels=1)  # re-selects the backend
+    iterate, seen = numba_backend.nk.iterate, []
+    with _spy_parallel(iterate, list(inspect.signature(iterate.py_func).parameters).index("parallel"), seen):
+        parallel = est.estimate(t, t1)
+    assert seen and all(seen)
+    np.testing.assert_array_equal(parallel.flow, default.flow)
+    assert parallel.stats.iterations == default.stats.iterations
 
 
 def test_non_contiguous_and_float64_state_is_accepted() -> None:

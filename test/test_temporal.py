@@ -88,7 +88,9 @@ def test_a_steady_stream_is_predicted_and_a_scene_cut_is_solved_in_full(backend:
         # only the finest stream_levels solved levels ran, from the prediction; the pyramid stops there
         assert res.stats.start_level == cfg.finest_level + cfg.stream_levels - 1 == len(res.stats.shapes) - 1
         assert res.stats.iterations[:cfg.finest_level] == [0] * cfg.finest_level
-        assert res.stats.iterations[cfg.finest_level:] == [cfg.stream_warps * cfg.stream_iterations] * cfg.stream_levels
+        finest = (cfg.stream_finest_warps or cfg.stream_warps) * (cfg.stream_finest_iterations or cfg.stream_iterations)
+        coarser = [cfg.stream_warps * cfg.stream_iterations] * (cfg.stream_levels - 1)
+        assert res.stats.iterations[cfg.finest_level:] == [finest] + coarser
         gt = scene.ground_truth(t)
         assert aee(res.flow, gt) < max(0.1, 1.2 * aee(single.flow, gt))
         prev = res
@@ -127,3 +129,36 @@ def test_an_exposure_step_is_solved_in_full() -> None:
     res = est.estimate_next(seq[1], stepped, Prior(prev.state, prev.unexplained))
     assert res.stats.stream == FULL + ": exposure step"
     assert est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained)).stats.stream == PREDICTED
+
+
+def test_the_finest_level_takes_its_own_stream_schedule() -> None:
+    """stream_finest_warps / stream_finest_iterations set the finest solved level's warps and iterations of a
+    predicted pair (0: stream_warps / stream_iterations, as on the coarser stream levels)."""
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba", stream_warps=3, stream_iterations=10,
+                                                   stream_finest_warps=2, stream_finest_iterations=7)
+    seq = frames(pan(3), 3)
+    est = FlowEstimator(cfg)
+    prev = est.estimate_next(seq[0], seq[1], None)
+    res = est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained))
+    assert res.stats.stream == PREDICTED
+    assert res.stats.iterations[cfg.finest_level:] == [2 * 7, 3 * 10]
+    est.config = cfg.replace(stream_finest_warps=0, stream_finest_iterations=0)
+    res = est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained))
+    assert res.stats.iterations[cfg.finest_level:] == [3 * 10, 3 * 10]
+
+
+def test_stream_alpha_weights_the_refinement_from_the_prediction_only() -> None:
+    """stream_alpha is the regularisation weight of a predicted pair's refinement (0: alpha): it changes the
+    predicted pairs' flow, not a pair solved in full (the first pair, the fallbacks, single pairs)."""
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba")
+    seq = frames(pan(4), 3)
+    plain, weighted = FlowEstimator(cfg), FlowEstimator(cfg.replace(stream_alpha=0.2))
+    first = [e.estimate_next(seq[0], seq[1], None) for e in (plain, weighted)]
+    np.testing.assert_array_equal(first[0].flow, first[1].flow)
+    np.testing.assert_array_equal(plain.estimate(seq[0], seq[1]).flow, weighted.estimate(seq[0], seq[1]).flow)
+    prior = Prior(first[0].state, first[0].unexplained)
+    same = FlowEstimator(cfg.replace(stream_alpha=cfg.alpha)).estimate_next(seq[1], seq[2], prior)
+    res = [e.estimate_next(seq[1], seq[2], prior) for e in (plain, weighted)]
+    assert res[0].stats.stream == res[1].stats.stream == PREDICTED
+    np.testing.assert_array_equal(same.flow, res[0].flow)  # stream_alpha == alpha: as 0
+    assert np.abs(res[1].flow - res[0].flow).max() > 1e-3

@@ -12,7 +12,10 @@ within it the linearisation, the solver iterations and the median filter --, the
 grid and the result's unexplained fraction). Each figure is the median over repeats of the mean per
 predicted frame (the first pair after a reset, solved in full, is left out), in ms and as a multiple of DIS
 ultrafast's median time per frame. "other" is the frame's time not in a stage (conversion, checks, Python
-between calls).
+between calls). Beside the wall time, the frame's CPU time (``time.process_time``: every thread of the
+process) is reported: for the engine's serial kernels it is close to the wall time the frame takes on a quiet
+machine, whatever the load (it does not count waiting for a core). The process keeps freed memory as the node
+does (flow_node.process.keep_freed_memory).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import numpy as np
 
 from flow_node.core import api, numba_backend, refine, temporal
 from flow_node.pipeline.stream import FlowStream, StreamSettings
+from flow_node.process import keep_freed_memory
 
 from ..common import machine, write_json
 from .sequences import sequences
@@ -84,29 +88,31 @@ def measure(method: str, size: tuple[int, int], repeats: int) -> dict[str, Any]:
         for r in range(repeats + 1):  # the first pass warms caches up, not counted
             stream.reset("repeat")
             stream.process(seq.frames[0], PERIOD_NS, "mono8")
-            frame_s, dis_s, totals = [], [], defaultdict(float)
+            frame_s, cpu_s, dis_s, totals = [], [], [], defaultdict(float)
             for t in range(1, len(seq.frames)):
                 acc.clear()
-                start = time.perf_counter()
+                start, cpu = time.perf_counter(), time.process_time()
                 out = stream.process(seq.frames[t], (t + 1) * PERIOD_NS, "mono8")
-                seconds = time.perf_counter() - start
+                seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
                 start = time.perf_counter()
                 dis.calc(seq.frames[t - 1], seq.frames[t], None)
                 dis_s.append(time.perf_counter() - start)
                 if out is not None and out.stats.stream == temporal.PREDICTED:  # the stream stage's frames only
                     frame_s.append(seconds)
+                    cpu_s.append(cpu)
                     for k, v in acc.items():
                         totals[k] += v
             if r:
                 n = len(frame_s)
-                passes.append({"frame": float(np.mean(frame_s)), "dis": float(np.median(dis_s)),
+                passes.append({"frame": float(np.mean(frame_s)), "cpu": float(np.mean(cpu_s)),
+                               "dis": float(np.median(dis_s)),
                                "stages": {k: v / n for k, v in totals.items()}, "predicted": n})
-    frame, dis_median = (float(np.median([p[k] for p in passes])) for k in ("frame", "dis"))
+    frame, cpu, dis_median = (float(np.median([p[k] for p in passes])) for k in ("frame", "cpu", "dis"))
     stages = {label: float(np.median([p["stages"].get(label, 0.0) for p in passes])) for _, _, label in STAGES}
     top = sum(v for k, v in stages.items() if not k.startswith(" "))
     stages["other"] = max(frame - top, 0.0)
     return {"method": name, "config": config.to_dict(), "size": list(size), "repeats": repeats,
-            "frame_seconds": frame, "dis_ultrafast_seconds": dis_median, "stages": stages,
+            "frame_seconds": frame, "frame_cpu_seconds": cpu, "dis_ultrafast_seconds": dis_median, "stages": stages,
             "predicted": min(p["predicted"] for p in passes), "pairs": len(seq.frames) - 1}
 
 
@@ -117,7 +123,8 @@ def markdown(results: list[dict[str, Any]], command: str, load: str) -> str:
         d = res["dis_ultrafast_seconds"]
         w, h = res["size"]
         lines += [f"## {res['method']} at {w}x{h}: {1e3 * res['frame_seconds']:.2f} ms per frame = "
-                  f"{res['frame_seconds'] / d:.2f}x DIS ultrafast ({1e3 * d:.2f} ms); "
+                  f"{res['frame_seconds'] / d:.2f}x DIS ultrafast ({1e3 * d:.2f} ms), CPU time "
+                  f"{1e3 * res.get('frame_cpu_seconds', float('nan')):.2f} ms; "
                   f"{res['predicted']} / {res['pairs']} pairs predicted", "",
                   "| stage | ms per frame | x DIS ultrafast |", "|---|---|---|"]
         for label, s in res["stages"].items():
@@ -134,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", type=Path, default=None, help="directory for costs_<size>.{json,md}")
     args = ap.parse_args(argv)
+    keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
     w, h = (int(x) for x in args.size.split("x"))
     results = [measure(m, (w, h), args.repeats) for m in (args.method or ["stream_lite=stream_lite"])]
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg()) + " (1, 5, 15 min)"

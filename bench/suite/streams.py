@@ -14,11 +14,20 @@ timed on ``FlowStream.process(frame)`` (one frame's conversion, the solve and it
 pair with ground truth (not the pair across a scene cut), its mean over the pairs, per kind, and the AEE on
 the pairs right after a cut or exposure step over that of the stream's own preset solving single pairs
 (``event_ratio``; the stream presets' base: STREAM_BASE).
+
+The process keeps freed memory as the node's and ``flow_bag``'s ``main()`` do
+(flow_node.process.keep_freed_memory; ``--malloc-defaults`` runs with glibc's defaults instead, as runs before
+issue 26's third round did). The 1-minute load average is recorded before each sequence and at the end
+(``load`` in the JSON, its range in the table): time ratios on a shared machine move with it. "CPU ms/frame"
+is each call's ``time.process_time`` (every thread of the process): for flow_node's presets, whose small
+levels run serial, about the wall time they take on a quiet machine whatever the load; for OpenCV DIS, which
+runs on all cores, the sum over its threads (more than its quiet wall time).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -32,6 +41,7 @@ from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 from flow_node.core.metrics import aee
 from flow_node.pipeline.stream import FlowStream, StreamSettings
+from flow_node.process import keep_freed_memory
 
 from ..common import REPO, machine, write_json
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, parse_method
@@ -112,19 +122,20 @@ def run_sequence(seq: Sequence, runners: Mapping[str, Runner]) -> dict[str, dict
     names = list(runners)
     for r in runners.values():
         r.start()
-    rows: dict[str, dict[str, list[Any]]] = {n: {"aee": [], "seconds": [], "stream": []} for n in names}
+    rows: dict[str, dict[str, list[Any]]] = {n: {"aee": [], "seconds": [], "cpu": [], "stream": []} for n in names}
     for n in names:  # the first frame: a stream starts its pair
         if runners[n].kind == "stream":
             runners[n].step(seq.frames[0], seq.frames[0], 0)
     for t in range(1, len(seq.frames)):
         k = t % len(names)
         for n in names[k:] + names[:k]:
-            start = time.perf_counter()
+            start, cpu = time.perf_counter(), time.process_time()
             flow, label = runners[n].step(seq.frames[t - 1], seq.frames[t], t)
-            seconds = time.perf_counter() - start
+            seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
             gt = seq.gt[t - 1]
             rows[n]["aee"].append(None if gt is None else aee(np.asarray(flow, np.float32), gt))
             rows[n]["seconds"].append(seconds)
+            rows[n]["cpu"].append(cpu)
             rows[n]["stream"].append(label)
     return rows
 
@@ -148,7 +159,8 @@ def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Se
         aees = [a for s in seqs for a in per_seq[s.name][n]["aee"]]
         secs = [x for s in seqs for x in per_seq[s.name][n]["seconds"]]
         labels = [x for s in seqs for x in per_seq[s.name][n]["stream"]]
-        out[n] = {"aee": _mean(aees), "seconds": float(np.mean(secs)),
+        cpu = [x for s in seqs for x in per_seq[s.name][n].get("cpu", [])]
+        out[n] = {"aee": _mean(aees), "seconds": float(np.mean(secs)), "cpu_seconds": _mean(cpu),
                   "per_kind": {_kind(s): {"aee": _mean(per_seq[s.name][n]["aee"]),
                                         "seconds": float(np.mean(per_seq[s.name][n]["seconds"]))} for s in seqs},
                   "predicted": labels.count("predicted"),
@@ -175,15 +187,17 @@ def run(methods: Mapping[str, FlowConfig], split: str, size: tuple[int, int], ki
     runners = build(methods)
     per_seq: dict[str, Any] = {}
     seqs = []
+    load = []
     started = time.time()
     for seq in sequences(split, size, kinds, frames) if source is None else source:
         seqs.append(seq)
+        load.append(os.getloadavg()[0])
         per_seq[seq.name] = run_sequence(seq, runners)
         log(f"  {seq.name}: " + ", ".join(f"{n} {_mean(r['aee']):.3f}/{1000 * np.mean(r['seconds']):.1f}ms"
                                           for n, r in per_seq[seq.name].items()))
     return {"split": split, "size": list(size), "frames": frames, "machine": machine(),
             "methods_config": {n: c.to_dict() for n, c in methods.items()}, "methods": summarise(per_seq, seqs),
-            "per_sequence": per_seq, "wall_seconds": time.time() - started}
+            "per_sequence": per_seq, "wall_seconds": time.time() - started, "load": load + [os.getloadavg()[0]]}
 
 
 def markdown(res: dict[str, Any], command: str) -> str:
@@ -192,18 +206,21 @@ def markdown(res: dict[str, Any], command: str) -> str:
     lines = [f"# Stream regime, {res['split']} split, {w}x{h} (up to {res['frames']} frames per sequence)", "",
              f"`{command}`", "",
              "| method | mean AEE | ms/frame | time vs DIS medium | time vs DIS ultrafast | AEE vs DIS medium "
-             "| predicted / full | worst event ratio |", "|---|---|---|---|---|---|---|---|"]
+             "| predicted / full | worst event ratio | CPU ms/frame |", "|---|---|---|---|---|---|---|---|---|"]
     for n, m in res["methods"].items():
         ev = [r for rs in m.get("event_ratio", {}).values() for r in rs]
         worst = f"{max(ev):.2f}" if ev else ""
         lines.append(f"| {n} | {m['aee']:.3f} | {1000 * m['seconds']:.1f} | {m['time_vs_dis_medium']:.2f} | "
                      f"{m['time_vs_dis_ultrafast']:.2f} | {m['aee_vs_dis_medium']:.2f} | "
-                     f"{m['predicted']} / {m['fallbacks']} | {worst} |")
+                     f"{m['predicted']} / {m['fallbacks']} | {worst} | {1000 * m.get('cpu_seconds', np.nan):.1f} |")
     kinds = list(next(iter(res["methods"].values()))["per_kind"])
     lines += ["", "Mean AEE per kind:", "", "| method | " + " | ".join(kinds) + " |",
               "|---|" + "---|" * len(kinds)]
     for n, m in res["methods"].items():
         lines.append(f"| {n} | " + " | ".join(f"{m['per_kind'][k]['aee']:.3f}" for k in kinds) + " |")
+    if res.get("load"):
+        lines += ["", f"Load (1-min average, before each sequence and at the end): {min(res['load']):.1f}-"
+                      f"{max(res['load']):.1f}" + ("; glibc's malloc defaults" if res.get("malloc_defaults") else "")]
     return "\n".join(lines) + "\n"
 
 
@@ -219,7 +236,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--method", action="append", default=[], metavar="NAME=PRESET[,key=value...]",
                     help=f"replaces the default methods ({', '.join(DEFAULT_METHODS)})")
     ap.add_argument("--out", type=Path, default=None, help="directory for <split>_<size>.{json,md}")
+    ap.add_argument("--malloc-defaults", action="store_true", help="glibc's malloc defaults (not the node's "
+                    "keep_freed_memory): fresh pages for every large per-frame array")
     args = ap.parse_args(argv)
+    if not args.malloc_defaults:
+        keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
     w, h = (int(x) for x in args.size.split("x"))
     methods = dict(parse_method(m) for m in args.method) or {
         n: FlowConfig.preset(p).replace(**kw) for n, (p, kw) in DEFAULT_METHODS.items()}
@@ -231,6 +252,7 @@ def main(argv: list[str] | None = None) -> int:
         res = run(methods, args.split, (w, h), tuple(args.kinds.split(",")), args.frames)
     command = "python -m bench.suite.streams " + " ".join(argv if argv is not None else sys.argv[1:])
     res["command"] = command
+    res["malloc_defaults"] = args.malloc_defaults
     md = markdown(res, command)
     print(md)
     if args.out is not None:

@@ -118,14 +118,13 @@ class FlowEstimator:
 
     The node and the bag tools keep one of these; ``config`` may be swapped between calls. ``backend``: a
     :class:`~flow_node.core.backends.Backend` to run instead of the one ``config.backend`` selects (a study
-    or test combining one backend's kernels with another's); a later change of ``config.backend`` or
-    ``config.threads`` selects again.
+    or test combining one backend's kernels with another's); a later change of ``config.backend``,
+    ``config.threads`` or ``config.parallel_min_pixels`` selects again.
     """
 
     def __init__(self, config: FlowConfig | None = None, backend: Backend | None = None) -> None:
         self._config = config if config is not None else FlowConfig()
-        self._backend = backend if backend is not None else select_backend(self._config.backend,
-                                                                            self._config.threads)
+        self._backend = backend if backend is not None else select_backend(*_backend_key(self._config))
 
     @property
     def backend(self) -> str:
@@ -138,8 +137,8 @@ class FlowEstimator:
 
     @config.setter
     def config(self, cfg: FlowConfig) -> None:
-        if (cfg.backend, cfg.threads) != (self._config.backend, self._config.threads):
-            self._backend = select_backend(cfg.backend, cfg.threads)
+        if _backend_key(cfg) != _backend_key(self._config):
+            self._backend = select_backend(*_backend_key(cfg))
         self._config = cfg
 
     def warmup(self, shape: tuple[int, int] = (48, 64)) -> float:
@@ -248,6 +247,11 @@ class FlowEstimator:
     def _colour(self, channels: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray] | None:
         """The colour planes the engine is given: ``channels`` with ``config.colour`` ``channels``, else None."""
         return channels if self._config.colour == "channels" else None
+
+
+def _backend_key(cfg: FlowConfig) -> tuple[str, int, int]:
+    """The settings the backend is selected by: (backend, threads, parallel_min_pixels)."""
+    return cfg.backend, cfg.threads, cfg.parallel_min_pixels
 
 
 def check_pair(i0: np.ndarray, i1: np.ndarray, channels: tuple[np.ndarray, np.ndarray] | None,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
+from functools import partial
 from typing import NamedTuple
 
 import numpy as np
@@ -92,11 +93,13 @@ def fallback_warning(requested: str, used: str) -> str | None:
             "install numba (README, 'ROS 2 workspace')")
 
 
-def select_backend(name: str, threads: int = 0) -> Backend:
+def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) -> Backend:
     """Resolve ``auto``/``numpy``/``numba`` to a :class:`Backend` and log one line saying which.
 
     ``numba`` raises ConfigError when numba cannot be imported; ``auto`` falls back to numpy (with a
     warning naming the import error). ``threads`` caps the numba kernels' threads (0 = all cores).
+    ``parallel_min_pixels`` > 0: the numba solver and linearisation run their parallel kernels on levels of
+    that many pixels or more (0: numba_backend's defaults; the results are the same either way).
     """
     if name == "numpy":
         log.info("flow_node backend: numpy (reference, requested)")
@@ -111,7 +114,10 @@ def select_backend(name: str, threads: int = 0) -> Backend:
     used = numba_backend.resolve_threads(threads)
     log.info("flow_node backend: numba (%d thread%s, kernel cache %s)", used, "" if used == 1 else "s",
              numba_backend.cache_dir())
-    return Backend("numba", numba_backend.solve_numba, numba_backend.WARPER, numba_backend.linearise_numba,
+    solve, linearise_ = numba_backend.solve_numba, numba_backend.linearise_numba
+    if parallel_min_pixels > 0:
+        solve, linearise_ = (partial(f, min_pixels=parallel_min_pixels) for f in (solve, linearise_))
+    return Backend("numba", solve, numba_backend.WARPER, linearise_,
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
                    numba_census.level_signature_numba, numba_census.census_form_numba,
                    numba_confidence.confidence_numba, used,

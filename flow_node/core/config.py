@@ -179,6 +179,12 @@ class FlowConfig:
     stream_warps: int = _f(2, "stream mode: warps per level refined from the prediction", lo=1, hi=100)
     stream_iterations: int = _f(10, "stream mode: primal-dual iterations per warp on those levels", lo=1,
                                 hi=100000)
+    stream_finest_warps: int = _f(0, "stream mode: warps on the finest solved level (0 = stream_warps): the "
+                                  "level that costs the most per warp", lo=0, hi=100)
+    stream_finest_iterations: int = _f(0, "stream mode: primal-dual iterations per warp on the finest solved level "
+                                       "(0 = stream_iterations)", lo=0, hi=100000)
+    stream_alpha: float = _f(0.0, "stream mode: regularisation weight of the refinement from the prediction (0 = "
+                             "alpha; a pair solved in full always uses alpha)", lo=0.0, hi=1000.0)
     stream_max_predicted: float = _f(0.5, "stream mode: the pair is solved in full when more than this fraction "
                                      "of the prediction's pixels is unexplained (its robust data cost on its "
                                      "start level: a scene cut, a jump)", lo=0.0, hi=1.0)
@@ -193,6 +199,10 @@ class FlowConfig:
     backend: str = _f("auto", "solver backend: numba kernels, numpy reference, or auto (numba if importable)",
                       choices=BACKENDS)
     threads: int = _f(0, "threads for the numba backend (0 = all cores)", lo=0, hi=1024)
+    parallel_min_pixels: int = _f(0, "numba backend: pyramid levels of at least this many pixels run the "
+                                  "solver's and the linearisation's parallel kernels (same results; 0 = the "
+                                  "defaults, 120000 and 20000: thread start-up outweighs the gain below)",
+                                  lo=0, hi=1 << 40)
 
     def __post_init__(self) -> None:
         if self.model in MODEL_WEIGHTS:  # an unknown model is reported by the field check below

@@ -34,6 +34,8 @@ from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 from .workspace import scratch
 
 _F32 = np.float32
+# The defaults of the parallel thresholds (a FlowConfig's parallel_min_pixels > 0 replaces both for its estimator:
+# backends.select_backend binds it to solve_numba and linearise_numba):
 PARALLEL_MIN_PIXELS = 120_000  # below this a level runs the serial kernels (thread start-up dominates)
 # the linearisation costs ~10 primal-dual iterations per pixel in one pass: worth the threads on smaller levels
 LINEARISE_PARALLEL_MIN_PIXELS = 20_000
@@ -75,6 +77,12 @@ def cache_dir() -> str:
     return numba.config.CACHE_DIR or "numba default (__pycache__ beside the package, else per-user)"
 
 
+def parallel_at(pixels: int, min_pixels: int) -> bool:
+    """Whether a level of ``pixels`` runs the parallel kernels: more than one thread bound and at least
+    ``min_pixels`` pixels."""
+    return threads() > 1 and pixels >= min_pixels
+
+
 def _f32c(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=_F32)
 
@@ -97,11 +105,13 @@ def row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:
     return scratch("numba.linearise_rows", (n, 9, width)), scratch("numba.linearise_base", (n, 2, width), np.int32)
 
 
-def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
+def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: int | None = None) -> int:
     """Run up to p.iterations primal-dual steps on ``problem`` from ``state`` (updated in place).
 
     Stops early, checked every CHECK_EVERY iterations, when the RMS change of v per iteration falls below
-    p.tolerance (px); returns the number of iterations run. Semantics of solver.solve_numpy.
+    p.tolerance (px); returns the number of iterations run. Semantics of solver.solve_numpy. A level of
+    ``min_pixels`` pixels or more (None: PARALLEL_MIN_PIXELS) runs the parallel kernels when more than one
+    thread is bound (same numbers as the serial ones: each pixel's update is the same arithmetic).
     """
     spec = p.spec
     state.v, state.y = _f32c(state.v), _f32c(state.y)
@@ -130,7 +140,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         spec.data == "l1", _F32(2.0 * p.gamma * p.alpha / spec.tau),  # soft = 2 gamma / tau_d (nk.prox_data)
         nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
-        threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None,
+        parallel_at(state.v.shape[1] * state.v.shape[2], PARALLEL_MIN_PIXELS if min_pixels is None else min_pixels),
+        problem.q is not None,
         mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4,
         sp if mass else _DUMMY2,
         tv if mass else _DUMMY3, _F32(1.0 / p.alpha)))
@@ -167,13 +178,15 @@ def bspline_prefilter_numba(img: np.ndarray) -> np.ndarray:
 
 
 def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | None, flow0: np.ndarray, scheme: str,
-                    kernel: str = "bspline", warper: Warper | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """operators.linearise with one fused kernel (``warper`` is not used: the kernel samples itself)."""
+                    kernel: str = "bspline", warper: Warper | None = None, min_pixels: int | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """operators.linearise with one fused kernel (``warper`` is not used: the kernel samples itself); rows in
+    parallel on levels of ``min_pixels`` pixels or more (None: LINEARISE_PARALLEL_MIN_PIXELS)."""
     h, w = i0.shape
     a = np.empty((2, h, w), _F32)
     c = np.empty((h, w), _F32)
     interpolated = scheme == "interpolated"
-    parallel = threads() > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS
+    parallel = parallel_at(h * w, LINEARISE_PARALLEL_MIN_PIXELS if min_pixels is None else min_pixels)
     rows, base = row_scratch(w)
     nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),
                         KERNEL_CODES[kernel], interpolated, a, c, rows, base, parallel)

@@ -11,7 +11,8 @@ variables (the dual of the regulariser, and the extended models' w) are carried 
 iterations to regularise that again, while with the carried duals a few iterations correct the prediction.
 The prediction replaces the coarse levels, the initialisation matcher and their warps:
 :func:`refine_prediction` refines it on the levels ``finest + cfg.stream_levels - 1`` down to the finest
-solved one, with ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` primal-dual iterations each.
+solved one, with ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` primal-dual iterations each (on the
+finest solved level ``cfg.stream_finest_warps`` x ``cfg.stream_finest_iterations`` where set).
 
 A per-frame check decides whether the prediction holds (:func:`prediction_fails`, :func:`result_fails`); when
 it does not, the caller runs the full single-pair solve (engine.estimate_pair) instead:
@@ -96,12 +97,16 @@ def stream_span(pyr: Pyramid, cfg: FlowConfig) -> tuple[int, int]:
 
 @lru_cache(maxsize=8)
 def stream_schedule(cfg: FlowConfig) -> FlowConfig:
-    """The settings of the refinement of a prediction: ``cfg`` with every level (finest included) at
-    ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` iterations and the pyramid cut below the levels it
-    visits (the shapes of the levels kept are the same). Derived, never written back; cached per config."""
+    """The settings of the refinement of a prediction: ``cfg`` with every level at ``cfg.stream_warps`` warps
+    of ``cfg.stream_iterations`` iterations -- the finest solved level at ``cfg.stream_finest_warps`` x
+    ``cfg.stream_finest_iterations`` where those are set (0: the same as the others) --, the regularisation
+    weight ``cfg.stream_alpha`` where set (0: ``cfg.alpha``) and the pyramid cut
+    below the levels it visits (the shapes of the levels kept are the same). Derived, never written back;
+    cached per config."""
     levels = min(cfg.levels, cfg.finest_level + max(cfg.stream_levels, 1))
-    return cfg.replace(warps=cfg.stream_warps, iterations=cfg.stream_iterations, finest_warps=0,
-                       finest_iterations=0, levels=levels)
+    return cfg.replace(warps=cfg.stream_warps, iterations=cfg.stream_iterations,
+                       finest_warps=cfg.stream_finest_warps, finest_iterations=cfg.stream_finest_iterations,
+                       levels=levels, alpha=cfg.stream_alpha or cfg.alpha)
 
 
 def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: PDState,
