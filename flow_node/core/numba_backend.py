@@ -111,6 +111,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         state.z = _f32c(state.z)
     v_bar, w_bar, xbuf, zero_b = work_buffers(state.v, state.w)
     mass = problem.m is not None
+    bc = mass and problem.ab is not None
     if mass:
         state.p = _f32c(state.data_dual())
         sp, tv = mass_steps(problem.a, problem.m, spec.tau, MASS_DATA_SCALE)
@@ -133,7 +134,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         threads() > 1 and state.v.shape[1] * state.v.shape[2] >= PARALLEL_MIN_PIXELS, problem.q is not None,
         mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4,
         sp if mass else _DUMMY2,
-        tv if mass else _DUMMY3, _F32(1.0 / p.alpha)))
+        tv if mass else _DUMMY3, _F32(1.0 / p.alpha), bc,
+        _f32c(problem.ab) if bc else _DUMMY3, _f32c(problem.cb) if bc else _DUMMY2))
     if mass:
         shift_slow_modes(problem, state, p)
     return k

@@ -131,13 +131,19 @@ def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
 
 def mass_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
     """Mass preservation (the continuity equation, models.apply_a): per warp the grey-value linearisation
-    around v0, turned into that of I1(x + v) det(Id + grad v) = I0(x) (operators.mass_linearise)."""
+    around v0, turned into that of I1(x + v) det(Id + grad v) = I0(x) (operators.mass_linearise). With
+    ``cfg.mass_brightness`` = beta > 0 the grey-value linearisation stays beside it as a brightness-constancy term
+    of weight beta (folded into (ab, cb) by models.weight_data; docs/engine.md, "Mass preservation")."""
     grey = grey_problem(i0, i1, cfg, backend, robust)
+    beta, data = cfg.mass_brightness, MODEL_SPECS[cfg.model].data
 
     def around(v0: np.ndarray) -> Problem:
         lin = grey(v0)
         a, m, c = mass_linearise(i0, lin.a, lin.c, v0)
-        return Problem(a, c, m=m)
+        if beta <= 0.0:
+            return Problem(a, c, m=m)
+        ab, cb = weight_data(lin.a, lin.c, np.float32(beta), data)
+        return Problem(a, c, m=m, ab=ab, cb=cb)
 
     return around
 
