@@ -21,6 +21,7 @@ from flow_node.core.models import (
     residual,
 )
 from flow_node.core.numba_backend import solve_numba
+from flow_node.core.operators import gain_linearise, linearise, mass_gain, warp_source
 from flow_node.core.refine import grey_problem, mass_problem
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 
@@ -133,10 +134,29 @@ def test_bregman_shifts_the_brightness_term_by_its_own_residual() -> None:
     np.testing.assert_allclose(seen[1].cb, prob.cb + 2 * residual(st.v, prob.ab, prob.cb), rtol=1e-5, atol=1e-6)
 
 
+def test_gain_linearisation_is_that_of_the_rescaled_frame() -> None:
+    """gain_linearise(.., g) is the linearisation of g I1 against I0 (so a global density gain is no residual)."""
+    i0 = texture(H, W, seed=1).image.astype(np.float32)
+    i1 = (texture(H, W, seed=2).image / 1.15).astype(np.float32)
+    v0 = (0.8 * np.random.default_rng(4).normal(size=(2, H, W))).astype(np.float32)
+    g = mass_gain(i0, i1)
+    assert g == pytest.approx(float(i0.sum() / i1.sum()))
+    a, c = linearise(i0, warp_source(i1, "central", "bspline"), None, v0, "central")
+    ga, gc = linearise(i0, warp_source(g * i1, "central", "bspline"), None, v0, "central")
+    out_a, out_c = gain_linearise(i0, a, c, v0, g)
+    np.testing.assert_allclose(out_a, ga, atol=1e-5)
+    np.testing.assert_allclose(out_c, gc, atol=1e-5)
+    # a pure gain: frame 1 = frame 0 / 1.15 at zero flow leaves no residual after the gain
+    zero = np.zeros((2, H, W), np.float32)
+    a, c = linearise(i0, warp_source(i0 / 1.15, "central", "bspline"), None, zero, "central")
+    assert np.max(np.abs(c)) > 0.01
+    np.testing.assert_allclose(gain_linearise(i0, a, c, zero, mass_gain(i0, i0 / 1.15))[1], 0.0, atol=1e-5)
+
+
 @pytest.mark.parametrize("model", ["l1_tv", "l2_tv"])
 def test_mass_problem_carries_the_weighted_grey_linearisation(model: str) -> None:
-    """beta > 0: the mass problem keeps the grey-value linearisation beside it, its weight folded in (beta for
-    L1, sqrt(beta) for L2, so the data penalty is beta D(rho)); beta = 0 none."""
+    """beta > 0: the mass problem keeps the grey-value linearisation (of the frames at equal mass) beside it, its
+    weight folded in (beta for L1, sqrt(beta) for L2, so the data penalty is beta D(rho)); beta = 0 none."""
     i0 = texture(H, W, seed=1).image.astype(np.float32)
     i1 = texture(H, W, seed=2).image.astype(np.float32)
     v0 = (0.3 * np.random.default_rng(4).normal(size=(2, H, W))).astype(np.float32)
@@ -148,7 +168,8 @@ def test_mass_problem_carries_the_weighted_grey_linearisation(model: str) -> Non
     plain = mass_problem(i0, i1, cfg, NUMPY, False)(v0)
     np.testing.assert_array_equal(with_term.m, plain.m)
     grey = grey_problem(i0, i1, cfg, NUMPY, False)(v0)
+    ga, gc = gain_linearise(i0, grey.a, grey.c, v0, mass_gain(i0, i1))
     weight = beta if model == "l1_tv" else np.sqrt(beta)
-    assert np.max(np.abs(grey.a)) > 1e-3
-    np.testing.assert_allclose(with_term.ab, weight * grey.a, rtol=1e-6, atol=1e-7)
-    np.testing.assert_allclose(with_term.cb, weight * grey.c, rtol=1e-6, atol=1e-7)
+    assert np.max(np.abs(ga)) > 1e-3
+    np.testing.assert_allclose(with_term.ab, weight * ga, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(with_term.cb, weight * gc, rtol=1e-6, atol=1e-7)
