@@ -135,6 +135,16 @@ def test_bregman_shifts_the_brightness_term_by_its_own_residual() -> None:
     np.testing.assert_allclose(seen[1].cb, prob.cb + 2 * residual(st.v, prob.ab, prob.cb), rtol=1e-5, atol=1e-6)
 
 
+def test_the_default_beta_is_the_models_calibrated_one() -> None:
+    """0.1 for the L1 data terms, 0 for L2 (config.MODEL_WEIGHTS); choosing a model brings its value, given wins."""
+    for model in MODELS:
+        expect = 0.1 if MODEL_SPECS[model].data == "l1" else 0.0
+        assert FlowConfig(model=model).mass_brightness == expect
+        assert FlowConfig().replace(constraint="mass", model=model).mass_brightness == expect
+    assert FlowConfig().replace(model="l2_tv", mass_brightness=0.3).mass_brightness == 0.3
+    assert FlowConfig().with_overrides(["constraint=mass", "model=l2_tv", "model=l1_tv"]).mass_brightness == 0.1
+
+
 def test_gain_linearisation_is_that_of_the_rescaled_frame() -> None:
     """gain_linearise(.., g) is the linearisation of g I1 against I0 (so a global density gain is no residual)."""
     i0 = texture(H, W, seed=1).image.astype(np.float32)
@@ -163,7 +173,6 @@ def test_mass_problem_carries_the_weighted_grey_linearisation(model: str) -> Non
     v0 = (0.3 * np.random.default_rng(4).normal(size=(2, H, W))).astype(np.float32)
     cfg = FlowConfig().replace(constraint="mass", model=model, mass_brightness=0.0)
     assert mass_problem(i0, i1, cfg, NUMPY, False)(v0).ab is None
-    assert FlowConfig().mass_brightness == 0.1  # the default (docs/engine.md, "Mass preservation")
     beta = 0.4
     with_term = mass_problem(i0, i1, cfg.replace(mass_brightness=beta), NUMPY, False)(v0)
     plain = mass_problem(i0, i1, cfg, NUMPY, False)(v0)
