@@ -23,7 +23,7 @@ from flow_node.core.models import (
 )
 from flow_node.core.numba_backend import solve_numba
 from flow_node.core.operators import gain_linearise, linearise, mass_gain, warp_source
-from flow_node.core.refine import grey_problem, mass_problem
+from flow_node.core.refine import MASS_BRIGHTNESS_MIN_SIDE, grey_problem, mass_problem
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 
 H, W = 36, 50
@@ -168,11 +168,14 @@ def test_gain_linearisation_is_that_of_the_rescaled_frame() -> None:
 def test_mass_problem_carries_the_weighted_grey_linearisation(model: str) -> None:
     """beta > 0: the mass problem keeps the grey-value linearisation (of the frames at equal mass) beside it, its
     weight folded in (beta for L1, sqrt(beta) for L2, so the data penalty is beta D(rho)); beta = 0 none."""
-    i0 = texture(H, W, seed=1).image.astype(np.float32)
-    i1 = texture(H, W, seed=2).image.astype(np.float32)
-    v0 = (0.3 * np.random.default_rng(4).normal(size=(2, H, W))).astype(np.float32)
+    h, w = MASS_BRIGHTNESS_MIN_SIDE, MASS_BRIGHTNESS_MIN_SIDE + 14
+    i0 = texture(h, w, seed=1).image.astype(np.float32)
+    i1 = texture(h, w, seed=2).image.astype(np.float32)
+    v0 = (0.3 * np.random.default_rng(4).normal(size=(2, h, w))).astype(np.float32)
     cfg = FlowConfig().replace(constraint="mass", model=model, mass_brightness=0.0)
     assert mass_problem(i0, i1, cfg, NUMPY, False)(v0).ab is None
+    small = (slice(None), slice(1, None), slice(None))  # one row fewer than the smallest level with the term
+    assert mass_problem(i0[1:], i1[1:], cfg.replace(mass_brightness=0.4), NUMPY, False)(v0[small]).ab is None
     beta = 0.4
     with_term = mass_problem(i0, i1, cfg.replace(mass_brightness=beta), NUMPY, False)(v0)
     plain = mass_problem(i0, i1, cfg, NUMPY, False)(v0)
