@@ -37,8 +37,8 @@ RECONSTRUCTIONS = ("none", "joint")  # images the flow is solved on: the measure
 
 
 class _Calibrated(float):
-    """The default of alpha/alpha1/mass_brightness: a marker (not a value a user can pass) replaced on construction
-    by the model's calibrated weight (MODEL_WEIGHTS)."""
+    """The default of alpha/alpha1: a marker (not a value a user can pass) replaced on construction by the
+    model's calibrated weight (MODEL_WEIGHTS)."""
 
 
 CALIBRATED = _Calibrated("nan")
@@ -115,13 +115,12 @@ class FlowConfig:
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
                          "densities that thin out or pile up, e.g. fluids, cells, PET; needs photometric density "
                          "or none, which setting mass without photometric selects)", choices=CONSTRAINTS)
-    mass_brightness: float = _f(CALIBRATED, "constraint mass only: weight beta of a brightness-constancy term "
-                                "beside the mass term (the model's data penalty on g I1(x + v) - I0(x), g the gain "
-                                "to equal mass, times beta; 0 = the pure continuity equation). Both agree where "
-                                "div v = 0 and it holds the border band of rotations; it biases compressible flows "
-                                "by beta. Default: the model's calibrated value, 0.1 for the l1_* models (tune "
-                                "split; 0.25 broke a pair), 0 for l2_* (a quadratic term took separable maps off; "
-                                "docs/engine.md, 'Mass preservation')", lo=0.0, hi=100.0)
+    mass_brightness: float = _f(0.1, "constraint mass only: weight beta of a brightness-constancy term beside the "
+                                "mass term (the model's data penalty on g I1(x + v) - I0(x), g the gain to equal "
+                                "mass, times beta; 0 = the pure continuity equation), on pyramid levels of at least "
+                                "60 px. Both agree where div v = 0 and it holds the border band of rotations; it "
+                                "biases compressible flows by beta (0.1 chosen on the tune split; docs/engine.md, "
+                                "'Mass preservation')", lo=0.0, hi=100.0)
     model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1); choosing a "
                     "model without alpha/alpha1 also selects its calibrated weights", choices=MODELS)
     alpha: float = _f(CALIBRATED, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv); default: the "
@@ -317,16 +316,12 @@ class FlowConfig:
 # On normalised pairs (photometric="normalise", the default) with the default pyramid, the best of a grid on the 8
 # Middlebury pairs (`python -m bench.accuracy --model-search`; BENCHMARKS.md, "Model-aware weights"). The census
 # data term wants larger ones, given with it (docs/engine.md, "Model-aware weights").
-# mass_brightness (the brightness term beside the mass term, constraint mass only): 0.1 for the L1 data terms, chosen
-# for l1_tv on the mass regime's and fine_320's tune split; 0 for L2 data, whose quadratic term reads a density change
-# as motion (separable tune pairs, l2_tv: 0.39 -> 1.74 px and 4.1 -> 22.6 px at 0.1; docs/engine.md, "Mass
-# preservation").
 MODEL_WEIGHTS: dict[str, dict[str, float]] = {
-    "l2_l2": dict(alpha=0.0003, alpha1=0.5, mass_brightness=0.0),
-    "l2_tv": dict(alpha=0.0002, alpha1=0.5, mass_brightness=0.0),
-    "l1_tv": dict(alpha=0.03, alpha1=0.5, mass_brightness=0.1),
-    "l1_tv_l2": dict(alpha=0.03, alpha1=0.5, mass_brightness=0.1),
-    "l1_tv_tv": dict(alpha=0.02, alpha1=0.5, mass_brightness=0.1),
+    "l2_l2": dict(alpha=0.0003, alpha1=0.5),
+    "l2_tv": dict(alpha=0.0002, alpha1=0.5),
+    "l1_tv": dict(alpha=0.03, alpha1=0.5),
+    "l1_tv_l2": dict(alpha=0.03, alpha1=0.5),
+    "l1_tv_tv": dict(alpha=0.02, alpha1=0.5),
 }
 # The pyramid the mass constraint implies (docs/engine.md, "Mass preservation", "Convergence"): the dualised data term
 # moves smooth, nearly divergence-free flow errors slowly, and a fine pyramid (0.9 per level, 2 warps each) removes
@@ -346,8 +341,7 @@ def implied_by_constraint(current_constraint: str, changes: Mapping[str, Any]) -
 
 def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str, float]:
     """The weights a change implies: when ``changes`` switches the model away from ``current_model`` and does
-    not give ``alpha`` / ``alpha1`` / ``mass_brightness``, the new model's calibrated values of those
-    (MODEL_WEIGHTS); else {}.
+    not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS); else {}.
 
     The one rule for every entry point (API ``replace``, CLI ``--model``, the node's ``model`` parameter):
     re-selecting the current model, or giving a weight with it, keeps what was given."""
