@@ -146,7 +146,7 @@ def prox_data_metric(vt: np.ndarray, a: np.ndarray, c: np.ndarray, t: np.ndarray
                      ) -> np.ndarray:
     """argmin_v sum_k (v_k - vt_k)^2 / (2 t_k) + lam D(rho(v)), rho = a . v + c, D = |.| (l1) or (1/2)(.)^2 (l2):
     the prox of a pointwise data term in the metric of per-pixel, per-component steps t (2, H, W) (the mass
-    problem's diagonal preconditioning, :func:`mass_steps`). v = vt + s T a with, q = a . T a,
+    problem's diagonal preconditioning, :func:`mass_steps`). v = vt + s T a with q = a . T a,
     s = clip(-rho(vt) / q, -lam, lam) for l1 and s = -lam rho(vt) / (1 + lam q) for l2; t = tau (all) gives
     :func:`prox_data_l1` / :func:`prox_data_l2` with tau lam. The brightness-constancy term beside the mass term
     (Problem.ab, cb; FlowConfig.mass_brightness). -> (2, H, W)."""
