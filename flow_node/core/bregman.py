@@ -20,10 +20,12 @@ def bregman(problem: Problem, state: PDState, p: SolveParams, solve: LevelSolver
     A quadratic (census) data term ``problem.q`` is shifted the same way for L2: its linear part g gets
     the gradient T v_k + g added (the b-update of 1/2 |A v - f|^2 written on g = -A^T f); for L1 (whose census
     term is a majoriser, census.py) the subgradient form as above, which holds for any data term. Every
-    other part of the problem (the mass term ``m``) passes through unchanged; with mass, rho(v) = A v + c.
+    other part of the problem (the mass term ``m``) passes through unchanged; with mass, rho(v) = A v + c, and the
+    brightness term beside it (``ab``, ``cb``) is shifted by its own residual for L2 (the b-update of the two terms'
+    rows stacked).
     """
     total = 0
-    c_shift, q_shift = problem.c, problem.q
+    c_shift, q_shift, cb_shift = problem.c, problem.q, problem.cb
     for _ in range(n):
         if p.spec.data == "l2" and problem.q is not None:
             q_shift = q_shift.copy()
@@ -34,6 +36,9 @@ def bregman(problem: Problem, state: PDState, p: SolveParams, solve: LevelSolver
                    else apply_a(state.v, problem.a, problem.m) + problem.c)
             c_shift = c_shift + rho
             step = replace(problem, c=c_shift, b=None)
+            if problem.ab is not None:  # the brightness term beside the mass term: its own residual added back
+                cb_shift = cb_shift + residual(state.v, problem.ab, problem.cb)
+                step = replace(step, cb=cb_shift)
         else:
             step = replace(problem, b=-div(state.y))
         total += solve(step, state, p)

@@ -115,6 +115,12 @@ class FlowConfig:
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
                          "densities that thin out or pile up, e.g. fluids, cells, PET; needs photometric density "
                          "or none, which setting mass without photometric selects)", choices=CONSTRAINTS)
+    mass_brightness: float = _f(0.1, "constraint mass only: weight beta of a brightness-constancy term beside the "
+                                "mass term (the model's data penalty on g I1(x + v) - I0(x), g the gain to equal "
+                                "mass, times beta; 0 = the pure continuity equation), on pyramid levels of at least "
+                                "60 px. Both agree where div v = 0 and it holds the border band of rotations; it "
+                                "biases compressible flows by beta (0.1 chosen on the tune split; docs/engine.md, "
+                                "'Mass preservation')", lo=0.0, hi=100.0)
     model: str = _f("l1_tv", "variational model: data term and regulariser (paper, Table 1); choosing a "
                     "model without alpha/alpha1 also selects its calibrated weights", choices=MODELS)
     alpha: float = _f(CALIBRATED, "regularisation weight alpha (alpha_0 for l1_tv_l2/l1_tv_tv); default: the "

@@ -11,6 +11,7 @@ Shapes (channel-first, see operators.py), for an image; on a volume every "2" is
     s       (H, W)            dual of div v (the incompressibility penalty, volumes)
     m       (2, 2, H, W)      mass preservation: rho(v) = a . v + M : grad v + c, A v = a . v + M : grad v
     p       (H, W)            dual of the data term A v + c (mass preservation only, where the data is dualised)
+    ab, cb  (2, H, W), (H, W) mass preservation's brightness term beside it: ab . v + cb (prox_data_metric)
 """
 
 from __future__ import annotations
@@ -139,6 +140,20 @@ def apply_a_adjoint(p: np.ndarray, a: np.ndarray, m: np.ndarray) -> np.ndarray:
 def mass_residual(v: np.ndarray, a: np.ndarray, m: np.ndarray, c: np.ndarray) -> np.ndarray:
     """rho(v) = A v + c, the linearised mass-preservation residual. -> (H, W)."""
     return apply_a(v, a, m) + c
+
+
+def prox_data_metric(vt: np.ndarray, a: np.ndarray, c: np.ndarray, t: np.ndarray, lam: float, data: str
+                     ) -> np.ndarray:
+    """argmin_v sum_k (v_k - vt_k)^2 / (2 t_k) + lam D(rho(v)), rho = a . v + c, D = |.| (l1) or (1/2)(.)^2 (l2):
+    the prox of a pointwise data term in the metric of per-pixel, per-component steps t (2, H, W) (the mass
+    problem's diagonal preconditioning, :func:`mass_steps`). v = vt + s T a with q = a . T a,
+    s = clip(-rho(vt) / q, -lam, lam) for l1 and s = -lam rho(vt) / (1 + lam q) for l2; t = tau (all) gives
+    :func:`prox_data_l1` / :func:`prox_data_l2` with tau lam. The brightness-constancy term beside the mass term
+    (Problem.ab, cb; FlowConfig.mass_brightness). -> (2, H, W)."""
+    r = residual(vt, a, c)
+    q = t[0] * a[0] * a[0] + t[1] * a[1] * a[1]
+    s = np.clip(-r / np.maximum(q, 1e-12), -lam, lam) if data == "l1" else -(lam * r / (1.0 + lam * q))
+    return vt + s * t * a
 
 
 def prox_dual_data(pt: np.ndarray, sigma: np.ndarray, lam: float, data: str) -> np.ndarray:
@@ -320,17 +335,22 @@ def apply_k_adjoint(spec: ModelSpec, y: np.ndarray, z: np.ndarray | None) -> tup
 # ------------------------------------------------------------------------------------------- energy
 def energy(spec: ModelSpec, v: np.ndarray, w: np.ndarray | None, a: np.ndarray, c: np.ndarray,
            alpha: float, alpha1: float, tv_norm: str, q: np.ndarray | None = None,
-           incompressibility: float = 0.0, m: np.ndarray | None = None) -> float:
+           incompressibility: float = 0.0, m: np.ndarray | None = None,
+           bc: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """The primal energy G + F(K .) of the model at (v, w) (sums over pixels, float64); with a quadratic
     data term ``q`` (:func:`prox_data_quadratic`) that one instead of the model's data term on (a, c); with
-    ``m`` the mass-preservation residual (:func:`mass_residual`); plus the incompressibility penalty
-    (beta/2)|div v|^2 with beta = ``incompressibility``."""
+    ``m`` the mass-preservation residual (:func:`mass_residual`), and with ``bc`` = (ab, cb) the model's data
+    term on the brightness residual ab . v + cb added (its weight folded in, :func:`weight_data`); plus the
+    incompressibility penalty (beta/2)|div v|^2 with beta = ``incompressibility``."""
     spatial = v.shape[0]
     r = (residual(v, a, c) if m is None else mass_residual(v.astype(np.float64), a, m, c)).astype(np.float64)
     if q is not None:
         data = quadratic_data(v, q)
     else:
         data = 0.5 * float(np.sum(r * r)) if spec.data == "l2" else float(np.abs(r).sum())
+    if bc is not None:
+        rb = residual(v.astype(np.float64), *bc)
+        data += 0.5 * float(np.sum(rb * rb)) if spec.data == "l2" else float(np.abs(rb).sum())
     k1, k2 = apply_k(spec, v.astype(np.float64), None if w is None else w.astype(np.float64))
     if spec.regulariser == "l2":
         reg = 0.5 * alpha * float(np.sum(k1 * k1))

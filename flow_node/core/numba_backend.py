@@ -121,6 +121,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
         state.z = _f32c(state.z)
     v_bar, w_bar, xbuf, zero_b = work_buffers(state.v, state.w)
     mass = problem.m is not None
+    bc = mass and problem.ab is not None
     if mass:
         state.p = _f32c(state.data_dual())
         sp, tv = mass_steps(problem.a, problem.m, spec.tau, MASS_DATA_SCALE)
@@ -144,7 +145,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
         problem.q is not None,
         mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4,
         sp if mass else _DUMMY2,
-        tv if mass else _DUMMY3, _F32(1.0 / p.alpha)))
+        tv if mass else _DUMMY3, _F32(1.0 / p.alpha), bc,
+        _f32c(problem.ab) if bc else _DUMMY3, _f32c(problem.cb) if bc else _DUMMY2))
     if mass:
         shift_slow_modes(problem, state, p)
     return k

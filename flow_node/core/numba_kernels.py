@@ -60,19 +60,26 @@ def prox_dual4(t0, t1, t2, t3, reg, iso):  # noqa: ANN001, ANN201
 
 
 @njit(**_JIT)
-def prox_data(vt0, vt1, a0, a1, c, tau_d, data_l1, soft):  # noqa: ANN001, ANN201
-    """prox of tau_d * D at one pixel, D = |rho| (l1) or rho^2 / 2 (l2); rho = a . v + c. -> v_new.
+def prox_data_metric(vt0, vt1, a0, a1, c, t0, t1, lam, data_l1, soft):  # noqa: ANN001, ANN201
+    """prox of lam * D at one pixel in the metric of the per-component steps (t0, t1) (models.prox_data_metric),
+    D = |rho| (l1) or rho^2 / 2 (l2); rho = a . v + c: v_new = vt + s T a. -> v_new.
 
-    l1: the paper's three cases (step +tau_d a, -tau_d a, or onto rho = 0) are exactly the clip of the
-    projection step -rho / |a|^2 to [-tau_d, tau_d]; written as a clip (and both data terms computed and
-    selected) the pixel loop has no branches and vectorises. ``soft`` = 2 gamma / tau_d turns the l1 term into
-    the joint model's J_gamma (models.prox_data_joint): the same clip of -rho / (|a|^2 + soft); 0 = l1."""
+    l1: the paper's three cases (step +lam T a, -lam T a, or onto rho = 0) are exactly the clip of the
+    projection's s = -rho / (a . T a) to [-lam, lam]; written as a clip (and both data terms computed and
+    selected) the pixel loop has no branches and vectorises. ``soft`` = 2 gamma / lam (t = 1) turns the l1 term
+    into the joint model's J_gamma (models.prox_data_joint): the same clip of -rho / (|a|^2 + soft); 0 = l1."""
     r = a0 * vt0 + a1 * vt1 + c
-    a2 = a0 * a0 + a1 * a1
-    step_l1 = min(max(-r / max(a2 + soft, np.float32(1e-12)), -tau_d), tau_d)
-    step_l2 = -(tau_d * r / (_ONE + tau_d * a2))
+    q = t0 * a0 * a0 + t1 * a1 * a1
+    step_l1 = min(max(-r / max(q + soft, np.float32(1e-12)), -lam), lam)
+    step_l2 = -(lam * r / (_ONE + lam * q))
     step = step_l1 if data_l1 else step_l2
-    return vt0 + step * a0, vt1 + step * a1
+    return vt0 + step * t0 * a0, vt1 + step * t1 * a1
+
+
+@njit(**_JIT)
+def prox_data(vt0, vt1, a0, a1, c, tau_d, data_l1, soft):  # noqa: ANN001, ANN201
+    """prox of tau_d * D at one pixel (:func:`prox_data_metric` with unit metric; the constant 1s fold away)."""
+    return prox_data_metric(vt0, vt1, a0, a1, c, _ONE, _ONE, tau_d, data_l1, soft)
 
 
 @njit(**_JIT)
@@ -223,14 +230,16 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                 p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
 
     def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,  # noqa: ANN001, ANN202
-                    soft, mass, p, qpad, tv, measure):
+                    soft, mass, p, qpad, tv, measure, bc, ab, cb, lam):
         """One primal step over the whole image, in place on v, v_bar (and w, w_bar); returns
         sum |v_new - v|^2 if ``measure``, else 0 (a sum inside the row loop would keep it from being vectorised:
         fastmath without "reassoc" may not reorder it; so the row keeps the change in v_bar, sums it when
         asked and then adds v_new). xbuf: (threads, 2, W + 1) scratch for the x-part of div y (see below). ``quad``:
         ``a`` is a quadratic data term (5, H, W) (:func:`prox_quadratic`; ``c`` unused), else rho = a . v + c.
         ``mass``: the data term is dualised: v <- v + tv (div y + b - A* p), per-pixel tv, A* p = a p + the
-        central differences' adjoint of ``qpad`` = M p (zero-padded by one pixel, see :func:`_mass_px`)."""
+        central differences' adjoint of ``qpad`` = M p (zero-padded by one pixel, see :func:`_mass_px`); ``bc``
+        (with ``mass``): then the prox of lam D on the brightness term ab . v + cb in the metric tv
+        (:func:`prox_data_metric`)."""
         h, wd = v.shape[1], v.shape[2]
         total = 0.0
         for i in prange(h):
@@ -262,6 +271,9 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                         + qpad[1, 1, i, j + 1] - qpad[1, 1, i + 2, j + 1])
                     n0 = v0 + tv[0, i, j] * (div0 + b[0, ib, j] - s0)
                     n1 = v1 + tv[1, i, j] * (div1 + b[1, ib, j] - s1)
+                    if bc:
+                        n0, n1 = prox_data_metric(n0, n1, ab[0, i, j], ab[1, i, j], cb[i, j], tv[0, i, j],
+                                                  tv[1, i, j], lam, data_l1, _ZERO)
                 elif quad:
                     n0, n1 = prox_quadratic(vt0, vt1, a[0, i, j], a[1, i, j], a[2, i, j], a[3, i, j], a[4, i, j],
                                             tau_d)
@@ -297,14 +309,15 @@ dual_pass_ser, primal_pass_ser = _make_passes(False)
 @njit(**_JIT)
 def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN201
             data_l1, soft, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad,
-            mass, m, p, qpad, sp, tv, lam):
+            mass, m, p, qpad, sp, tv, lam, bc, ab, cb):
     """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
     per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
     cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass); ``soft``: the joint
     model's data term (:func:`prox_data`; 0 = the model's own); ``mass``: mass
     preservation, M = ``m`` (2, 2, H, W), its dual ``p`` (H, W), the scratch ``qpad`` (2, 2, H + 2, W + 2) of
     M p (zero ring), the steps ``sp`` (H, W) and ``tv`` (2, H, W) (models.mass_steps) and the data weight
-    ``lam`` (else 1x1 dummies). Returns the number of iterations run."""
+    ``lam`` (else 1x1 dummies); ``bc``: with mass, the brightness term ``ab`` (2, H, W), ``cb`` (H, W) beside it
+    (models.prox_data_metric; else dummies). Returns the number of iterations run."""
     n = 2.0 * v.shape[1] * v.shape[2]
     k = 0
     for k in range(1, iterations + 1):
@@ -312,11 +325,11 @@ def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  #
         if parallel:
             dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
             ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
-                                 soft, mass, p, qpad, tv, measure)
+                                 soft, mass, p, qpad, tv, measure, bc, ab, cb, lam)
         else:
             dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
             ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
-                                 soft, mass, p, qpad, tv, measure)
+                                 soft, mass, p, qpad, tv, measure, bc, ab, cb, lam)
         if measure and math.sqrt(ss / n) < tolerance:
             break
     return k

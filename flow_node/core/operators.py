@@ -158,6 +158,24 @@ def linearise(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | None, f
     return a.astype(np.float32, copy=False), c.astype(np.float32, copy=False)
 
 
+def mass_gain(i0: np.ndarray, i1: np.ndarray) -> float:
+    """g = sum I0 / sum I1: the gain that gives frame 1 frame 0's mass (1 for a flow that moves no mass across
+    the border; det M for an affine map x -> M x + b of a density inside the image). i0, i1 (H, W)."""
+    return float(np.sum(i0, dtype=np.float64) / max(float(np.sum(i1, dtype=np.float64)), 1e-12))
+
+
+def gain_linearise(i0: np.ndarray, a: np.ndarray, c: np.ndarray, flow0: np.ndarray, gain: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Brightness constancy of the frames brought to equal mass, g I1(x + v) = I0(x), linearised about flow0 from
+    the plain linearisation (a, c) around it (c = I1w - I0 - a . v0): rho(v) = g a . v + g c + (g - 1) I0, zero
+    where x + v0 leaves the image. The brightness term beside the mass term (refine.mass_problem): a global
+    density gain (an affine map's constant det) is then no brightness change, so the term does not read it as
+    motion. -> (2, H, W), (H, W) float32."""
+    inside = warp_maps(flow0)[2]
+    g = np.float32(gain)
+    return (g * a).astype(np.float32), (g * c + (g - np.float32(1.0)) * i0 * inside).astype(np.float32)
+
+
 def mass_linearise(i0: np.ndarray, a: np.ndarray, c: np.ndarray, flow0: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mass preservation I1(x + v) det(Id + grad v) = I0(x) linearised about flow0, from the brightness

@@ -22,7 +22,7 @@ from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS, weight_data, weight_quadratic
-from .operators import image_gradient, mass_linearise, warp_source
+from .operators import gain_linearise, image_gradient, mass_gain, mass_linearise, warp_source
 from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
@@ -129,15 +129,33 @@ def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
     return around
 
 
+# The brightness term beside the mass term (FlowConfig.mass_brightness) is used on pyramid levels whose smaller side is
+# at least this (px): on coarser levels a fine texture is washed out, the local density change is most of what is left
+# of the image, and the term reads it as motion (on every level beta 0.1 took a report separable pair to 7.6 px, 0.25
+# a tune one to 8.2; from 60 px on, the tune split has no such pair up to beta 1). The border band it holds is the
+# finest level's (docs/engine.md, "Mass preservation").
+MASS_BRIGHTNESS_MIN_SIDE = 60
+
+
 def mass_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
     """Mass preservation (the continuity equation, models.apply_a): per warp the grey-value linearisation
-    around v0, turned into that of I1(x + v) det(Id + grad v) = I0(x) (operators.mass_linearise)."""
+    around v0, turned into that of I1(x + v) det(Id + grad v) = I0(x) (operators.mass_linearise). With
+    ``cfg.mass_brightness`` = beta > 0 the grey-value linearisation stays beside it as a brightness-constancy term
+    of weight beta on the frames brought to equal mass (operators.mass_gain, gain_linearise; folded into (ab, cb)
+    by models.weight_data), on levels whose smaller side is at least MASS_BRIGHTNESS_MIN_SIDE px (docs/engine.md,
+    "Mass preservation")."""
     grey = grey_problem(i0, i1, cfg, backend, robust)
+    beta, data = cfg.mass_brightness, MODEL_SPECS[cfg.model].data
+    gain = mass_gain(i0, i1)
+    with_term = beta > 0.0 and min(i0.shape) >= MASS_BRIGHTNESS_MIN_SIDE
 
     def around(v0: np.ndarray) -> Problem:
         lin = grey(v0)
         a, m, c = mass_linearise(i0, lin.a, lin.c, v0)
-        return Problem(a, c, m=m)
+        if not with_term:
+            return Problem(a, c, m=m)
+        ab, cb = weight_data(*gain_linearise(i0, lin.a, lin.c, v0, gain), np.float32(beta), data)
+        return Problem(a, c, m=m, ab=ab, cb=cb)
 
     return around
 

@@ -39,10 +39,12 @@ from .models import (
     mode_step,
     project_dual_tv,
     prox_data_joint,
+    prox_data_metric,
     prox_data_quadratic,
     prox_dual_data,
     prox_dual_incompressibility,
     prox_dual_l2,
+    residual,
     step_sizes,
 )
 from .operators import div, grad
@@ -93,13 +95,23 @@ class Problem:
     ``q`` (5, H, W), when given, is a multi-channel data term collapsed to a quadratic form per pixel (the
     census data term, census.py); it then replaces the model's data term on (a, c). ``m`` (H, W), when given,
     makes the data term mass preservation, rho(v) = a . v + m div v + c (models.apply_a): no longer pointwise,
-    it is dualised (p, models.prox_dual_data) with diagonally preconditioned steps (models.mass_steps)."""
+    it is dualised (p, models.prox_dual_data) with diagonally preconditioned steps (models.mass_steps).
+    ``ab`` (2, H, W), ``cb`` (H, W), only with ``m``: a brightness-constancy term ab . v + cb beside the mass term,
+    the model's data penalty on it with its weight folded in (FlowConfig.mass_brightness, models.weight_data),
+    pointwise, so it stays in G (models.prox_data_metric with the per-pixel steps)."""
 
     a: np.ndarray
     c: np.ndarray
     b: np.ndarray | None = None
     q: np.ndarray | None = None
     m: np.ndarray | None = None
+    ab: np.ndarray | None = None
+    cb: np.ndarray | None = None
+
+    @property
+    def brightness_term(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(ab, cb) of the brightness term beside the mass term, or None."""
+        return None if self.ab is None else (self.ab, self.cb)
 
 
 @dataclass(frozen=True)
@@ -165,9 +177,11 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
             ys = y.copy()
             for d in range(dims):
                 ys[d, d] += s
-        if mass:  # G is the Bregman term alone: a gradient step on it with the per-pixel tau_v
+        if mass:  # G: the Bregman term (a gradient step with the per-pixel tau_v) and the brightness term's prox
             v_new = v + tau_v * (div(ys) - apply_a_adjoint(p_data, a, m)
                                  + (0.0 if problem.b is None else problem.b))
+            if problem.ab is not None:
+                v_new = prox_data_metric(v_new, problem.ab, problem.cb, tau_v, 1.0 / p.alpha, spec.data)
         else:
             vt = v + tau * div(ys)
             if shift is not None:
@@ -194,14 +208,20 @@ def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
     """A descent step of the mass problem's energy along the affine flows (models.affine_modes), run after
     its primal-dual steps in every backend. The dualised data term moves these smooth modes
     slowly: their data curvature |a|^2 is tiny next to the divergence part's |M|^2, which sets the steps.
-    theta minimises the data term along them (models.mode_step); the step is taken only if the whole energy
+    theta minimises the data term along them (models.mode_step; with the brightness term beside the mass term,
+    both, stacked); the step is taken only if the whole energy
     (data, regulariser and the linear term -alpha <b, v>) decreases and is cut to MODE_STEP_MAX px: the energy
     is the warp's linearised one, which holds only near v0 (uncut, one step took a fine texture's flow 5 px
     off). state.v updated in place."""
     a, m, c = problem.a, problem.m, problem.c
     modes = affine_modes(state.v.shape[1:])
     phi = np.stack([apply_a(e, a, m) for e in modes])
-    theta = mode_step(phi, mass_residual(state.v, a, m, c), p.spec.data)
+    r = mass_residual(state.v, a, m, c)
+    bc = problem.brightness_term
+    if bc is not None:  # the two terms' rows stacked (the brightness term's weight is folded into ab, cb)
+        phi = np.concatenate([phi, np.stack([residual(e, bc[0], 0.0) for e in modes])], axis=1)
+        r = np.concatenate([r, residual(state.v, *bc)], axis=0)
+    theta = mode_step(phi, r, p.spec.data)
     if not np.any(theta):
         return
     step = np.tensordot(theta, modes, axes=1)
@@ -209,7 +229,7 @@ def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
     if largest > MODE_STEP_MAX:  # a trust region: the linearisation holds within a fraction of a pixel
         step *= MODE_STEP_MAX / largest
     moved = (state.v + step).astype(np.float32)
-    before, after = (energy(p.spec, v, state.w, a, c, p.alpha, p.alpha1, p.tv_norm, m=m)
+    before, after = (energy(p.spec, v, state.w, a, c, p.alpha, p.alpha1, p.tv_norm, m=m, bc=bc)
                      - (0.0 if problem.b is None else p.alpha * float(np.sum(problem.b * v, dtype=np.float64)))
                      for v in (state.v, moved))
     if after < before:
