@@ -23,8 +23,9 @@ from flow_node.core.models import (
 )
 from flow_node.core.numba_backend import solve_numba
 from flow_node.core.operators import gain_linearise, linearise, mass_gain, warp_source
-from flow_node.core.refine import MASS_BRIGHTNESS_MIN_SIDE, grey_problem, mass_problem
+from flow_node.core.refine import MASS_BRIGHTNESS_MIN_SIDE, grey_problem, masked_problem, mass_problem
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
+from flow_node.core.validity import data_weight
 
 H, W = 36, 50
 ITERATIONS = 40
@@ -207,3 +208,29 @@ def test_brightness_term_holds_the_rotations_border_band() -> None:
     assert errors["beta"] <= 0.5 * errors["pure"], errors
     assert errors["beta"] <= 1.1 * errors["brightness"], errors
     assert bands["beta"]["0-2"] <= 0.6 * bands["pure"]["0-2"], bands
+
+
+@pytest.mark.parametrize("model", ["l1_tv", "l2_tv"])
+def test_validity_mask_weights_the_whole_mass_problem(model: str) -> None:
+    """A validity mask weights every coefficient of the mass residual a . v + M : grad v + c and of the
+    brightness term beside it (refine.masked_problem): masked pixels keep no data term at all, valid ones keep
+    the unmasked problem. (Until 2026-12-05 the mask dropped M and the brightness term: a masked mass problem
+    was a brightness problem on the mass linearisation's a and c.)"""
+    h, w = MASS_BRIGHTNESS_MIN_SIDE, MASS_BRIGHTNESS_MIN_SIDE + 14
+    i0 = texture(h, w, seed=1).image.astype(np.float32)
+    i1 = texture(h, w, seed=2).image.astype(np.float32)
+    v0 = (0.3 * np.random.default_rng(4).normal(size=(2, h, w))).astype(np.float32)
+    cfg = FlowConfig().replace(constraint="mass", model=model, mass_brightness=0.4)
+    plain = mass_problem(i0, i1, cfg, NUMPY, False)(v0)
+    valid = np.ones((h, w), np.float32)
+    valid[20:30, 25:40] = 0.0
+    masked = masked_problem(mass_problem(i0, i1, cfg, NUMPY, False), valid, np.ones_like(valid),
+                            MODEL_SPECS[model].data)(v0)
+    weight = data_weight(valid, np.ones_like(valid), v0)
+    inside, outside = weight == 0.0, weight == 1.0
+    assert inside.any() and outside.any()
+    for name in ("a", "c", "m", "ab", "cb"):
+        got, ref = getattr(masked, name), getattr(plain, name)
+        assert got is not None and got.shape == ref.shape, name
+        np.testing.assert_array_equal(got[..., outside], ref[..., outside], err_msg=name)
+        assert np.all(got[..., inside] == 0.0), name

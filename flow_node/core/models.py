@@ -112,8 +112,15 @@ def weight_data(a: np.ndarray, c: np.ndarray, weight: np.ndarray, data: str) -> 
     Folded into (a, c), so every prox above (and the numba kernels') applies it unchanged: prox of tau m D on
     (a, c) is prox of tau D on the weighted pair (a test checks both). m = 0 removes the pixel's data term.
     -> (a, c) new float32 arrays."""
-    m = weight if data == "l1" else np.sqrt(weight)
-    return (a * m).astype(np.float32, copy=False), (c * m).astype(np.float32, copy=False)
+    return weight_coefficient(a, weight, data), weight_coefficient(c, weight, data)
+
+
+def weight_coefficient(x: np.ndarray, weight: np.ndarray, data: str) -> np.ndarray:
+    """One coefficient array of a linear residual (a (2, H, W), c (H, W), or the mass term's M (2, 2, H, W))
+    times the factor of :func:`weight_data`: m for ``data`` "l1", sqrt(m) for "l2" (the residual is linear in
+    its coefficients, so weighting them all weights it). -> new float32 array of x's shape."""
+    factor = weight if data == "l1" else np.sqrt(weight)
+    return (x * factor).astype(np.float32, copy=False)
 
 
 def weight_quadratic(q: np.ndarray, weight: np.ndarray) -> np.ndarray:

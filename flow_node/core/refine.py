@@ -21,7 +21,7 @@ from .census import CENSUS, CensusParams
 from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
-from .models import MODEL_SPECS, weight_data, weight_quadratic
+from .models import MODEL_SPECS, weight_coefficient, weight_data, weight_quadratic
 from .operators import gain_linearise, image_gradient, mass_gain, mass_linearise, warp_source
 from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
@@ -210,14 +210,22 @@ def colour_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
 def masked_problem(linearised: Linearisation, valid0: np.ndarray, valid1: np.ndarray, data: str) -> Linearisation:
     """A level's linearisation with the validity mask (validity.py): per warp the data term weighted by
     :func:`~flow_node.core.validity.data_weight` around v0 (models.weight_data / weight_quadratic; ``data``
-    the model's data term, "l1" or "l2"). Masked pixels keep the regulariser only."""
+    the model's data term, "l1" or "l2"). Masked pixels keep the regulariser only. With mass preservation
+    the whole residual a . v + M : grad v + c is weighted (M as well as a and c), and so is the brightness
+    term beside it (ab, cb)."""
 
     def around(v0: np.ndarray) -> Problem:
         p = linearised(v0)
         m = data_weight(valid0, valid1, v0)
         if p.q is not None:
-            return Problem(p.a, p.c, p.b, weight_quadratic(p.q, m))
-        return Problem(*weight_data(p.a, p.c, m, data), p.b, None)
+            return replace(p, q=weight_quadratic(p.q, m))
+        a, c = weight_data(p.a, p.c, m, data)
+        mass = {}
+        if p.m is not None:  # M scales like a: the residual is linear in (a, M, c)
+            mass["m"] = weight_coefficient(p.m, m, data)
+        if p.ab is not None:
+            mass["ab"], mass["cb"] = weight_data(p.ab, p.cb, m, data)
+        return replace(p, a=a, c=c, **mass)
 
     return around
 
