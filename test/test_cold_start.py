@@ -87,7 +87,7 @@ def test_a_fresh_process_compiles_no_kernel() -> None:
     assert all(second["inits"]), second["inits"]  # every preset took the initialisation and fusion path
     used = {name: hm for name, hm in second["stats"].items() if sum(hm)}
     for kernel in ("iterate", "linearise_kernel", "bspline_columns", "unexplained_kernel", "residual_kernel",
-                   "choose_kernel", "gather_kernel", "consistent_kernel", "planes_kernel", "terms_kernel",
+                   "choose_kernel", "settle_kernel", "consistent_kernel", "planes_kernel", "terms_kernel",
                    "confidence_kernel"):
         assert any(name.endswith("." + kernel) for name in used), (kernel, sorted(used))
     compiled = {name: misses for name, (_, misses) in used.items() if misses}
@@ -164,8 +164,7 @@ def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> Non
 
         return run
 
-    kernels = {numba_fusion: ("residual_kernel", "choose_kernel", "near_kernel", "fill_kernel", "gather_kernel",
-                              "consistent_kernel"),
+    kernels = {numba_fusion: ("residual_kernel", "choose_kernel", "settle_kernel", "consistent_kernel"),
                numba_confidence: ("planes_kernel", "terms_kernel", "confidence_kernel")}
     for module, names in kernels.items():
         for name in names:
