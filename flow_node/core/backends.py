@@ -76,8 +76,9 @@ class Deferred:
     """A numba backend function whose module is imported on the first call, not when the backend is
     selected: the census, confidence and stream-splat kernels, which a call without the census data term,
     the confidence or a stream does not run. Importing a kernel module creates its dispatchers, and numba
-    checks each one's cache folder by writing a file there (~1 ms a dispatcher): 18 dispatchers, 15-40 ms
-    of a fresh process's first call before (docs/engine.md, "Compiled kernels")."""
+    checks each one's cache folder by writing a file there (1-2 ms a dispatcher on a loaded machine): these 18
+    dispatchers cost a fresh process's first call 25-50 ms at load 6-9 before (docs/engine.md, "Compiled
+    kernels")."""
 
     __slots__ = ("_load", "_name", "_function")
 
