@@ -87,7 +87,7 @@ def test_a_fresh_process_compiles_no_kernel() -> None:
     assert all(second["inits"]), second["inits"]  # every preset took the initialisation and fusion path
     used = {name: hm for name, hm in second["stats"].items() if sum(hm)}
     for kernel in ("iterate", "linearise_kernel", "bspline_columns", "unexplained_kernel", "residual_kernel",
-                   "choose_kernel", "gather_kernel", "consistent_kernel", "planes_kernel", "terms_kernel",
+                   "choose_kernel", "settle_kernel", "consistent_kernel", "planes_kernel", "terms_kernel",
                    "confidence_kernel"):
         assert any(name.endswith("." + kernel) for name in used), (kernel, sorted(used))
     compiled = {name: misses for name, (_, misses) in used.items() if misses}
@@ -100,6 +100,33 @@ def test_a_process_first_solve_equals_its_later_ones() -> None:
     numba_kernels.FASTMATH)."""
     diffs = run_child(REPEAT)
     assert diffs == {"fastest": 0.0, "realtime": 0.0, "census": 0.0}, diffs
+
+
+# One process: a realtime solve of a small pan with the numba backend, then which kernel modules it imported,
+# then the same after a confidence, as JSON.
+DEFERRED = """
+import json, sys
+import numpy as np
+from flow_node.core import FlowConfig, FlowEstimator
+rng = np.random.default_rng(3)
+i0 = rng.random((60, 80), dtype=np.float32)
+est = FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba"))
+est.estimate_grey(i0, np.roll(i0, 2, axis=1))
+kernels = lambda: sorted(m for m in sys.modules if m.startswith("flow_node.core.numba_"))
+solved = kernels()
+est.confidence(i0, i0, np.zeros(i0.shape + (2,), np.float32))
+print(json.dumps({"solved": solved, "confidence": kernels()}))
+"""
+
+
+def test_a_solve_imports_only_the_kernels_it_runs() -> None:
+    """The census, confidence and stream kernels' modules are imported when first called (backends.Deferred),
+    not by selecting the numba backend: a fresh process's first flow does not create their dispatchers."""
+    out = run_child(DEFERRED)
+    assert not {"flow_node.core.numba_census", "flow_node.core.numba_confidence",
+                "flow_node.core.numba_temporal"} & set(out["solved"]), out["solved"]
+    assert "flow_node.core.numba_kernels" in out["solved"]
+    assert "flow_node.core.numba_confidence" in out["confidence"]
 
 
 def test_importing_the_engine_sets_no_process_state() -> None:
@@ -137,8 +164,7 @@ def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> Non
 
         return run
 
-    kernels = {numba_fusion: ("residual_kernel", "choose_kernel", "near_kernel", "fill_kernel", "gather_kernel",
-                              "consistent_kernel"),
+    kernels = {numba_fusion: ("residual_kernel", "choose_kernel", "settle_kernel", "consistent_kernel"),
                numba_confidence: ("planes_kernel", "terms_kernel", "confidence_kernel", "confidence_at_kernel",
                                   "ratio_at_kernel")}
     for module, names in kernels.items():

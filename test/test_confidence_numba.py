@@ -78,7 +78,7 @@ def test_rendered_pair_matches_the_reference(kind, rows) -> None:
 
 
 def test_backends_and_stream_use_their_confidence() -> None:
-    assert NUMPY.confidence is confidence and select_backend("numba").confidence is confidence_numba
+    assert NUMPY.confidence is confidence and select_backend("numba").resolved().confidence is confidence_numba
     i0, i1, flow = rendered_pair("pan")
     est = FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba"))
     assert_matches(est.confidence(i0, i1, flow), confidence(i0, i1, flow))
@@ -144,7 +144,8 @@ def test_confidence_at_rejects_points_outside_or_not_integer(at) -> None:
 
 
 def test_backends_and_outputs_compute_points_alone() -> None:
-    assert NUMPY.confidence_at is confidence_at and select_backend("numba").confidence_at is confidence_at_numba
+    assert NUMPY.confidence_at is confidence_at
+    assert select_backend("numba").resolved().confidence_at is confidence_at_numba
     i0, i1, _ = rendered_pair("pan")
     stream = FlowStream(StreamSettings(config=FlowConfig.preset("realtime").replace(backend="numba")))
     stream.process((255 * i0).astype(np.uint8), 0)

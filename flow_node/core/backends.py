@@ -7,7 +7,8 @@ import logging
 from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
 from functools import partial
-from typing import NamedTuple
+from types import ModuleType
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -56,6 +57,12 @@ class Backend(NamedTuple):
     splat: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] = splat_forward
     confidence_at: ConfidenceAt = confidence_at  # the confidence at pixel points only (the fits' samples)
 
+    def resolved(self) -> Backend:
+        """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
+        that function's module now)."""
+        return self._replace(**{f: getattr(self, f).function() for f in self._fields
+                                if isinstance(getattr(self, f), Deferred)})
+
     def running(self) -> AbstractContextManager[object]:
         """The context each estimate runs in: the backend's kernels on its ``threads``, bound to the calling
         thread for the block (not a process-wide setting: two estimators with different ``threads`` each run
@@ -64,6 +71,51 @@ class Backend(NamedTuple):
 
 
 NUMPY = Backend("numpy", solve_numpy, NUMPY_WARPER)
+
+
+class Deferred:
+    """A numba backend function whose module is imported on the first call, not when the backend is
+    selected: the census, confidence and stream-splat kernels, which a call without the census data term,
+    the confidence or a stream does not run. Importing a kernel module creates its dispatchers, and numba
+    checks each one's cache folder by writing a file there (1-2 ms a dispatcher on a loaded machine): these 18
+    dispatchers cost a fresh process's first call 25-50 ms at load 6-9 before (docs/engine.md, "Compiled
+    kernels")."""
+
+    __slots__ = ("_load", "_name", "_function")
+
+    def __init__(self, load: Callable[[], ModuleType], name: str) -> None:
+        self._load, self._name = load, name
+        self._function: Callable[..., Any] | None = None
+
+    def function(self) -> Callable[..., Any]:
+        """The function this stands for (its module imported on the first request)."""
+        if self._function is None:
+            self._function = getattr(self._load(), self._name)
+        return self._function
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return self.function()(*args, **kwargs)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return Deferred, (self._load, self._name)
+
+    def __repr__(self) -> str:
+        return f"Deferred({self._load.__name__.lstrip('_')}.{self._name})"
+
+
+def _numba_census() -> ModuleType:
+    from . import numba_census
+    return numba_census
+
+
+def _numba_confidence() -> ModuleType:
+    from . import numba_confidence
+    return numba_confidence
+
+
+def _numba_temporal() -> ModuleType:
+    from . import numba_temporal
+    return numba_temporal
 
 
 def numba_import_error() -> str | None:
@@ -105,7 +157,7 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
         log.info("flow_node backend: numpy (reference, requested)")
         return NUMPY
     try:
-        from . import numba_backend, numba_census, numba_confidence, numba_fusion, numba_temporal
+        from . import numba_backend, numba_fusion
     except ImportError as exc:
         if name == "numba":
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
@@ -119,7 +171,8 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
         solve, linearise_ = (partial(f, min_pixels=parallel_min_pixels) for f in (solve, linearise_))
     return Backend("numba", solve, numba_backend.WARPER, linearise_,
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
-                   numba_census.level_signature_numba, numba_census.census_form_numba,
-                   numba_confidence.confidence_numba, used,
-                   numba_backend.thread_count, numba_census.colour_form_numba,
-                   splat=numba_temporal.splat_numba, confidence_at=numba_confidence.confidence_at_numba)
+                   Deferred(_numba_census, "level_signature_numba"), Deferred(_numba_census, "census_form_numba"),
+                   Deferred(_numba_confidence, "confidence_numba"), used,
+                   numba_backend.thread_count, Deferred(_numba_census, "colour_form_numba"),
+                   splat=Deferred(_numba_temporal, "splat_numba"),
+                   confidence_at=Deferred(_numba_confidence, "confidence_at_numba"))

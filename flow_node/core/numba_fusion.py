@@ -32,6 +32,7 @@ _JIT = dict(cache=True, error_model="numpy", nogil=True)
 _JIT_CONTRACT = dict(_JIT, fastmath={"contract"})  # a + t (b - a) as one fused multiply-add, like OpenCV
 _MIN_SUPPORT = _F32(0.05)  # fusion.data_cost: a box with less inside support than this has no cost
 _TINY = _F32(1e-6)
+_NO_LABELS, _NO_NEAR = np.zeros((1, 1), np.int32), np.zeros(1, np.int64)  # settle_kernel's dummies (no fill)
 
 
 @njit(**_JIT_CONTRACT)
@@ -193,24 +194,20 @@ def choose_kernel(choice, undecided, boxed, ok, checked, options, margin, consis
     return lost
 
 
-@njit(parallel=True, **_JIT)
-def near_kernel(labels, undecided, near):  # noqa: ANN001, ANN201
-    """:func:`_near_row` over every row of ``labels``."""
-    for i in prange(labels.shape[0]):
-        _near_row(labels, undecided, near, i)
-
-
-@njit(parallel=True, **_JIT)
-def fill_kernel(choice, undecided, labels, near, stack, flat_choice, flat_stack):  # noqa: ANN001, ANN201
-    """:func:`_fill_row` over every row of ``choice``."""
+# Parfor fusion off: the near table must be complete (every row) before any row is filled from it.
+@njit(parallel={"fusion": False}, **_JIT)
+def settle_kernel(choice, undecided, labels, near, stack, flat_choice, flat_stack, fill, out):  # noqa: ANN001, ANN201
+    """The fused flow ``out`` (2, h, w): with ``fill``, the undecided pixels' choice first
+    (fusion.fill_undecided: :func:`_near_row` over every row, then :func:`_fill_row`), then the gather
+    (:func:`_gather_row`); a row's fill and gather in one pass (its gather reads only that row's choice,
+    which its fill has settled). Without ``fill`` labels and near are dummies, not read. One kernel, not
+    three: a fresh process reads one kernel from numba's cache, not three (docs/engine.md)."""
+    if fill:
+        for i in prange(labels.shape[0]):
+            _near_row(labels, undecided, near, i)
     for i in prange(choice.shape[0]):
-        _fill_row(choice, undecided, labels, near, stack, flat_choice, flat_stack, i)
-
-
-@njit(parallel=True, **_JIT)
-def gather_kernel(choice, stack, out):  # noqa: ANN001, ANN201
-    """:func:`_gather_row` over every row of ``choice``."""
-    for i in prange(choice.shape[0]):
+        if fill:
+            _fill_row(choice, undecided, labels, near, stack, flat_choice, flat_stack, i)
         _gather_row(choice, stack, out, i)
 
 
@@ -264,12 +261,12 @@ def _fuse(s0: np.ndarray, s1: np.ndarray, stack: np.ndarray, consistent: list[np
     undecided = np.empty((h, w), np.bool_)
     options = np.array([only_consistent, propagate], np.bool_)
     lost = choose_kernel(choice, undecided, boxed, ok, checked, options, _F32(margin), _F32(CONSISTENT_COST))
-    if 0 < lost < h * w:
+    fill = 0 < lost < h * w
+    labels, near = _NO_LABELS, _NO_NEAR
+    if fill:
         _, labels = cv2.distanceTransformWithLabels(undecided.view(np.uint8), cv2.DIST_L2, 5,
                                                     labelType=cv2.DIST_LABEL_PIXEL)
         near = np.zeros(int(labels.max()) + 1, np.int64)
-        near_kernel(labels, undecided, near)
-        fill_kernel(choice, undecided, labels, near, stack, choice.reshape(-1), stack.reshape(k_n, 2, -1))
     fused = np.empty((2, h, w), _F32)
-    gather_kernel(choice, stack, fused)
+    settle_kernel(choice, undecided, labels, near, stack, choice.reshape(-1), stack.reshape(k_n, 2, -1), fill, fused)
     return fused, choice
