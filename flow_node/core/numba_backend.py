@@ -131,7 +131,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
-    k = int(nk.iterate(
+    k = int((nk.iterate_bc if bc else nk.iterate)(
         state.v, state.y,
         state.w if state.w is not None else _DUMMY4,
         state.z if state.z is not None else _DUMMY5,
@@ -145,7 +145,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
         problem.q is not None,
         mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4,
         sp if mass else _DUMMY2,
-        tv if mass else _DUMMY3, _F32(1.0 / p.alpha), bc,
+        tv if mass else _DUMMY3, _F32(1.0 / p.alpha),
         _f32c(problem.ab) if bc else _DUMMY3, _f32c(problem.cb) if bc else _DUMMY2))
     if mass:
         shift_slow_modes(problem, state, p)

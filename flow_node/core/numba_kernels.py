@@ -190,10 +190,13 @@ def w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg):  # noqa: ANN001, ANN20
                     w[d, cc, i, j] = wt
 
 
-def _make_passes(parallel: bool):  # noqa: ANN202
-    """Compile the two passes with prange parallel over rows, or serial (prange runs as range).
+def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
+    """Compile the two passes with prange parallel over rows, or serial (prange runs as range); ``bc``: the
+    primal pass with the mass model's brightness term (a compile-time constant, so the passes without it do
+    not carry its code: in the loop it kept the brightness path's pixel loop from being vectorised, +35 % per
+    stream frame at 320x240).
 
-    Distinct function names keep the on-disk cache entries of the two variants apart."""
+    Distinct function names keep the on-disk cache entries of the variants apart."""
 
     def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1):  # noqa: ANN001, ANN202
         """One dual step over the whole image, in place on y (and z, and with ``mass`` the data dual p)."""
@@ -230,7 +233,7 @@ def _make_passes(parallel: bool):  # noqa: ANN202
                 p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
 
     def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,  # noqa: ANN001, ANN202
-                    soft, mass, p, qpad, tv, measure, bc, ab, cb, lam):
+                    soft, mass, p, qpad, tv, measure, ab, cb, lam):
         """One primal step over the whole image, in place on v, v_bar (and w, w_bar); returns
         sum |v_new - v|^2 if ``measure``, else 0 (a sum inside the row loop would keep it from being vectorised:
         fastmath without "reassoc" may not reorder it; so the row keeps the change in v_bar, sums it when
@@ -294,7 +297,7 @@ def _make_passes(parallel: bool):  # noqa: ANN202
             total += acc
         return total
 
-    suffix = "par" if parallel else "ser"
+    suffix = ("par" if parallel else "ser") + ("_bc" if bc else "")
     out = []
     for fn in (dual_pass, primal_pass):
         fn.__name__ = fn.__qualname__ = f"{fn.__name__}_{suffix}"
@@ -302,34 +305,56 @@ def _make_passes(parallel: bool):  # noqa: ANN202
     return tuple(out)
 
 
-dual_pass_par, primal_pass_par = _make_passes(True)
-dual_pass_ser, primal_pass_ser = _make_passes(False)
+dual_pass_par, primal_pass_par = _make_passes(True, False)
+dual_pass_ser, primal_pass_ser = _make_passes(False, False)
+primal_pass_par_bc = _make_passes(True, True)[1]
+primal_pass_ser_bc = _make_passes(False, True)[1]
 
 
-@njit(**_JIT)
-def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN201
-            data_l1, soft, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad,
-            mass, m, p, qpad, sp, tv, lam, bc, ab, cb):
-    """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
-    per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
-    cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass); ``soft``: the joint
-    model's data term (:func:`prox_data`; 0 = the model's own); ``mass``: mass
-    preservation, M = ``m`` (2, 2, H, W), its dual ``p`` (H, W), the scratch ``qpad`` (2, 2, H + 2, W + 2) of
-    M p (zero ring), the steps ``sp`` (H, W) and ``tv`` (2, H, W) (models.mass_steps) and the data weight
-    ``lam`` (else 1x1 dummies); ``bc``: with mass, the brightness term ``ab`` (2, H, W), ``cb`` (H, W) beside it
-    (models.prox_data_metric; else dummies). Returns the number of iterations run."""
-    n = 2.0 * v.shape[1] * v.shape[2]
-    k = 0
-    for k in range(1, iterations + 1):
-        measure = tolerance > 0.0 and k % check_every == 0
-        if parallel:
-            dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
-            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
-                                 soft, mass, p, qpad, tv, measure, bc, ab, cb, lam)
-        else:
-            dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
-            ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,
-                                 soft, mass, p, qpad, tv, measure, bc, ab, cb, lam)
-        if measure and math.sqrt(ss / n) < tolerance:
-            break
-    return k
+def _make_iterate(bc: bool):  # noqa: ANN202
+    """The iteration driver over the passes without (``bc`` False: :data:`iterate`) or with the mass model's
+    brightness term (:data:`iterate_bc`; a mass problem with ``ab``, ``cb``); one source, two kernels. ``bc`` is
+    a constant of the closure: numba prunes the other branch before typing, so each kernel links only its own
+    primal passes (and the kernels reference the passes as module globals, which numba's cache can key)."""
+
+    def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN202
+                data_l1, soft, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad,
+                mass, m, p, qpad, sp, tv, lam, ab, cb):
+        """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
+        per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
+        cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass); ``soft``: the joint
+        model's data term (:func:`prox_data`; 0 = the model's own); ``mass``: mass
+        preservation, M = ``m`` (2, 2, H, W), its dual ``p`` (H, W), the scratch ``qpad`` (2, 2, H + 2, W + 2) of
+        M p (zero ring), the steps ``sp`` (H, W) and ``tv`` (2, H, W) (models.mass_steps) and the data weight
+        ``lam`` (else 1x1 dummies); in ``iterate_bc``, with mass, the brightness term ``ab`` (2, H, W), ``cb``
+        (H, W) beside it (models.prox_data_metric; else dummies). Returns the number of iterations run."""
+        n = 2.0 * v.shape[1] * v.shape[2]
+        k = 0
+        for k in range(1, iterations + 1):
+            measure = tolerance > 0.0 and k % check_every == 0
+            if parallel:
+                dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
+                if bc:
+                    ss = primal_pass_par_bc(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg,
+                                            has_b, quad, soft, mass, p, qpad, tv, measure, ab, cb, lam)
+                else:
+                    ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg,
+                                         has_b, quad, soft, mass, p, qpad, tv, measure, ab, cb, lam)
+            else:
+                dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
+                if bc:
+                    ss = primal_pass_ser_bc(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg,
+                                            has_b, quad, soft, mass, p, qpad, tv, measure, ab, cb, lam)
+                else:
+                    ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg,
+                                         has_b, quad, soft, mass, p, qpad, tv, measure, ab, cb, lam)
+            if measure and math.sqrt(ss / n) < tolerance:
+                break
+        return k
+
+    iterate.__name__ = iterate.__qualname__ = "iterate_bc" if bc else "iterate"
+    return njit(**_JIT)(iterate)
+
+
+iterate = _make_iterate(False)
+iterate_bc = _make_iterate(True)
