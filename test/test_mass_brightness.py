@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 from synth import texture
+from test_mass import H, W, assert_states_agree, copy_state, random_case
 
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import NUMPY
@@ -27,35 +28,16 @@ from flow_node.core.refine import MASS_BRIGHTNESS_MIN_SIDE, grey_problem, masked
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.validity import data_weight
 
-H, W = 36, 50
 ITERATIONS = 40
-AGREE = 1e-5
 
 
 def brightness_case(model: str, data_bregman: bool, seed: int) -> tuple[Problem, PDState]:
-    """A random mass problem (as test_mass.random_case) with a brightness term beside it."""
-    rng = np.random.default_rng(seed)
-    f32 = np.float32
-    a = (0.2 * rng.standard_normal((2, H, W))).astype(f32)
-    m = (0.8 + 0.3 * rng.standard_normal((2, 2, H, W))).astype(f32)
-    c = (0.05 * rng.standard_normal((H, W))).astype(f32)
-    ab = (0.3 * rng.standard_normal((2, H, W))).astype(f32)
-    cb = (0.1 * rng.standard_normal((H, W))).astype(f32)
-    b = (0.3 * rng.standard_normal((2, H, W))).astype(f32) if data_bregman else None
-    st = PDState.zeros(MODEL_SPECS[model], (H, W))
-    st.v = (0.5 * rng.standard_normal((2, H, W))).astype(f32)
-    st.y = np.clip(0.4 * rng.standard_normal(st.y.shape), -0.7, 0.7).astype(f32)
-    st.p = (0.5 * rng.standard_normal((H, W))).astype(f32)
-    if st.w is not None:
-        st.w = (0.1 * rng.standard_normal(st.w.shape)).astype(f32)
-    if st.z is not None:
-        st.z = (0.1 * rng.standard_normal(st.z.shape)).astype(f32)
-    return Problem(a, c, b, m=m, ab=ab, cb=cb), st
-
-
-def copy_state(st: PDState) -> PDState:
-    return dataclasses.replace(st, **{f.name: None if getattr(st, f.name) is None else getattr(st, f.name).copy()
-                                      for f in dataclasses.fields(st)})
+    """A random mass problem (test_mass.random_case) with a random brightness term beside it."""
+    prob, st = random_case(model, data_bregman, seed)
+    rng = np.random.default_rng(1000 + seed)
+    ab = (0.3 * rng.standard_normal((2, H, W))).astype(np.float32)
+    cb = (0.1 * rng.standard_normal((H, W))).astype(np.float32)
+    return dataclasses.replace(prob, ab=ab, cb=cb), st
 
 
 @pytest.mark.parametrize("data", ["l1", "l2"])
@@ -93,12 +75,7 @@ def test_numba_matches_numpy_with_the_brightness_term(model: str, tv_norm: str, 
     without = copy_state(st0)  # the same problem without the term: the term must change the result
     solve_numpy(dataclasses.replace(prob, ab=None, cb=None), without, params)
     assert np.max(np.abs(ref.v - without.v)) > 1e-3
-    for name in ("v", "y", "w", "z", "p"):
-        r, f = getattr(ref, name), getattr(fast, name)
-        if r is None:
-            assert f is None
-            continue
-        assert np.max(np.abs(r - f)) < AGREE, name
+    assert_states_agree(ref, fast)
 
 
 @pytest.mark.parametrize("model", MODELS)

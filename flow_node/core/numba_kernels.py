@@ -330,24 +330,18 @@ def _make_iterate(bc: bool):  # noqa: ANN202
         (H, W) beside it (models.prox_data_metric; else dummies). Returns the number of iterations run."""
         n = 2.0 * v.shape[1] * v.shape[2]
         k = 0
+        head = (v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad, soft, mass, p,
+                qpad, tv)
+        dual = (v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
         for k in range(1, iterations + 1):
             measure = tolerance > 0.0 and k % check_every == 0
+            tail = (measure, ab, cb, lam)
             if parallel:
-                dual_pass_par(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
-                if bc:
-                    ss = primal_pass_par_bc(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg,
-                                            has_b, quad, soft, mass, p, qpad, tv, measure, ab, cb, lam)
-                else:
-                    ss = primal_pass_par(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg,
-                                         has_b, quad, soft, mass, p, qpad, tv, measure, ab, cb, lam)
+                dual_pass_par(*dual)
+                ss = primal_pass_par_bc(*head, *tail) if bc else primal_pass_par(*head, *tail)
             else:
-                dual_pass_ser(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
-                if bc:
-                    ss = primal_pass_ser_bc(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg,
-                                            has_b, quad, soft, mass, p, qpad, tv, measure, ab, cb, lam)
-                else:
-                    ss = primal_pass_ser(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg,
-                                         has_b, quad, soft, mass, p, qpad, tv, measure, ab, cb, lam)
+                dual_pass_ser(*dual)
+                ss = primal_pass_ser_bc(*head, *tail) if bc else primal_pass_ser(*head, *tail)
             if measure and math.sqrt(ss / n) < tolerance:
                 break
         return k
