@@ -340,6 +340,11 @@ def apply_k_adjoint(spec: ModelSpec, y: np.ndarray, z: np.ndarray | None) -> tup
 
 
 # ------------------------------------------------------------------------------------------- energy
+def data_penalty(r: np.ndarray, data: str) -> float:
+    """The data term's sum over pixels of a residual r: (1/2) sum r^2 for ``data`` "l2", sum |r| for "l1"."""
+    return 0.5 * float(np.sum(r * r)) if data == "l2" else float(np.abs(r).sum())
+
+
 def energy(spec: ModelSpec, v: np.ndarray, w: np.ndarray | None, a: np.ndarray, c: np.ndarray,
            alpha: float, alpha1: float, tv_norm: str, q: np.ndarray | None = None,
            incompressibility: float = 0.0, m: np.ndarray | None = None,
@@ -354,10 +359,9 @@ def energy(spec: ModelSpec, v: np.ndarray, w: np.ndarray | None, a: np.ndarray, 
     if q is not None:
         data = quadratic_data(v, q)
     else:
-        data = 0.5 * float(np.sum(r * r)) if spec.data == "l2" else float(np.abs(r).sum())
+        data = data_penalty(r, spec.data)
     if bc is not None:
-        rb = residual(v.astype(np.float64), *bc)
-        data += 0.5 * float(np.sum(rb * rb)) if spec.data == "l2" else float(np.abs(rb).sum())
+        data += data_penalty(residual(v.astype(np.float64), *bc), spec.data)
     k1, k2 = apply_k(spec, v.astype(np.float64), None if w is None else w.astype(np.float64))
     if spec.regulariser == "l2":
         reg = 0.5 * alpha * float(np.sum(k1 * k1))

@@ -191,8 +191,8 @@ def w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg):  # noqa: ANN001, ANN20
 
 
 def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
-    """Compile the two passes with prange parallel over rows, or serial (prange runs as range); ``bc``: the
-    primal pass with the mass model's brightness term (a compile-time constant, so the passes without it do
+    """Compile the two passes with prange parallel over rows, or serial (prange runs as range); ``bc``: only
+    the primal pass, with the mass model's brightness term (a compile-time constant, so the passes without it do
     not carry its code: in the loop it kept the brightness path's pixel loop from being vectorised, +35 % per
     stream frame at 320x240).
 
@@ -299,7 +299,7 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
 
     suffix = ("par" if parallel else "ser") + ("_bc" if bc else "")
     out = []
-    for fn in (dual_pass, primal_pass):
+    for fn in (primal_pass,) if bc else (dual_pass, primal_pass):  # the dual pass has no brightness term
         fn.__name__ = fn.__qualname__ = f"{fn.__name__}_{suffix}"
         out.append(njit(parallel=parallel, **_JIT)(fn))
     return tuple(out)
@@ -307,8 +307,8 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
 
 dual_pass_par, primal_pass_par = _make_passes(True, False)
 dual_pass_ser, primal_pass_ser = _make_passes(False, False)
-primal_pass_par_bc = _make_passes(True, True)[1]
-primal_pass_ser_bc = _make_passes(False, True)[1]
+(primal_pass_par_bc,) = _make_passes(True, True)
+(primal_pass_ser_bc,) = _make_passes(False, True)
 
 
 def _make_iterate(bc: bool):  # noqa: ANN202
