@@ -21,11 +21,3 @@ def test_stages_timed_and_restored() -> None:
     assert res["frame_cpu_seconds"] > 0
     assert stages["  solver iterations"] + stages["  linearisation"] <= stages["refinement"] * 1.001
 
-
-def test_parallel_levels_times_both_kernels_in_both_modes() -> None:
-    from bench.suite import parallel_levels
-
-    raw = parallel_levels.measure((12, 16), 3)
-    assert set(raw) == set(parallel_levels.MODES)
-    for per in raw.values():
-        assert set(per) == {"solve", "linearise"} and all(len(v) == 3 and min(v) > 0 for v in per.values())
