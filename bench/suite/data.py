@@ -87,36 +87,32 @@ def bags(quick: bool, folder: Path = BAGS) -> list[Sample]:
     """Every consecutive image pair of every bundled bag with its ground-truth topic (quick: the first
     pair of each), frames decoded as the node would see them (mono8, mono16, rgb8, png)."""
     out = []
-    for bag in sorted(p for p in folder.iterdir() if (p / "metadata.yaml").is_file()):
-        pairs = _bag_pairs(bag)
+    for bag in sorted(p.parent for p in folder.glob("*/metadata.yaml")):
+        stamps, frames, gts = read_bag(bag)
+        bits = 16 if frames[stamps[0]][0].dtype == np.uint16 else 8
+        pairs = [Sample(f"{bag.name}_{k:02d}", frames[a][0], frames[b][0], gts[b], bits, bag.name)
+                 for k, (a, b) in enumerate(zip(stamps, stamps[1:], strict=False), 1) if b in gts]
         out.extend(pairs[:1] if quick else pairs)
     return out
 
 
-def _bag_pairs(bag: Path) -> list[Sample]:
-    """(previous image, image, ground truth stamped like the image) for every image with a ground truth."""
-    from flow_node.bag.bagio import IMAGE, IMAGE_TYPES, deserialize, find_connections, open_bag, read_messages
+def read_bag(folder: Path) -> tuple[list[int], dict[int, tuple[np.ndarray, str]], dict[int, np.ndarray]]:
+    """A bag's image stamps (ns) in order, its images decoded as the node decodes them (codec.decode: array
+    and encoding) and its ground truths ((H, W, 2) float32 px on DEFAULT_GT_TOPIC), by stamp."""
+    from flow_node.bag.bagio import IMAGE, IMAGE_TYPES, deserialize, find_connections, open_bag, read_messages, stamp_ns
     from flow_node.bag.evaluate import DEFAULT_GT_TOPIC, read_ground_truth
     from flow_node.pipeline.codec import decode
 
-    frames: dict[int, np.ndarray] = {}
-    order: list[int] = []
-    gts: dict[int, object] = {}
-    with open_bag(bag) as reader:
+    frames: dict[int, tuple[np.ndarray, str]] = {}
+    truths: dict[int, object] = {}
+    with open_bag(folder) as reader:
         gt_conns = find_connections(reader, DEFAULT_GT_TOPIC, (IMAGE,), "gt")
         img_conns = find_connections(reader, None, IMAGE_TYPES, "image", exclude=(DEFAULT_GT_TOPIC,))
         for conn, _, raw in read_messages(reader, list(img_conns) + list(gt_conns)):
             msg = deserialize(raw, conn.msgtype)
-            stamp = int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
             if conn.topic == DEFAULT_GT_TOPIC:
-                gts[stamp] = msg
+                truths[stamp_ns(msg)] = msg
             else:
-                frames[stamp] = decode(msg)[0]
-                order.append(stamp)
-    bits = 16 if frames[order[0]].dtype == np.uint16 else 8
-    out = []
-    for k, (prev, cur) in enumerate(zip(order, order[1:], strict=False)):
-        if cur in gts:
-            gt = read_ground_truth(gts[cur], frames[cur].shape[:2], cur)
-            out.append(Sample(f"{bag.name}_{k + 1:02d}", frames[prev], frames[cur], gt, bits, bag.name))
-    return out
+                frames[stamp_ns(msg)] = decode(msg)
+    stamps = sorted(frames)
+    return stamps, frames, {s: read_ground_truth(truths[s], frames[s][0].shape[:2], s) for s in stamps if s in truths}

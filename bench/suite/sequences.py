@@ -34,14 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from flow_node.bag.bagio import IMAGE, IMAGE_TYPES, deserialize, find_connections, open_bag, read_messages, stamp_ns
-from flow_node.bag.evaluate import DEFAULT_GT_TOPIC, read_ground_truth
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture, make_scene
 from flow_node.core.api import to_grey
-from flow_node.pipeline.codec import decode
 
-from ..common import REPO
-from .data import LUMA
+from .data import BAGS, LUMA, read_bag
 from .synthetic import quantise, seeds
 
 FRAMES = 40
@@ -165,11 +161,6 @@ def sequences(split: str, size: tuple[int, int], kinds: tuple[str, ...] = KINDS,
             yield render(KINDS[k], seed, size, frames)
 
 
-
-
-BAGS = REPO / "bags"
-
-
 def grey8(frame: np.ndarray, encoding: str) -> np.ndarray:
     """A decoded image (codec.decode: array and encoding label) as (H, W) uint8 grey: the engine's own
     conversion (api.to_grey: BT.601 luma, channel order from the label, bit depth to [0, 1]), times 255."""
@@ -180,22 +171,9 @@ def grey8(frame: np.ndarray, encoding: str) -> np.ndarray:
 def bag_sequence(folder: Path) -> Sequence:
     """A bundled bag as a sequence of kind ``bag`` (module docstring): frames in stamp order, ``gt[t]`` the
     ground truth stamped like frame t + 1 (None where the bag has none)."""
-    frames: dict[int, np.ndarray] = {}
-    truths: dict[int, object] = {}
-    with open_bag(folder) as reader:
-        gt_conns = find_connections(reader, DEFAULT_GT_TOPIC, (IMAGE,), "gt")
-        image_conns = find_connections(reader, None, IMAGE_TYPES, "image", exclude=(DEFAULT_GT_TOPIC,))
-        gt_ids = {c.id for c in gt_conns}
-        for conn, _, raw in read_messages(reader, list(image_conns) + list(gt_conns)):
-            msg = deserialize(raw, conn.msgtype)
-            if conn.id in gt_ids:
-                truths[stamp_ns(msg)] = msg
-            else:
-                frames[stamp_ns(msg)] = grey8(*decode(msg))
-    stamps = sorted(frames)
-    shape = frames[stamps[0]].shape
-    gt = [read_ground_truth(truths[s], shape, s) if s in truths else None for s in stamps[1:]]
-    return Sequence(f"bag_{folder.name}", "bag", [frames[s] for s in stamps], _f32(gt))
+    stamps, frames, gts = read_bag(folder)
+    return Sequence(f"bag_{folder.name}", "bag", [grey8(*frames[s]) for s in stamps],
+                    _f32([gts.get(s) for s in stamps[1:]]))
 
 
 def bag_sequences(folder: Path = BAGS) -> Iterator[Sequence]:
