@@ -1,13 +1,5 @@
-"""Scores: per pair (AEE, AE, and for a method that returns a confidence, its sparsification AUSE), per
-regime (means, per-variant means, time ratios against DIS in the same run), and the issue-11 target checks.
-
-Confidence metric: the *area under the sparsification error curve* (AUSE; Ilg et al., "Uncertainty
-Estimates and Multi-Hypotheses Networks for Optical Flow", ECCV 2018). Remove the fraction f of the known
-pixels with the lowest confidence, for f = 0, 0.05, ..., 0.95, and take the mean endpoint error of the
-rest: the sparsification curve. The oracle curve removes the pixels with the largest true error first.
-AUSE = mean over f of (curve - oracle), in px; 0 = the confidence ranks pixels exactly as their error
-does; a confidence unrelated to the error gives about AEE - mean(oracle). ``ause_rel`` = AUSE / AEE.
-"""
+"""Scores: per pair (AEE, AE, and for a method that returns a confidence, its sparsification AUSE,
+docs/suite.md "Confidence"), per regime (means, per-variant means, time ratios against DIS in the same run)."""
 
 from __future__ import annotations
 

@@ -1,20 +1,6 @@
 """The ``missing`` regime: exactly rendered pairs with pixels that carry no data, their values replaced by
-garbage, and ground truth everywhere (issue 27; docs/suite.md, "missing").
-
-Three kinds of missing data, cycling with the seed's index (the scene of seed s is the one of ``fine_320``):
-
-* ``blobs``: the robot's own body (a half-ellipse rising from the bottom edge) and two dirt blobs on the lens,
-  the same in both frames, filled with a static texture of their own -- garbage that does not move, so an
-  estimator that trusts it reads zero motion there;
-* ``stripes``: a wiper, a slanted band 18-26 px wide, in a different place in each frame (it moves 20-40 px
-  between them), dark with noise;
-* ``dead``: stuck pixels -- 2 % of the pixels, single or in 2x2 clusters, plus two dead columns -- stuck at
-  black or white in both frames.
-
-Samples carry the frames' validity masks (``Sample.valid``); a method named ``<preset>+mask`` is given them
-(bench/suite/methods.py), the plain preset is not. Scores add ``aee_masked`` (pixels whose data is garbage in
-either frame) and ``aee_elsewhere``.
-"""
+garbage, and ground truth everywhere (issue 27). The three kinds (``blobs``, ``stripes``, ``dead``), the
+masks a ``<preset>+mask`` method is given and the scores: docs/suite.md, "missing"."""
 
 from __future__ import annotations
 

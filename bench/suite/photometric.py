@@ -1,29 +1,9 @@
 """Families of photometric changes a camera applies to frame 2 (frame 1 unchanged), and the regimes that
 apply them: ``photometric`` (exact synthetic renders) and ``photometric_real`` (the Middlebury pairs).
 
-Every change is a small pure function of a float64 frame in [0, 1] ((H, W) grey or (H, W, 3) RGB) and a
-seed, returning a frame of the same shape in [0, 1]; it is applied before quantisation (the regimes then
-quantise to 8 bit like the others). A change is deterministic given its seed (only ``illumination/blob``
-and ``low_light`` use it). Families and their variants (label = ``family/variant``, which the report
-groups by):
-
-- tone curves: ``gamma`` (x^0.5, 0.8, 1.25, 2), ``s_curve`` (smoothstep 3x^2 - 2x^3, a logistic of slope 8
-  rescaled to [0, 1]), ``log_knee`` (log1p(8x) / log1p(8); knees at 0.7 with slope 0.3 and at 0.5 with
-  slope 0.5, the output topping at 0.79 and 0.75);
-- smooth gain fields: ``vignetting`` (cos^4 falloff to 0.7 at the corners; quadratic falloff to 0.85;
-  quadratic to 0.75 about an off-centre point), ``illumination`` (planar gain 0.8 -> 1.2 left to right;
-  1.15 -> 0.85 top-left to bottom-right; a Gaussian blob of gain 1.3 or 0.75 at a seeded place);
-- ``clipping``: gain and offset clipped to [0, 1] at both ends (1.3x - 0.10, 1.5x - 0.25, 1.8x - 0.35);
-- ``flicker``: global gain/offset of a few percent (0.93x + 0.01, 1.06x - 0.01);
-- ``white_balance``: per-channel gains (1.15, 1, 0.85) and (0.85, 1, 1.2); RGB samples only;
-- ``low_light``: frame 2 darkened (gain 0.6, 0.4) with Gaussian noise of sigma 2, 4 grey levels of 255,
-  re-quantised to 8 bit (as the camera's ADC would).
-
-**Split.** Whole families are left out of tuning (docs/design.md, "Judging a change"): ``--split tune`` applies
-TUNE_FAMILIES = gamma, vignetting, clipping; ``report`` applies REPORT_FAMILIES = s_curve, log_knee,
-illumination, flicker, white_balance, low_light; ``all`` both. The synthetic seeds follow the split as in
-:mod:`.synthetic`; the Middlebury images are the same in every split.
-"""
+Every change is a pure function of a float64 frame in [0, 1] ((H, W) grey or (H, W, 3) RGB) and a seed,
+returning a frame of the same shape in [0, 1], applied before the 8-bit quantisation. The families, their
+variants and the tune/report split of whole families: docs/suite.md, "Photometric families"."""
 
 from __future__ import annotations
 

@@ -1,27 +1,9 @@
 """Real photographs moved exactly: regimes ``real_exact`` and ``real_exact_photometric``.
 
-A pair is cut from a full-resolution photograph (the Middlebury frame10.png files and the frame0.png of
-../shared/data/large) by integer-pixel shifts only, then area-averaged by an integer factor f, so the ground
-truth is exact and sub-pixel without any interpolation:
-
-- background: frame 0 is the window of size (cw, ch) at (x0, y0) of image A, frame 1 the window at
-  (x0 - sx, y0 - sy), so I1(x + s) = I0(x): the content moves by s = (sx, sy) px (flow = displacement from
-  frame 0 to frame 1, I1(x + flow(x)) = I0(x));
-- foreground: a mask M0 (an ellipse or a random star-shaped polygon, 15-30 % of the window) filled in frame 0
-  with the pixels of another photograph B at a fixed offset, and in frame 1 the same mask and pixels moved by
-  t = (tx, ty) px, composited on top at full resolution;
-- both frames are block means of f x f pixels (f in {2, 3, 4}, shifts in -13..13 px and not multiples of
-  f), so the flow is s / f on background blocks and t / f on foreground blocks; blocks that mix foreground
-  and background in frame 0 (M0) are unknown (1e10). Occluded pixels of frame 0 (a block any of whose pixels
-  is covered by the foreground in frame 1 or leaves the window) keep their true flow, as in Middlebury, and
-  are marked in ``Sample.occluded`` (the suite then also reports ``aee_noc`` without them).
-
-Grey is the BT.601 luma of the RGB photograph, computed per pixel at full resolution; pairs whose two
-photographs are colour also come as an RGB sample (variant 'rgb'; grey samples are 'grey'). Frames are
-delivered as 8-bit (quantised after averaging). The tune and report splits use disjoint photographs
-(TUNE: Grove2, Urban3, TartanAir b; REPORT: the other Middlebury pairs, KITTI, TartanAir a/c). The
-construction is checked by :func:`verify_pair` (``python -m bench.suite.realexact``).
-"""
+Windows of a full-resolution photograph moved by integer shifts, a foreground from another photograph moved
+by its own, both block-averaged by f: the flow is exactly s / f and t / f px (mixed blocks unknown, 1e10;
+occluded blocks marked in ``Sample.occluded``). Construction, splits and photographs: docs/suite.md, "Real
+photographs moved exactly"; :func:`verify_pair` checks it (``python -m bench.suite.realexact``)."""
 
 from __future__ import annotations
 

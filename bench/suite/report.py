@@ -1,10 +1,6 @@
-"""The suite's report: a Markdown table per regime, the target checks, and a plot of AEE against time.
-
-Tables: one row per method with mean AEE (px), where the regime marks occluded pixels the mean AEE without
-them ("AEE noc"), mean AE (deg), ms per pair, and time / AEE ratios against
-DIS medium and ultrafast of the same run; per-variant mean AEE columns where the regime has variants; the
-"beaten by" column names the peers at <= 1.5x the method's time with a lower mean AEE.
-"""
+"""The suite's report: a Markdown table per regime (a row per method: mean AEE, AEE noc where the regime marks
+occluded pixels, AE, ms per pair, ratios against DIS of the same run, per-variant AEE, AUSE, the worst pair
+and the peers that beat it at <= 1.5x its time), the target checks, and a plot of AEE against time."""
 
 from __future__ import annotations
 

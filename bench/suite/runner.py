@@ -1,13 +1,6 @@
-"""Running the suite: every method on every pair of every regime, timed round-robin.
-
-Per pair: every method runs once (its output is scored; methods in rotating order), then ``repeats`` timed
-rounds in which the methods take turns (the order rotating each round), so load changes on a shared
-machine hit all of them alike; the pair's time is the median of a method's timed runs. Slow methods get
-``slow_repeats`` timed runs instead of ``repeats`` (they would otherwise dominate the run time): the slow
-TV-L1 peers (SLOW_PEERS; nothing to warm up, so their scored run is also their first timed run), and any
-other method whose scored run *and* first timed run both took longer than ``slow_seconds`` (one stall on a
-fast method does not make it slow, nor become its time).
-"""
+"""Running the suite: every method on every pair of every regime, timed round-robin (docs/suite.md, "Timing":
+one scored run, then ``repeats`` timed rounds in rotating order, the median; ``slow_repeats`` for the slow
+TV-L1 peers and any method whose scored and first timed run both exceed ``slow_seconds``)."""
 
 from __future__ import annotations
 

@@ -1,29 +1,7 @@
-"""The suite's ``stream`` regime: exactly rendered frame sequences (issue 26).
-
-A sequence is 40 frames of one scene of flow_node.bag.scenes, rendered exactly at every frame t
-(I_t(x) = T(psi_t(x)); the flow of pair t-1 -> t is phi_t(psi_{t-1}(x)) - x, nothing resampled), grey (BT.601
-luma), plus Gaussian sensor noise of NOISE grey levels, quantised to 8 bit. The motions are functions of
-continuous time, so a time warp t -> tau(t) makes them
-accelerate or decelerate exactly. Kinds (one sequence of each per split; the scene comes from the seed):
-
-* ``pan``: a translation of 2-6 px/frame (scaled to a 320 px wide image);
-* ``rotation``: 0.4-0.9 deg/frame about the centre plus a slow drift;
-* ``zoom``: 1-1.5 % per frame in or out;
-* ``accelerating``: a pan from 0.5 to 5-8 px/frame (tau(t) = t + a t^2);
-* ``decelerating``: a rotating pan slowing from 6 px/frame to a near stop;
-* ``objects``: a panning background with three objects crossing on their own paths (occlusions);
-* ``cut``: a pan, then half-way (frame 20) a different scene (rotating); the pair across the cut has no ground
-  truth (not scored), the pairs after it are scored;
-* ``exposure``: a pan whose frames from half-way on have a gain of 1.3 and an offset (or 0.75 and one): an
-  exposure step between frames 19 and 20.
-
-``tune`` uses seeds 0-7, ``report`` 1000-1007 (as bench/suite/synthetic.py's splits).
-
-:func:`bag_sequences` gives the bundled bags (bags/README.md: 128x96, 6-10 frames, ground truth on
-/camera/flow_gt) as sequences of kind ``bag``: their images decoded as the node decodes them, then as 8-bit grey
-(api.to_grey, times 255) so that DIS runs on the same frames; the ground truth matched by
-stamp.
-"""
+"""The suite's ``stream`` regime: exactly rendered 40-frame sequences of flow_node.bag.scenes (issue 26), grey,
+with NOISE grey levels of sensor noise, 8 bit; the kinds and the splits: docs/suite.md, "Streams".
+:func:`bag_sequences` gives the bundled bags as sequences of kind ``bag`` (8-bit grey by the engine's to_grey,
+so that DIS runs on the same frames; the ground truth matched by stamp)."""
 
 from __future__ import annotations
 

@@ -1,13 +1,6 @@
 """Exactly rendered synthetic regimes: band-limited textures under small motions, delivered at 8-16 bit,
-with sensor noise, exposure changes, low contrast or large flat areas.
-
-Every pair comes from a seed. The scene of seed s is the same in every regime (texture band and motion
-kind cycle with the seed's index in its split: 4 seeds cover every motion, 12 every motion x band): the 8-bit pair of
-seed s in ``bit_depth`` is the pair of seed s in ``fine_320``, and ``exposure`` compares a gain variant with
-the unchanged pair of the same seed. Frames are rendered in float64 by evaluating the texture at the exactly
-transformed coordinates (flow_node.bag.scenes: I0(x) = T(x), I1(y) = T(A^-1(y)), gt(x) = A(x) - x), then
-gain/offset and noise are applied, then they are quantised to the bit depth. Nothing is resampled.
-"""
+with sensor noise, exposure changes, low contrast or large flat areas. Every pair comes from a seed, whose
+scene is the same in every regime (docs/suite.md, "Rendering" and "Seeds and splits")."""
 
 from __future__ import annotations
 
