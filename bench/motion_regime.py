@@ -3,17 +3,10 @@
     python -m bench.motion_regime                       # -> bench/results/motion/motion_regime.json
     python -m bench.motion_regime --pairs 4 --size 640x480
 
-Scenes come from flow_node.bag.motion_scenes (band-limited textures at the exact inverse motion, 8-bit):
-pans, rotations and zooms about the centre with moving objects covering 10-30 % of the frame,
-approaching planes with a time to contact of 10-200 frames, and the same camera motions without objects
-plus still scenes (static scenes: nothing moves independently). Each pair: flow and confidence from
-FlowEstimator(realtime), then every derived output timed on its own (a fresh
-flow_node.pipeline.derived.MotionAnalysis), as a ratio to the engine's time on that pair (each the best
-of ``--repeat`` runs). Scores against the issue's targets: dominant translation error <= 0.05 px and
-rotation <= 0.05 deg; TTC median relative error <= 15 %; moving-mask IoU >= 0.8 and <= 1 % of the pixels
-marked on static scenes; each output <= 10 % of realtime's time. ``--noise`` adds Gaussian sensor noise
-(grey levels) to both frames before quantisation.
-"""
+Scenes from flow_node.bag.motion_scenes (pans, rotations, zooms with 10-30 % moving objects, approaches at a
+time to contact of 10-200 frames, static scenes); each derived output timed alone on a fresh MotionAnalysis
+as a ratio to the engine's time on the pair (best of ``--repeat``), scored against the issue's targets
+(docs/node.md, "Accuracy and cost"). ``--noise`` adds Gaussian sensor noise (grey levels) before quantisation."""
 
 from __future__ import annotations
 

@@ -3,18 +3,10 @@
     python -m bench.volume                 # 64^3 scenes + 128^3 -> bench/results/volume/volume.json (+ .md)
     python -m bench.volume --sizes 48      # a quick run
 
-Volumes are rendered exactly: a band-limited 3-D texture T (a sum of cosines, as bag/scenes.py's BandTexture
-in 2-D) sampled at each voxel for frame 0 and at the analytic inverse motion for frame 1,
-I1(q) = T(m^-1(q)), so I1(m(p)) = I0(p) and the true flow is m(p) - p (components x, y, z). The motions:
-``shift`` (rigid, sub-voxel), ``rotation`` (rigid, 5 degrees about a tilted axis through the centre),
-``shear`` (a smooth triangular map x + f(y, z), y + g(z), z + h: Jacobian determinant 1, so the flow is
-exactly divergence-free) and ``zoom`` (3 % expansion about the centre: divergence 0.09 per frame). AEE is
-the mean 3-D endpoint error over the voxels whose motion stays inside the volume. Both methods get the same
-float32 volumes in [0, 1]; scikit-image's flow (z, y, x order) is reordered to x, y, z (its convention is
-ours: moving_image(p + flow) ~ reference_image(p), checked on a shift). Times are wall-clock of one call
-each, interleaved per scene, after a warm-up of flow_node's kernels (numba compiles once per process);
-both run on one thread (``threads=1``; scikit-image's numpy is single-threaded).
-"""
+Frame 1 is a band-limited 3-D texture T sampled at the analytic inverse motion, I1(q) = T(m^-1(q)), so the
+true flow is m(p) - p (x, y, z); the scenes and settings: docs/engine.md, "Volumes". scikit-image's flow
+(z, y, x) is reordered to x, y, z (its convention is ours, checked on a shift). One call each, interleaved
+per scene, after flow_node's warm-up, both on one thread."""
 
 from __future__ import annotations
 
