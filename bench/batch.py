@@ -6,17 +6,14 @@
 
 For every ``--size WxH:BAGS``: writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds
 0..) of ``--frames`` frames and copies them up to BAGS bags. Every run writes into a fresh output (nothing
-cached). Measurements:
-
-1. **Whole processes, paired**: ``loop`` (one process running ``evaluate_bag`` for every job in a plain
-   for loop, then the same batch report: the same per-bag work without Dask) and ``flow_bag eval FOLDER
-   --workers N -q`` (embedded LocalCluster, N = 1, 2), each a fresh interpreter timed from start to exit
-   (imports, cluster start and stop, JIT cache loads, report included). Per repeat the order is
-   loop, dask-1, dask-2 then dask-2, dask-1, loop (A/B/C, C/B/A), so loop and dask-1 always run back to back:
-   the ratio dask-1 / loop of each repeat is the Dask layer's whole cost on one worker, and its median
-   over repeats the result. Bags per minute from the median process time.
-2. **Fixed costs** beside it (median of 3): ``import distributed`` in a fresh interpreter, and starting and
-   closing the embedded cluster of 1 and of 2 workers.
+cached). Whole processes, paired:
+``loop`` (one process running ``evaluate_bag`` for every job in a plain for loop, then the same batch report:
+the same per-bag work without Dask) and ``flow_bag eval FOLDER --workers N -q`` (embedded LocalCluster, N = 1,
+2), each a fresh interpreter timed from start to exit (imports, cluster start and stop, JIT cache loads, report
+included). Per repeat the order is loop, dask-1, dask-2 then dask-2, dask-1, loop, so loop and dask-1 always
+run back to back: the ratio dask-1 / loop of each repeat is the Dask layer's whole cost on one worker, and its
+median over repeats the result. Bags per minute from the median process time. The fixed costs beside it
+(``import distributed``, the cluster's start and close) were a one-off, retired: ``git show 2cc837f:bench/batch.py``.
 
 All processes run in ``WORKER_ENV`` (one numeric thread, glibc keeping freed memory): this process
 re-executes itself with it. The machine may be shared: compare the paired ratios, not absolute times.
@@ -39,7 +36,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from flow_node.bag.batch import WORKER_ENV, dask_client, evaluate_bag, find_bags, make_jobs
+from flow_node.bag.batch import WORKER_ENV, evaluate_bag, find_bags, make_jobs
 from flow_node.bag.batch_report import write_batch_report
 from flow_node.bag.results import EvalOptions
 from flow_node.bag.scenes import SCENES
@@ -140,36 +137,6 @@ def summarise(runs: list[dict[str, Any]], repeats: int) -> dict[str, Any]:
     return out
 
 
-def _timed(fn: Any) -> float:
-    start = time.monotonic()
-    fn()
-    return time.monotonic() - start
-
-
-def fixed_costs() -> dict[str, Any]:
-    """``import distributed`` in a fresh interpreter, and the embedded cluster's start and close with 1 and 2
-    workers (dask_client, as flow_bag eval runs it); 3 of each. Run after the other measurements: a closed
-    LocalCluster leaves threads in this process."""
-    import distributed  # noqa: F401 - the first cluster start below must not time this import
-
-    imports = [float(subprocess.run([sys.executable, "-c", "import time; t = time.perf_counter(); import distributed; "
-                                     "print(time.perf_counter() - t)"], capture_output=True, text=True,
-                                    check=True).stdout) for _ in range(3)]
-    out: dict[str, Any] = {"import_distributed_seconds": imports}
-    for workers in (1, 2):
-        starts, closes = [], []
-        for _ in range(3):
-            start = time.monotonic()
-            ctx = dask_client(None, workers)
-            ctx.__enter__()
-            starts.append(time.monotonic() - start)
-            closes.append(_timed(lambda c=ctx: c.__exit__(None, None, None)))
-        out[f"workers_{workers}"] = {"cluster_start_seconds": starts, "cluster_close_seconds": closes,
-                                     "fixed_seconds_median": statistics.median(imports) + statistics.median(starts)
-                                     + statistics.median(closes)}
-    return out
-
-
 def _size(text: str) -> tuple[int, int, int]:
     size, _, count = text.partition(":")
     w, h = (int(x) for x in size.lower().split("x"))
@@ -216,14 +183,12 @@ def main(argv: list[str] | None = None) -> int:
     started, head = time.monotonic(), run_record("bench.batch", argv)
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
         sizes = [measure_size(Path(tmp), size, args) for size in args.size or [(160, 120, 24), (320, 240, 12)]]
-    fixed = fixed_costs()
     write_json(Path(args.out), {**head, "frames": args.frames, "distinct": args.distinct, "preset": args.preset,
                                 "repeats": args.repeats, "platform": platform.platform(),
                                 "load_average_at_end": os.getloadavg(), "bench_seconds": time.monotonic() - started,
-                                "sizes": sizes, "fixed_costs": fixed})
+                                "sizes": sizes})
     for size in sizes:
         print(size["size"], size["bags"], "bags:", json.dumps(size["summary"], indent=1))
-    print(json.dumps(fixed, indent=1))
     return 0
 
 
