@@ -22,7 +22,6 @@ Backend ``auto`` (numba if importable), like a default node. Frames: smooth rand
 from __future__ import annotations
 
 import argparse
-import array
 import statistics
 import time
 from pathlib import Path
@@ -30,11 +29,14 @@ from typing import Any
 
 import cv2
 import numpy as np
+from builtin_interfaces.msg import Time
 from sensor_msgs.msg import Image
+from std_msgs.msg import Header
 
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.codec import array_to_image_fields, image_to_array
+from flow_node.ros.messages import image_msg as ros_image_msg
 
 from .common import run_record, write_json
 from .node_rig import NODE_COMMAND, NodeProcess, wait
@@ -66,12 +68,10 @@ class Frames:
 
 
 def image_msg(arr: np.ndarray, stamp_ns: int) -> Image:
-    f = array_to_image_fields(arr, "mono8")
-    msg = Image(height=f["height"], width=f["width"], encoding="mono8", step=f["step"])
-    msg.data = array.array("B", f["data"].tobytes())
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
-    msg.header.frame_id = "bench"
-    return msg
+    """A mono8 Image of ``arr`` stamped ``stamp_ns``, built as the node builds its own."""
+    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    return ros_image_msg(Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id="bench"),
+                         array_to_image_fields(arr, "mono8"))
 
 
 def interior_aee(flow: np.ndarray) -> float:
