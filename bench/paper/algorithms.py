@@ -67,8 +67,8 @@ class Algorithm:
 
 
 # Primal-dual iterations per warp: the smallest budget after which 4x more changes the static mean AEE (clean
-# and noisy, factor 1) by less than ~10 %. Budget study, `python -m bench.paper.budget`
-# (bench/results/paper/budget.json, 2026-12-01), mean AEE clean / noisy with the static weights:
+# and noisy, factor 1) by less than ~10 %. Budget study (bench/results/paper/budget.json, 2026-12-01; a one-off,
+# retired: `git show 2cc837f:bench/paper/budget.py`), mean AEE clean / noisy with the static weights:
 #   L2-L2          50: 0.161 / 0.161    200: 0.098 / 0.099    1000: 0.0735 / 0.0737   4000: 0.0672 / 0.0676
 #   L2-TV          50: 0.0614 / 0.0615  200: 0.0656 / 0.0657  1000: 0.0693 / 0.0693   (converged at 50)
 #   L2-TV Bregman  50: 0.0626 / 0.0628  200: 0.0547 / 0.0549  1000: 0.0559 / 0.0559

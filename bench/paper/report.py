@@ -214,7 +214,8 @@ def differences(res: dict[str, Any]) -> str:
         "* **AE units**: the paper's AE is in radians (Table 2's AE/AEE ratio shows it); ours in degrees.",
         "* **Iteration budgets** differ per algorithm (" + ", ".join(f"{a.label} {its[a.key]}" for a in ALGORITHMS)
         + " primal-dual iterations per warp): each gets the smallest budget after which four times more "
-        "changes its static mean AEE by less than ~10 % (`python -m bench.paper.budget`, budget.json; "
+        "changes its static mean AEE by less than ~10 % (a one-off budget study, budget.json, its code "
+        "`git show 2cc837f:bench/paper/budget.py`; "
         "summarised above ALGORITHMS in bench/paper/algorithms.py). L2-L2 is the slow one: its Horn-Schunck "
         "minimiser smooths across the whole image, which a primal-dual solver reaches only by diffusion; with "
         "50 iterations it stopped far short of it (worst sequence above 0.2 with the static weight, see the "
