@@ -7,8 +7,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..common import md_table
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, PEER_NAMES
+from .photometric import UNCHANGED, UNCHANGED_RGB
+
+COLOUR = ("white_balance", UNCHANGED_RGB)  # against the unchanged RGB pairs
 
 
 def _num(v: float | None, fmt: str) -> str:
@@ -41,7 +46,28 @@ def regime_table(name: str, r: dict[str, Any]) -> str:
         else:
             row.append("")
         rows.append(row)
-    return "\n".join([f"**{name}**: {r['title']} ({len(r['pairs'])} pairs)", "", *md_table(head, rows)])
+    out = [f"**{name}**: {r['title']} ({len(r['pairs'])} pairs)", "", *md_table(head, rows)]
+    if any("/" in p["variant"] for p in r["pairs"]):  # photometric families: 'family/variant'
+        out += ["", "Per family: mean AEE and its ratio to the same method's unchanged pairs (white balance: the "
+                "unchanged RGB pairs)", "", family_table(r)]
+    return "\n".join(out)
+
+
+def family_table(r: dict[str, Any]) -> str:
+    """Markdown table of a regime whose variants are 'family/variant' (the photometric regimes): per family,
+    each method's mean AEE and its ratio to the same method's mean AEE on the unchanged pairs."""
+    methods = r["methods"]
+    by_family: dict[str, dict[str, list[float]]] = {}
+    for pair in r["pairs"]:
+        per = by_family.setdefault(pair["variant"].split("/")[0], {n: [] for n in methods})
+        for n, m in methods.items():
+            per[n].append(m["per_pair"][pair["name"]]["aee"])
+    means = {f: {n: float(np.mean(v)) for n, v in per.items()} for f, per in by_family.items()}
+    rows = []
+    for family, mean in means.items():
+        base = means.get(UNCHANGED_RGB if family in COLOUR else UNCHANGED, means[UNCHANGED])
+        rows.append([family, *(f"{mean[n]:.3f} ({mean[n] / base[n]:.2f}x)" for n in methods)])
+    return "\n".join(md_table(["family", *methods], rows, right=True))
 
 
 def summary_table(res: dict[str, Any]) -> str:
