@@ -19,7 +19,6 @@ from typing import Any
 
 import numpy as np
 
-from flow_node.core.config import FlowConfig
 from flow_node.core.volume import VOLUME_CONFIG, estimate_volume
 
 from .common import REPO, machine, md_table, write_json
@@ -120,10 +119,6 @@ def skimage_flow(v0: np.ndarray, v1: np.ndarray) -> np.ndarray:
     return np.moveaxis(optical_flow_tvl1(v0, v1)[::-1], 0, -1).astype(np.float32)
 
 
-def flow_node_flow(v0: np.ndarray, v1: np.ndarray, cfg: FlowConfig) -> np.ndarray:
-    return estimate_volume(v0, v1, cfg).flow
-
-
 def run(sizes: list[int], big_scenes: tuple[str, ...], seed: int) -> dict[str, Any]:
     cfg = CONFIG
     cfg_inc = cfg.replace(incompressibility=INCOMPRESSIBILITY)
@@ -134,8 +129,8 @@ def run(sizes: list[int], big_scenes: tuple[str, ...], seed: int) -> dict[str, A
         for name in names:
             v0, v1, gt, valid = scene(name, (size,) * 3, seed)
             row: dict[str, Any] = {"scene": name, "size": size}
-            for label, method in (("flow_node", lambda a, b: flow_node_flow(a, b, cfg)),
-                                  ("flow_node_incompressible", lambda a, b: flow_node_flow(a, b, cfg_inc)),
+            for label, method in (("flow_node", lambda a, b: estimate_volume(a, b, cfg).flow),
+                                  ("flow_node_incompressible", lambda a, b: estimate_volume(a, b, cfg_inc).flow),
                                   ("skimage", skimage_flow)):
                 start = time.perf_counter()
                 flow = method(v0, v1)

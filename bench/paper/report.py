@@ -26,7 +26,8 @@ RENDERER_TEXT = {
                     "bench/paper/render.py: exact to ~1e-6 of the amplitude, no kernel shared with the engine)"),
 }
 
-def _mean(per: dict[str, dict[str, float]], metric: str) -> float:
+def seq_mean(per: dict[str, dict[str, float]], metric: str) -> float:
+    """The mean of ``metric`` over the sequences of one algorithm's results."""
     return float(np.mean([v[metric] for v in per.values()]))
 
 
@@ -42,9 +43,9 @@ def per_sequence_table(variant: dict[str, Any], kind: str, metric: str) -> str:
     rows = []
     for a in ALGORITHMS:
         per = algs[a.key][kind]
-        rows.append([a.label] + [fmt.format(per[s][metric]) for s in seqs] + [fmt.format(_mean(per, metric))])
+        rows.append([a.label] + [fmt.format(per[s][metric]) for s in seqs] + [fmt.format(seq_mean(per, metric))])
     for name, per in variant["peer"].items():
-        rows.append([name] + [fmt.format(per[s][metric]) for s in seqs] + [fmt.format(_mean(per, metric))])
+        rows.append([name] + [fmt.format(per[s][metric]) for s in seqs] + [fmt.format(seq_mean(per, metric))])
     return _table(["algorithm"] + seqs + ["mean"], rows)
 
 
@@ -101,11 +102,11 @@ def targets(res: dict[str, Any]) -> list[tuple[str, str, bool]]:
             who = max(((a, s) for a in algs for s in algs[a][kind]), key=lambda x: algs[x[0]][kind][x[1]]["aee"])
             out.append((f"{v}, {kind}: every model, every sequence AEE <= 0.12",
                         f"max {worst:.4f} ({who[0]}, {who[1]})", worst <= 0.12))
-        peer = _mean(res[v]["peer"]["opencv_dualtvl1"], "aee")
-        peer_f = _mean(res[v]["peer"]["opencv_dualtvl1_float"], "aee")
+        peer = seq_mean(res[v]["peer"]["opencv_dualtvl1"], "aee")
+        peer_f = seq_mean(res[v]["peer"]["opencv_dualtvl1_float"], "aee")
         for a in L1:
             for kind in ("static", "fixed"):
-                m = _mean(algs[a][kind], "aee")
+                m = seq_mean(algs[a][kind], "aee")
                 out.append((f"{v}, {kind}: {a} mean AEE <= OpenCV DualTVL1 8-bit {peer:.4f} "
                             f"(float input: {peer_f:.4f})", f"{m:.4f}", m <= peer))
     return out
@@ -130,7 +131,7 @@ def conclusions(res: dict[str, Any]) -> str:
     c, n = res["clean"]["algorithms"], res["noisy"]["algorithms"]
 
     def mean_of(group: tuple[str, ...], d: dict[str, Any], kind: str = "fixed") -> float:
-        return float(np.mean([_mean(d[a][kind], "aee") for a in group]))
+        return float(np.mean([seq_mean(d[a][kind], "aee") for a in group]))
 
     l1c, l1n, l2c, l2n = mean_of(L1, c), mean_of(L1, n), mean_of(L2, c), mean_of(L2, n)
     noise_holds = l1n < l2n
@@ -146,7 +147,7 @@ def conclusions(res: dict[str, Any]) -> str:
                 "so the claim holds for absolute accuracy, not as a smaller degradation."
                 if l1n / l1c > l2n / l2c else " They also degrade less in relative terms."),
              "Per algorithm, noisy/clean mean AEE (fixed weights): "
-             + ", ".join(f"{a.label} x{_mean(n[a.key]['fixed'], 'aee') / _mean(c[a.key]['fixed'], 'aee'):.2f}"
+             + ", ".join(f"{a.label} x{seq_mean(n[a.key]['fixed'], 'aee') / seq_mean(c[a.key]['fixed'], 'aee'):.2f}"
                          for a in ALGORITHMS) + ".",
              "Noise of sigma 0.002 is small against the image gradients once the frames are presmoothed, "
              "which is why both families degrade only mildly; without smoothing the noise enters the data "
@@ -158,12 +159,12 @@ def conclusions(res: dict[str, Any]) -> str:
                   f"Speed factor k (least squares flow ~ k * ground truth over pixels moving >= 0.5 px; 1 = "
                   f"unbiased) on RubberWhale, fixed weights: L2-TV {s_tv['speed']:.3f}, L2-TV Bregman "
                   f"{s_br['speed']:.3f}; AEE {s_tv['aee']:.4f} vs {s_br['aee']:.4f}. Mean speed factor over all "
-                  f"sequences: L2-TV {_mean(c['l2_tv']['fixed'], 'speed'):.3f}, L2-TV Bregman "
-                  f"{_mean(c['l2_tv_bregman']['fixed'], 'speed'):.3f}. "
+                  f"sequences: L2-TV {seq_mean(c['l2_tv']['fixed'], 'speed'):.3f}, L2-TV Bregman "
+                  f"{seq_mean(c['l2_tv_bregman']['fixed'], 'speed'):.3f}. "
                   + ("Bregman moves the speed towards the truth, as the paper observes."
                      if better else "Bregman does **not** recover speed here."), ""]
-    st = {a.key: _mean(c[a.key]["fixed"], "aee") for a in ALGORITHMS}
-    dy = {a.key: _mean(c[a.key]["dynamic"], "aee") for a in ALGORITHMS}
+    st = {a.key: seq_mean(c[a.key]["fixed"], "aee") for a in ALGORITHMS}
+    dy = {a.key: seq_mean(c[a.key]["dynamic"], "aee") for a in ALGORITHMS}
     gain = {k: 1.0 - dy[k] / st[k] for k in st}
     order_s = sorted(st, key=st.get)
     order_d = sorted(dy, key=dy.get)
@@ -192,8 +193,8 @@ def differences(res: dict[str, Any]) -> str:
     """The systematic differences, with the numbers that show them."""
     c = res["clean"]["algorithms"]
     fx = {a.key: c[a.key]["fixed_factor"] for a in ALGORITHMS}
-    st = {a.key: _mean(c[a.key]["static"], "aee") for a in ALGORITHMS}
-    fi = {a.key: _mean(c[a.key]["fixed"], "aee") for a in ALGORITHMS}
+    st = {a.key: seq_mean(c[a.key]["static"], "aee") for a in ALGORITHMS}
+    fi = {a.key: seq_mean(c[a.key]["fixed"], "aee") for a in ALGORITHMS}
     its = iterations(res)
     items = [
         "* **Weights.** The refitted fixed weight is "

@@ -21,6 +21,7 @@ from flow_node.core.metrics import aee, angular_error, valid_mask
 
 from .algorithms import ALGORITHMS, TABLE2_ALPHA_PAPER
 from .protocol import PaperPair, fill_unknown
+from .report import seq_mean
 
 # Both frames are smoothed with a Gaussian of this sigma (px) before estimation: the synthesised second
 # frame carries cubic-interpolation error of ~1/3 of the mean image gradient on fine texture, and the
@@ -97,8 +98,8 @@ def run_static_dynamic(runner: Runner, pairs: Sequence[PaperPair], factors: Sequ
         out[alg.key] = {"static": static, "fixed": fixed, "dynamic": dynamic, "fixed_factor": fixed_f,
                         "config": alg.config().to_dict(), "fixed_config": alg.config(fixed_f).to_dict(),
                         "mean_aee_by_factor": {str(f): v for f, v in mean_by_f.items()}}
-        log(f"{variant:6s} {alg.label:14s} static {_mean(static, 'aee'):.4f}  fixed {_mean(fixed, 'aee'):.4f} "
-            f"(x{fixed_f:g})  dynamic {_mean(dynamic, 'aee'):.4f}", flush=True)
+        log(f"{variant:6s} {alg.label:14s} static {seq_mean(static, 'aee'):.4f}  fixed {seq_mean(fixed, 'aee'):.4f} "
+            f"(x{fixed_f:g})  dynamic {seq_mean(dynamic, 'aee'):.4f}", flush=True)
     return out
 
 
@@ -137,8 +138,4 @@ def ranks(results: dict[str, Any], kind: str, metric: str) -> dict[str, float]:
     seqs = list(results[algs[0]][kind])
     best = {s: min(results[a][kind][s][metric] for a in algs) for s in seqs}
     return {a: float(np.mean([results[a][kind][s][metric] / best[s] for s in seqs])) for a in algs}
-
-
-def _mean(per: dict[str, dict[str, float]], metric: str) -> float:
-    return float(np.mean([v[metric] for v in per.values()]))
 
