@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -31,7 +30,7 @@ from flow_node.pipeline.motion_msgs import motion_messages
 from flow_node.process import keep_freed_memory
 from flow_node.ros.motion_outputs import RclpyKit
 
-from .common import REPO, machine, write_json
+from .common import REPO, run_record, write_json
 from .motion_regime import quantise8
 
 CASES = (("pan", 0.2), ("approach", 0.0))  # (scene kind, object share)
@@ -119,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=4100)
     ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion" / "motion_cost.json")
     args = ap.parse_args(argv)
-    argv = sys.argv[1:] if argv is None else argv
+    head = run_record("bench.motion_cost", argv)  # the command, and the load as it starts
     keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
     results = {}
     for text in args.sizes.split(","):
@@ -133,8 +132,7 @@ def main(argv: list[str] | None = None) -> int:
                     if name in NEEDS_CONFIDENCE else " " * 14) for r in results.values()]
         print(f"{name:22s}" + "".join(f"{c:>36s}" for c in cells))
     print(f"{'realtime (ms)':22s}" + "".join(f"{r['summary']['engine_ms_median']:19.1f} ms" for r in results.values()))
-    write_json(args.output, {"command": "python -m bench.motion_cost " + " ".join(argv), "machine": machine(),
-                             "results": results})
+    write_json(args.output, {**head, "results": results})
     return 0
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -27,7 +26,7 @@ from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.derived import Fits, MotionAnalysis, fits_for
 
-from .common import REPO, machine, write_json
+from .common import REPO, run_record, write_json
 
 OUTPUTS = ("dominant", "divergence", "ttc", "foe", "moving_mask")
 SHARES = (0.0, 0.1, 0.2, 0.3)  # objects' share of the frame, cycled over the pairs of a camera motion
@@ -154,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--noise", type=float, default=0.0, help="Gaussian sensor noise, grey levels of 255")
     ap.add_argument("--output", type=Path, default=REPO / "bench" / "results" / "motion" / "motion_regime.json")
     args = ap.parse_args(argv)
-    argv = sys.argv[1:] if argv is None else argv
+    head = run_record("bench.motion_regime", argv)  # the command, and the load as it starts
     size = tuple(int(v) for v in args.size.lower().split("x"))
     est = FlowEstimator(FlowConfig.preset("realtime"))
     est.warmup(size[::-1])
@@ -167,8 +166,7 @@ def main(argv: list[str] | None = None) -> int:
               f"moving {r['moving_fraction']:.4f} ttc {_median(r.get('ttc_rel_err', [None]))}", flush=True)
     summary = summarise(rows)
     print(summary)
-    write_json(args.output, {"command": "python -m bench.motion_regime " + " ".join(argv), "machine": machine(),
-                             "size": list(size), "noise": args.noise, "summary": summary, "pairs": rows})
+    write_json(args.output, {**head, "size": list(size), "noise": args.noise, "summary": summary, "pairs": rows})
     return 0
 
 
