@@ -29,11 +29,10 @@ from typing import Any
 
 import numpy as np
 
-from .common import run_record, write_json
+from .common import REPO, run_record, write_json
 from .node_rig import stop
 
-ROOT = Path(__file__).resolve().parents[1]
-PROFILE = ROOT / "config" / "fastdds_localhost.xml"
+PROFILE = REPO / "config" / "fastdds_localhost.xml"
 # variant -> (environment of the node and the camera, environment of the subscriber)
 _PROFILE_ENV = {"FASTRTPS_DEFAULT_PROFILES_FILE": str(PROFILE)}
 VARIANTS: dict[str, tuple[dict[str, str], dict[str, str]]] = {
@@ -159,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seconds", type=float, default=10.0)
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--variants", default=",".join(VARIANTS))
-    p.add_argument("--out", type=Path, default=ROOT / "bench/results/node/node_delivery.json")
+    p.add_argument("--out", type=Path, default=REPO / "bench/results/node/node_delivery.json")
     p.add_argument("--camera", choices=tuple(SIZES), help=argparse.SUPPRESS)
     p.add_argument("--subscribe", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
