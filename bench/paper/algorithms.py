@@ -1,25 +1,11 @@
 """The six algorithms of the paper's Table 1, their static parameters mapped to ours, and the dynamic grid.
 
-Parameter mapping (paper -> flow_node). The paper writes the spatial central difference without the 1/2
-(u^{i+1} - u^{i-1}); ours is the true derivative (u^{i+1} - u^{i-1}) / 2, so flow is in pixels. For the
-paper's weights to produce the flows it reports (AEE ~0.03 px on 1-px flows, impossible with a residual
-that is off by a factor 2 in the gradient alone), its linearised residual must be the same constraint
-scaled by s = 2: rho_paper = 2 rho_ours. Minimisers are unchanged when the whole energy is divided by the
-data term's factor, which is s for |rho| and s^2 for (1/2)|rho|^2:
-
-    L1 data (L1-TV, L1-TV/L2, L1-TV/TV):  alpha_ours = alpha_paper / 2,  alpha1_ours = alpha1_paper / 2
-    L2 data (L2-L2, L2-TV, L2-TV Bregman): alpha_ours = alpha_paper / 4
-
-The paper's alpha_2 column is read as: alpha_1 of the extended models (50 for TV/L2, 1 for TV/TV) and the
-number of Bregman iterations for L2-TV Bregman (10). The table's rows "L2-TV/L2" and "L2-TV/TV" are the
-L1 extended models (the text and Figure 2 have only L1 extended models).
-
-The weights are also searched over DYNAMIC_FACTORS times the static value (alpha1 scaled with it): the
-"dynamic" parameters are the paper's "manually adapted" ones made reproducible (best factor per sequence),
-and "fixed" is one factor for all sequences (the best mean AEE), i.e. a static set refitted to our scaling.
-The grid is wide on the small side because the L2 data term's weight scales with the squared image
-contrast, so the paper's L2 weights need not transfer (REPORT.md).
-"""
+The mapping (the paper's central difference omits our 1/2, so its residual is ours times s = 2: L1 data
+weights / 2, L2 data weights / 4), the reading of the alpha_2 column (alpha_1 of the extended models, the
+Bregman iterations of L2-TV Bregman) and the static / fixed / dynamic weights: REPORT.md, "Settings and the
+parameter mapping" (written by report.py). The table's rows "L2-TV/L2" and "L2-TV/TV" are the L1 extended
+models (the text and Figure 2 have only L1 extended models). DYNAMIC_FACTORS is wide on the small side: the
+L2 data term's weight scales with the squared image contrast, so the paper's L2 weights need not transfer."""
 
 from __future__ import annotations
 

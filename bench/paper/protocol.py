@@ -1,26 +1,11 @@
 """The paper's evaluation protocol (section "Evaluation"): small synthetic motion on real Middlebury frames.
 
-For each sequence: the ground truth flow10.flo is scaled so that its largest known magnitude is 1 px; frame
-10 (grey, [0, 1]) is the first frame; the second frame is synthesised by cubic interpolation of the first so
-that the scaled ground truth g is the true flow in our convention, I1(x + g(x)) = I0(x).
-
-Direction. Sampling I0 at x + g(x) (a backward warp, I1(x) = I0(x + g(x))) would make -g, not g, the
-flow. We need I1(y) = I0(x) at the points y = x + g(x), i.e. I1(y) = I0(y - h(y)) with h the flow pulled
-back to the target grid: h(y) = g(y - h(y)). We solve that fixed point by iteration, h_{k+1}(y) =
-g(y - h_k(y)) (bilinear sampling of g), which contracts where |grad g| < 1 -- everywhere except across
-motion boundaries, where the pixel is occluded or disoccluded and no exact second frame exists anyway.
-Then I1 = I0 evaluated at y - h(y) by the chosen renderer (RENDERERS): ``bandlimited`` (the default here)
-reads I0 as samples of a band-limited image and evaluates it exactly (bench/paper/render.py), so the pair is
-exact for that image model and shares no interpolation kernel with any estimator; ``cubic`` is the paper's
-own synthesis (OpenCV INTER_CUBIC, Keys a = -0.75), kept to compare with the paper's figures: its
-interpolation error is a residual an estimator with a different warp reads as motion.
-:func:`consistency` measures |I1(x + g) - I0| for this and the naive backward warp. Unknown ground-truth
-pixels are filled from their nearest known neighbour for the synthesis only;
-they stay excluded from every error measure.
-
-Noisy variant: independent Gaussian noise (sigma = 0.002, images in [0, 1]) added to both frames, with a
-fixed seed per sequence; values are not clipped.
-"""
+Per sequence the ground truth is scaled to a largest known magnitude of 1 px, frame 10 (grey) is frame 1, and
+frame 2 is synthesised so that the scaled truth g is the flow in our convention, I1(x + g(x)) = I0(x): I0
+evaluated at y - h(y), h the inverse-flow fixed point h(y) = g(y - h(y)) (sampling I0 at x + g(x) would make
+-g the flow), by a renderer of RENDERERS (``bandlimited``: exact for I0 read as a band-limited image,
+bench/paper/render.py; ``cubic``: the paper's). Unknown truth is filled from its nearest known neighbour for
+the synthesis only. Why and what it costs: REPORT.md, "Protocol" (written by report.py)."""
 
 from __future__ import annotations
 
