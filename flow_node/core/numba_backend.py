@@ -19,7 +19,7 @@ Importing this module raises ImportError when numba is not installed; backends.p
 from __future__ import annotations
 
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 
 import cv2
 import numba
@@ -63,6 +63,13 @@ def thread_count(n: int) -> Iterator[int]:
         yield numba.get_num_threads()
     finally:
         numba.set_num_threads(before)
+
+
+def threads_for(work: int, min_work: int) -> AbstractContextManager[int]:
+    """:func:`thread_count` for a call of ``work`` units (pixels, or pixels x taps): the calling thread's
+    :func:`threads` from ``min_work`` on, one thread below it (a parallel region's start and join would
+    cost more than the work)."""
+    return thread_count(threads() if work >= min_work else 1)
 
 
 def threads() -> int:

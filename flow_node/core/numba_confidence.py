@@ -185,7 +185,7 @@ def confidence_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, where: np
     h, w = flow.shape[:2]
     check_where((h, w), where)
     conf = np.empty((h, w), _F32)
-    with nb.thread_count(nb.threads() if h * w >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
+    with nb.threads_for(h * w, nb.LINEARISE_PARALLEL_MIN_PIXELS):
         boxed = _box_means(i0, i1, flow, where, shared)
         confidence_kernel(conf, boxed, flow, _NONE if where is None else np.ascontiguousarray(where),
                           _F32(1.0 / CONFIDENCE_SCALE_PX))
@@ -278,10 +278,10 @@ def confidence_at_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, ys: np
     if work >= AT_MAP_COVER * h * w:  # dense points: the map near them
         where = np.zeros((h, w), np.bool_)
         where[yi, xi] = True
-        with nb.thread_count(nb.threads() if h * w >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
+        with nb.threads_for(h * w, nb.LINEARISE_PARALLEL_MIN_PIXELS):
             ratio_at_kernel(out, _box_means(i0, i1, flow, where, shared), flow, yi, xi, _F32(1.0 / CONFIDENCE_SCALE_PX))
         return out.reshape(np.shape(ys))
-    with nb.thread_count(nb.threads() if work >= nb.LINEARISE_PARALLEL_MIN_PIXELS else 1):
+    with nb.threads_for(work, nb.LINEARISE_PARALLEL_MIN_PIXELS):
         confidence_at_kernel(out, np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32),
                              flow, yi, xi, _F32(1.0 / CONFIDENCE_SCALE_PX))
     return out.reshape(np.shape(ys))

@@ -221,7 +221,7 @@ def consistent_kernel(out, forward, backward, tolerance):  # noqa: ANN001, ANN20
 def _rows_on(h: int, w: int) -> AbstractContextManager[int]:
     """The threads the kernels run an (h, w) level's rows on: the calling thread's numba threads from
     numba_backend.PARALLEL_MIN_PIXELS pixels, one below (thread start-up dominates on small levels)."""
-    return nb.thread_count(nb.threads() if h * w >= nb.PARALLEL_MIN_PIXELS else 1)
+    return nb.threads_for(h * w, nb.PARALLEL_MIN_PIXELS)
 
 
 def consistent_numba(forward: np.ndarray, backward: np.ndarray) -> np.ndarray:

@@ -146,8 +146,8 @@ def mass_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
     "Mass preservation")."""
     grey = grey_problem(i0, i1, cfg, backend, robust)
     beta, data = cfg.mass_brightness, MODEL_SPECS[cfg.model].data
-    gain = mass_gain(i0, i1)
     with_term = beta > 0.0 and min(i0.shape) >= MASS_BRIGHTNESS_MIN_SIDE
+    gain = mass_gain(i0, i1) if with_term else 1.0
 
     def around(v0: np.ndarray) -> Problem:
         lin = grey(v0)
