@@ -3,7 +3,7 @@
 Windows of a full-resolution photograph moved by integer shifts, a foreground from another photograph moved
 by its own, both block-averaged by f: the flow is exactly s / f and t / f px (mixed blocks unknown, 1e10;
 occluded blocks marked in ``Sample.occluded``). Construction, splits and photographs: docs/suite.md, "Real
-photographs moved exactly"; :func:`verify_pair` checks it (``python -m bench.suite.realexact``)."""
+photographs moved exactly"; test/test_realexact.py checks every pair against it."""
 
 from __future__ import annotations
 
@@ -211,68 +211,3 @@ def real_exact_photometric(split: str, quick: bool) -> Iterator[Sample]:
         gt, occluded = ground_truth(spec)
         rgb = _frames(spec, True) if has_colour(spec) else None
         yield from photometric_samples(spec.name, *_frames(spec, False), gt, split, 2500 + k, rgb, occluded)
-
-
-def _spec_of(name: str) -> Spec:
-    """The spec whose name begins the sample's name (a sample is 'NAME', 'NAME_rgb' or 'NAME_<variant>')."""
-    for split, table in SPLIT_PAIRS.items():
-        for k in range(len(table)):
-            spec = make_spec(split, k)
-            if name == spec.name or name.startswith(spec.name + "_"):
-                return spec
-    raise ValueError(f"{name!r} is not a real_exact sample")
-
-
-def _source_frame0(spec: Spec, colour: bool) -> np.ndarray:
-    """Frame 0 at full resolution read straight off the photographs (not through :func:`compose`): A's
-    window, and B at the offset inside M0."""
-    a, b = photograph(spec.background), photograph(spec.foreground)
-    if not colour:
-        a, b = grey(a), grey(b)
-    x0, y0, cw, ch = spec.window
-    ys, xs = np.mgrid[0:ch, 0:cw]
-    fy, fx = np.clip(ys + spec.fg_offset[1], 0, b.shape[0] - 1), np.clip(xs + spec.fg_offset[0], 0, b.shape[1] - 1)
-    m = spec.mask[..., None] if colour else spec.mask
-    return np.where(m, b[fy, fx], a[y0 + ys, x0 + xs])
-
-
-def verify_pair(sample: Sample) -> dict[str, float]:
-    """Check an unchanged ``real_exact`` sample (grey or RGB) against its construction, exactly:
-
-    - ``err_full``: max |I1(p + f gt) - I0(p)| at full resolution over the pixels p of the known, not
-      occluded output blocks, I1 the composed frame 1 and I0 read straight off the photographs; f gt must be
-      an integer vector off the multiples of f (checked; float32 holds s / 3 to ~1e-7 px);
-    - ``err_block``: the same for the f x f block means (the output frame 0 against frame 1's block mean at
-      the window moved by f gt), before quantisation;
-    - ``quantised``: 1 if the sample's frames are the 8-bit quantisation of the block means of I0 and I1;
-    - ``known``, ``occluded``, ``foreground``: fractions of the output pixels; ``checked``: pixels compared.
-    """
-    spec, colour = _spec_of(sample.name), sample.f0.ndim == 3
-    f = spec.factor
-    src0, full1 = _source_frame0(spec, colour), compose(spec, 1, colour)[0]
-    known = np.all(np.abs(sample.gt) < 1e9, axis=-1)
-    ok = known & ~sample.occluded if sample.occluded is not None else known
-    disp = np.rint(sample.gt[ok] * f).astype(int)
-    if np.max(np.abs(disp - sample.gt[ok].astype(np.float64) * f)) > 1e-5 or np.any(disp % f == 0):  # float32 s/3
-        raise AssertionError(f"{sample.name}: f * gt is not an integer off the multiples of f")
-    pad = MAX_SHIFT + 1
-    big = np.pad(full1, ((pad, pad), (pad, pad)) + ((0, 0),) * (full1.ndim - 2), constant_values=np.nan)
-    err_full = err_block = 0.0
-    for d in {tuple(v) for v in disp}:
-        sel = ok & np.all(np.rint(sample.gt * f) == d, axis=-1)
-        warped = big[pad + d[1]:pad + d[1] + full1.shape[0], pad + d[0]:pad + d[0] + full1.shape[1]]
-        px = np.kron(sel, np.ones((f, f), bool))
-        err_full = max(err_full, float(np.max(np.abs(warped[px] - src0[px]))))
-        err_block = max(err_block, float(np.max(np.abs(block_mean(warped, f)[sel] - block_mean(src0, f)[sel]))))
-    same = (np.array_equal(sample.f0, quantise(block_mean(src0, f), 8))
-            and np.array_equal(sample.f1, quantise(block_mean(full1, f), 8)))
-    return {"err_full": err_full, "err_block": err_block, "quantised": float(same), "checked": float(ok.sum()),
-            "known": float(known.mean()), "occluded": float((known & ~ok).mean()),
-            "foreground": float(spec.mask.mean())}
-
-
-if __name__ == "__main__":
-    for part in ("tune", "report"):
-        for smp in real_exact(part, quick=False):
-            r = verify_pair(smp)
-            print(f"{smp.name:42s} {smp.size[0]}x{smp.size[1]} " + " ".join(f"{k} {v:.4g}" for k, v in r.items()))
