@@ -72,7 +72,7 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     signatures (census.reliability, with the backend's sampler), a grey-value one by the backend's
     reliability kernel, so the caller never branches on the mode. ``sample0``: frame 0's sorted sample when
     known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1)."""
-    samples = frame_samples(i0, i1, sample0)
+    samples = frame_samples(i0, i1, sample0, backend.sample)
     solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples)
     judge = (partial(census_reliability, sample=backend.warper.sample) if compares_signatures(cfg.photometric)
              else backend.reliability)

@@ -69,20 +69,27 @@ RELIABILITY_SAMPLES = 20_000  # about this many sampled pixels are enough for a 
 UNRELIABLE = 0.3  # unexplained fraction above which the node WARNs: Middlebury <= 0.19, garbage >= 0.35
 
 
+def subsample(img: np.ndarray) -> np.ndarray:
+    """Every STRIDE-th pixel of img (H, W) in each direction (all of a small image): a view."""
+    return img[::STRIDE, ::STRIDE] if min(img.shape) > 4 * STRIDE else img
+
+
 def sorted_sample(img: np.ndarray) -> np.ndarray:
-    """Every STRIDE-th pixel of img (H, W) in each direction (all of a small image), sorted, flattened."""
-    sample = img[::STRIDE, ::STRIDE] if min(img.shape) > 4 * STRIDE else img
-    return np.sort(sample, axis=None)
+    """:func:`subsample` of img (H, W), sorted, flattened (the numba backend's ``sample`` gives the same array:
+    numba_sort.py)."""
+    return np.sort(subsample(img), axis=None)
 
 
 # both frames' sorted samples (:func:`sorted_sample`), frame 0's first
 Samples = tuple[np.ndarray, np.ndarray]
 
 
-def frame_samples(i0: np.ndarray, i1: np.ndarray, known0: np.ndarray | None = None) -> Samples:
-    """Both frames' :func:`sorted_sample`, frame 0's taken from ``known0`` when given (a stream's previous pair
-    sorted it as its frame 1)."""
-    return sorted_sample(i0) if known0 is None else known0, sorted_sample(i1)
+def frame_samples(i0: np.ndarray, i1: np.ndarray, known0: np.ndarray | None = None,
+                  sample: Callable[[np.ndarray], np.ndarray] | None = None) -> Samples:
+    """Both frames' :func:`sorted_sample` (or ``sample``'s, a backend's: the same arrays), frame 0's taken from
+    ``known0`` when given (a stream's previous pair sorted it as its frame 1)."""
+    sample = sorted_sample if sample is None else sample
+    return sample(i0) if known0 is None else known0, sample(i1)
 
 
 def quantiles(ordered: np.ndarray, percents: np.ndarray | tuple[float, ...]) -> np.ndarray:
