@@ -10,6 +10,7 @@ from synth import constant_flow, interior, pair_from_flow, rotation_flow, textur
 from flow_node import FlowConfig, FlowEstimator, aee
 from flow_node.core.backends import select_backend
 from flow_node.core.numba_backend import reliability_numba
+from flow_node.core.numba_sort import sorted_sample_numba
 from flow_node.core.photometric import (
     UNRELIABLE,
     exposure_change,
@@ -113,6 +114,22 @@ def test_line_fit_is_the_least_squares_line() -> None:
     x = np.sort(rng.random(19))
     y = 1.3 * x - 0.05 + 0.01 * rng.standard_normal(19)
     assert np.allclose(line_fit(x, y), np.polyfit(x, y, 1), rtol=0, atol=1e-12)
+
+
+def test_numba_sorted_sample_is_numpys(pair) -> None:
+    """The radix sort (numba_sort.py) gives np.sort's array: 8-bit content (many equal values), continuous
+    values of either sign with -0.0, 0.0 and infinities, a small frame sampled whole, odd sizes; and the
+    numba backend's photometric stage uses it."""
+    rng = np.random.default_rng(12)
+    signed = rng.standard_normal((241, 322)).astype(np.float32) * np.float32(3.0)
+    signed[0, :6] = np.array([-0.0, 0.0, np.inf, -np.inf, 1e-40, -1e-40], np.float32)  # incl. subnormals
+    for img in (pair[0], quantised(pair[1], 8).astype(np.float32) / np.float32(255.0), signed,
+                signed[:10, :11], signed[1:, 3:]):
+        ref = sorted_sample(img)
+        got = sorted_sample_numba(img)
+        assert got.dtype == ref.dtype == np.float32 and got.shape == ref.shape
+        np.testing.assert_array_equal(got, ref)
+    assert select_backend("numba").sample(pair[0]).tolist() == sorted_sample(pair[0]).tolist()
 
 
 def test_numba_reliability_matches_the_numpy_reference(pair) -> None:

@@ -4,11 +4,12 @@ pair is solved as before."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
-from flow_node.core import FlowConfig, FlowEstimator
+from flow_node.core import FlowConfig, FlowEstimator, temporal
 from flow_node.core.densify import forward_propagate, splat_forward
 from flow_node.core.numba_temporal import splat_numba
 from flow_node.core.solver import PDState
@@ -116,6 +117,35 @@ def test_stream_mode_off_is_the_single_pair_solve() -> None:
     flows = [FlowEstimator(FlowConfig.preset(p).replace(backend="numpy")).estimate_grey(seq[0], seq[1]).flow
              for p in ("stream_fast", "fastest")]
     np.testing.assert_array_equal(*flows)
+
+
+def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """temporal.Seen: a pair's second frame's sorted sample, and (with the same normalising map) its pyramid and
+    start-level image, start the next pair; its flows are those of a pair that computes them again, bit for bit.
+    A texture rolled by 3 px per frame: the same grey values on the sampled grid, so the same map every pair;
+    the last frame is 0.002 brighter (no exposure step, another map): its pair builds everything again."""
+    base = cv2.GaussianBlur(np.random.default_rng(4).random((120, 162), dtype=np.float32), (0, 0), 1.5)
+    seq = [np.roll(base, 3 * t, axis=1) + np.float32(0.002 if t == 5 else 0.0) for t in range(6)]
+    reused: list[bool] = []
+    build = temporal.make_pyramid
+
+    def spy(*args: object, **kwargs: object) -> object:
+        reused.append(kwargs.get("levels0") is not None)
+        return build(*args, **kwargs)
+
+    monkeypatch.setattr(temporal, "make_pyramid", spy)
+    est = FlowEstimator(FlowConfig.preset("stream_fast").replace(backend="numpy"))
+    first = est.estimate_next(seq[0], seq[1], None)
+    assert first.seen is not None and first.seen.levels is None  # a full solve hands on the sample only
+    carried, fresh = first, first
+    for t in range(2, 6):
+        carried = est.estimate_next(seq[t - 1], seq[t], Prior(carried.state, carried.unexplained, seen=carried.seen))
+        fresh = est.estimate_next(seq[t - 1], seq[t], Prior(fresh.state, fresh.unexplained))
+        assert carried.stats.stream == fresh.stats.stream == PREDICTED
+        np.testing.assert_array_equal(carried.flow, fresh.flow)
+        assert carried.unexplained == fresh.unexplained
+    # carried pairs after the first predicted one, but not the last
+    assert reused == [False, False, True, False, True, False, False, False]
 
 
 def test_an_exposure_step_is_solved_in_full() -> None:

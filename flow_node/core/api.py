@@ -17,7 +17,7 @@ from .errors import InputError, NonFiniteResult
 from .layout import interleaved_flow
 from .refine import SolveStats
 from .solver import PDState
-from .temporal import FULL, Prior, estimate_predicted, result_fails
+from .temporal import FULL, Prior, Seen, estimate_predicted, result_fails
 from .validity import MaskInput, as_masks
 from .volume import estimate_volume, is_volume
 
@@ -111,6 +111,7 @@ class FlowResult:
     unexplained: float = 0.0
     frames: tuple[np.ndarray, np.ndarray] | None = None
     state: PDState | None = field(default=None, repr=False)  # estimate_next's: the solver state it ended in
+    seen: Seen | None = field(default=None, repr=False)  # estimate_next's: what it computed of frame 1 (Prior)
 
 
 class FlowEstimator:
@@ -231,18 +232,20 @@ class FlowEstimator:
                 attempt = estimate_predicted(i0, i1, self._config, self._backend, prior)
                 reason = attempt if isinstance(attempt, str) else None
                 if reason is None:
-                    state, stats, judged = attempt
+                    state, stats, judged, seen = attempt
                     flow = interleaved_flow(state.v, stats.shapes[0])
                     unexplained = unexplained_of(flow, judged)
                     reason = result_fails(self._config, prior, unexplained)
             if reason is not None or not self._config.stream_levels or prior is None:
+                known = None if prior is None or prior.seen is None else prior.seen.sample
                 state, stats, judged = solve_pair(i0, i1, self._config, self._backend, channels=channels,
-                                                  valid=valid)
+                                                  valid=valid, sample0=known)
+                seen = Seen(judged.samples[1]) if judged.samples is not None and valid is None else None  # i1 as given
                 flow = interleaved_flow(state.v, stats.shapes[0])
                 unexplained = unexplained_of(flow, judged)
                 stats.stream = "" if reason is None else f"{FULL}: {reason}"
         seconds = time.perf_counter() - start
-        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, judged.frames, state)
+        return FlowResult(flow, stats, seconds, self._backend.name, unexplained, judged.frames, state, seen)
 
     def _colour(self, channels: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray] | None:
         """The colour planes the engine is given: ``channels`` with ``config.colour`` ``channels``, else None."""

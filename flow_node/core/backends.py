@@ -20,7 +20,7 @@ from .errors import ConfigError
 from .fusion import Fuse, fuse
 from .initialise import Consistent, forward_backward_consistent
 from .operators import Linearise, linearise
-from .photometric import Reliability, reliability
+from .photometric import Reliability, reliability, sorted_sample
 from .solver import LevelSolver, solve_numpy
 from .warping import NUMPY_WARPER, Warper
 
@@ -36,7 +36,8 @@ class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
     reliability figure, the fusion and its forward-backward check, the census data term's level
     signature and per-warp form (``colour_form``: its colour version, colour.py), the per-pixel confidence of
-    a flow and the stream stage's forward splat (temporal.predict; same semantics in every backend;
+    a flow, the stream stage's forward splat (temporal.predict) and the photometric stage's sorted sample of a
+    frame (photometric.sorted_sample; the same array in every backend) (same semantics in every backend;
     the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on
     and the context that binds them (:meth:`running`).
     """
@@ -56,6 +57,7 @@ class Backend(NamedTuple):
     colour_form: ColourForm = colour_form
     splat: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] = splat_forward
     confidence_at: ConfidenceAt = confidence_at  # the confidence at pixel points only (the fits' samples)
+    sample: Callable[[np.ndarray], np.ndarray] = sorted_sample  # the photometric stage's sorted sample of a frame
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -76,10 +78,11 @@ NUMPY = Backend("numpy", solve_numpy, NUMPY_WARPER)
 class Deferred:
     """A numba backend function whose module is imported on the first call, not when the backend is
     selected: the census, confidence and stream-splat kernels, which a call without the census data term,
-    the confidence or a stream does not run. Importing a kernel module creates its dispatchers, and numba
-    checks each one's cache folder by writing a file there (1-2 ms a dispatcher on a loaded machine): these 18
-    dispatchers cost a fresh process's first call 25-50 ms at load 6-9 before (docs/engine.md, "Compiled
-    kernels")."""
+    the confidence or a stream does not run (and the sort of the photometric stage's sample, numba_sort.py,
+    which every call runs: deferred like the others, so that selecting a backend stays cheap). Importing a
+    kernel module creates its dispatchers, and numba checks each one's cache folder by writing a file there
+    (1-2 ms a dispatcher on a loaded machine): these 18 dispatchers cost a fresh process's first call 25-50 ms
+    at load 6-9 before (docs/engine.md, "Compiled kernels")."""
 
     __slots__ = ("_load", "_name", "_function")
 
@@ -116,6 +119,11 @@ def _numba_confidence() -> ModuleType:
 def _numba_temporal() -> ModuleType:
     from . import numba_temporal
     return numba_temporal
+
+
+def _numba_sort() -> ModuleType:
+    from . import numba_sort
+    return numba_sort
 
 
 def numba_import_error() -> str | None:
@@ -175,4 +183,5 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    Deferred(_numba_confidence, "confidence_numba"), used,
                    numba_backend.thread_count, Deferred(_numba_census, "colour_form_numba"),
                    splat=Deferred(_numba_temporal, "splat_numba"),
-                   confidence_at=Deferred(_numba_confidence, "confidence_at_numba"))
+                   confidence_at=Deferred(_numba_confidence, "confidence_at_numba"),
+                   sample=Deferred(_numba_sort, "sorted_sample_numba"))

@@ -41,7 +41,7 @@ from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
-from .photometric import Reliability, compares_signatures, stage
+from .photometric import Reliability, Samples, compares_signatures, frame_samples, stage
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
@@ -52,26 +52,31 @@ from .validity import fill_invalid
 class Judged:
     """What the photometric stage hands back besides the solver's pair: the pair a flow is judged on
     (``frames``, (H, W) float32 each) and the reliability figure that matches the stage's data term
-    (``judge``: census signatures for ``census``, grey values otherwise)."""
+    (``judge``: census signatures for ``census``, grey values otherwise); ``samples``: the input frames'
+    sorted samples the stage took its ranges from (photometric.frame_samples; a stream hands frame 1's to its
+    next pair, temporal.Prior)."""
 
     frames: tuple[np.ndarray, np.ndarray]
     judge: Reliability
+    samples: Samples | None = None
 
     def unexplained(self, flow: np.ndarray) -> float:
         """The fraction of sampled pixels ``flow`` (H, W, 2) px does not explain (photometric.reliability)."""
         return self.judge(*self.frames, flow)
 
 
-def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend
-                      ) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
+def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
+                      sample0: np.ndarray | None = None) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
     """The photometric stage (photometric.stage with the pyramid's noise gain) and its own judge: what the
     solver sees of the pair (H, W) float32, and the :class:`Judged` pair. A census data term is judged on
     signatures (census.reliability, with the backend's sampler), a grey-value one by the backend's
-    reliability kernel, so the caller never branches on the mode."""
-    solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg))
+    reliability kernel, so the caller never branches on the mode. ``sample0``: frame 0's sorted sample when
+    known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1)."""
+    samples = frame_samples(i0, i1, sample0, backend.sample)
+    solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples)
     judge = (partial(census_reliability, sample=backend.warper.sample) if compares_signatures(cfg.photometric)
              else backend.reliability)
-    return solver_pair, Judged(frames, judge)
+    return solver_pair, Judged(frames, judge, samples)
 
 
 def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray] | None, cfg: FlowConfig
@@ -195,15 +200,17 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
 def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
                initial_flow: np.ndarray | None = None, previous_flow: np.ndarray | None = None,
                channels: tuple[np.ndarray, np.ndarray] | None = None,
-               valid: tuple[np.ndarray, np.ndarray] | None = None
+               valid: tuple[np.ndarray, np.ndarray] | None = None, sample0: np.ndarray | None = None
                ) -> tuple[PDState, SolveStats, Judged]:
     """:func:`estimate_pair` before the output layout: the solver state on the finest solved level (its
     flow (2, h, w) in px of that level; a stream carries the whole state to the next pair, temporal.py),
-    the stats (``stats.shapes[0]`` is the input size) and the Judged pair."""
+    the stats (``stats.shapes[0]`` is the input size) and the Judged pair. ``sample0``: i0's sorted sample
+    when known (photometric_stage; not used with ``valid``, which changes the frames first)."""
     if valid is not None:
         i0, i1 = fill_invalid(i0, valid[0]), fill_invalid(i1, valid[1])
+        sample0 = None
     channels = colour_stage(i0.shape, channels, cfg)
-    (i0, i1), judged = photometric_stage(i0, i1, cfg, backend)
+    (i0, i1), judged = photometric_stage(i0, i1, cfg, backend, sample0)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
     pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))

@@ -69,10 +69,27 @@ RELIABILITY_SAMPLES = 20_000  # about this many sampled pixels are enough for a 
 UNRELIABLE = 0.3  # unexplained fraction above which the node WARNs: Middlebury <= 0.19, garbage >= 0.35
 
 
+def subsample(img: np.ndarray) -> np.ndarray:
+    """Every STRIDE-th pixel of img (H, W) in each direction (all of a small image): a view."""
+    return img[::STRIDE, ::STRIDE] if min(img.shape) > 4 * STRIDE else img
+
+
 def sorted_sample(img: np.ndarray) -> np.ndarray:
-    """Every STRIDE-th pixel of img (H, W) in each direction (all of a small image), sorted, flattened."""
-    sample = img[::STRIDE, ::STRIDE] if min(img.shape) > 4 * STRIDE else img
-    return np.sort(sample, axis=None)
+    """:func:`subsample` of img (H, W), sorted, flattened (the numba backend's ``sample`` gives the same array:
+    numba_sort.py)."""
+    return np.sort(subsample(img), axis=None)
+
+
+# both frames' sorted samples (:func:`sorted_sample`), frame 0's first
+Samples = tuple[np.ndarray, np.ndarray]
+
+
+def frame_samples(i0: np.ndarray, i1: np.ndarray, known0: np.ndarray | None = None,
+                  sample: Callable[[np.ndarray], np.ndarray] | None = None) -> Samples:
+    """Both frames' :func:`sorted_sample` (or ``sample``'s, a backend's: the same arrays), frame 0's taken from
+    ``known0`` when given (a stream's previous pair sorted it as its frame 1)."""
+    sample = sorted_sample if sample is None else sample
+    return sample(i0) if known0 is None else known0, sample(i1)
 
 
 def quantiles(ordered: np.ndarray, percents: np.ndarray | tuple[float, ...]) -> np.ndarray:
@@ -121,12 +138,13 @@ def compares_signatures(mode: str) -> bool:
     return mode in SIGNATURE_MODES
 
 
-def normalise_frame(img: np.ndarray, noise_gain: float = 1.0) -> np.ndarray:
+def normalise_frame(img: np.ndarray, noise_gain: float = 1.0, ordered: np.ndarray | None = None) -> np.ndarray:
     """One frame (H, W) float32 with its own robust range (2nd and 98th percentiles) mapped to [0, 1], and
     coarsely quantised content treated as in :func:`normalise_pair` (presmoothed, contrast shrunk). The
     ``census`` mode's map: its data term is invariant to each frame's gain and offset, so a map per frame
-    costs nothing there, and it gives the census EPS the same meaning in both frames."""
-    ordered = sorted_sample(img)
+    costs nothing there, and it gives the census EPS the same meaning in both frames. ``ordered``: img's
+    :func:`sorted_sample` when known (computed here otherwise)."""
+    ordered = sorted_sample(img) if ordered is None else ordered
     lo, hi = quantiles(ordered, PERCENTILES)
     return affine_normalised(img, lo, hi, quantisation_step(ordered), noise_gain)
 
@@ -148,7 +166,8 @@ def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return normalise_pair(i0, i1)[:2]
 
 
-def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> tuple[np.ndarray, np.ndarray, bool]:
+def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, samples: Samples | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Both frames (H, W) float32 with frame 1's exposure matched to frame 0 (:func:`exposure_change`) and
     one affine map for the pair taking its robust range -- the frames' mean 2nd and 98th percentiles -- to
     [0, 1].
@@ -161,22 +180,33 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> t
     quantisation noise shrinks where the data term is evaluated (the pyramid's anti-alias blur when the
     finest solved level is coarser than the input: :func:`flow_node.core.pyramid.noise_gain`); rel is
     judged after it, and the presmoothing is left to that blur (wider than QUANT_SIGMA, it does the same
-    on the level the data term lives on; both together take a low-contrast texture's signal too)."""
-    s0, s1 = sorted_sample(i0), sorted_sample(i1)
-    gain, offset = exposure_change(s0, s1)
+    on the level the data term lives on; both together take a low-contrast texture's signal too).
+    ``samples``: both frames' :func:`sorted_sample` when known (:func:`frame_samples`)."""
+    gain, offset, lo, hi, step = pair_map(frame_samples(i0, i1) if samples is None else samples)
     if (gain, offset) != (1.0, 0.0):
         i1 = i1 * np.float32(gain) + np.float32(offset)
-        s1 = s1 * gain + offset
-    lo, hi = 0.5 * (quantiles(s0, PERCENTILES) + quantiles(s1, PERCENTILES))
-    step = quantisation_step(s0)
     n0, n1 = (affine_normalised(img, lo, hi, step, noise_gain) for img in (i0, i1))
     return n0, n1, (gain, offset) != (1.0, 0.0)
 
 
-def density_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def pair_map(samples: Samples) -> tuple[float, float, float, float, float]:
+    """What :func:`normalise_pair` maps a pair by, from both frames' sorted samples: frame 1's exposure change
+    (gain, offset; (1, 0) for none) and the pair's robust range (lo, hi) and quantisation step (of frame 0).
+    Two pairs with equal maps (and noise gains) map an image they share to the same normalised image."""
+    s0, s1 = samples
+    gain, offset = exposure_change(s0, s1)
+    if (gain, offset) != (1.0, 0.0):
+        s1 = s1 * gain + offset
+    lo, hi = 0.5 * (quantiles(s0, PERCENTILES) + quantiles(s1, PERCENTILES))
+    return gain, offset, float(lo), float(hi), quantisation_step(s0)
+
+
+def density_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, samples: Samples | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
     """Both frames (H, W) float32 times one gain, 1 / the pair's robust range (mean 2nd-98th percentiles),
-    coarse quantisation treated as in :func:`normalise_pair`: the ``density`` mode, no offset (see module doc)."""
-    s0, s1 = sorted_sample(i0), sorted_sample(i1)
+    coarse quantisation treated as in :func:`normalise_pair`: the ``density`` mode, no offset (see module doc).
+    ``samples``: as for :func:`normalise_pair`."""
+    s0, s1 = frame_samples(i0, i1) if samples is None else samples
     lo, hi = 0.5 * (quantiles(s0, PERCENTILES) + quantiles(s1, PERCENTILES))
     step = quantisation_step(s0)
     n0, n1 = (affine_normalised(img, 0.0, hi - lo, step, noise_gain) for img in (i0, i1))
@@ -213,19 +243,22 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
     return stage(i0, i1, mode)[0]
 
 
-def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0
+def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, samples: Samples | None = None
           ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
     The second is the ``normalise`` result in every mode but ``census``, so the reliability figure has one
     meaning; ``census`` normalises each frame on its own (:func:`normalise_frame`, no exposure detection:
     its data term needs none) and returns that pair twice, for census.reliability. ``noise_gain``: see
-    :func:`normalise_pair`."""
+    :func:`normalise_pair`. ``samples``: both frames' :func:`sorted_sample` when known (a stream knows its
+    new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise; every mode's ranges
+    come from them."""
+    s0, s1 = frame_samples(i0, i1) if samples is None else samples
     if compares_signatures(mode):
-        pair = normalise_frame(i0, noise_gain), normalise_frame(i1, noise_gain)
+        pair = normalise_frame(i0, noise_gain, s0), normalise_frame(i1, noise_gain, s1)
         return pair, pair
-    n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain)
+    n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, (s0, s1))
     if mode == "density":
-        return density_pair(i0, i1, noise_gain), (n0, n1)
+        return density_pair(i0, i1, noise_gain, (s0, s1)), (n0, n1)
     if mode == "none":
         return (i0, i1), (n0, n1)
     if mode == "normalise" and exposure_changed:

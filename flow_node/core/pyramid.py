@@ -134,7 +134,8 @@ def noise_gain(shape: tuple[int, int], cfg: FlowConfig) -> float:
 
 def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
                  channels: tuple[np.ndarray, np.ndarray] | None = None,
-                 valid: tuple[np.ndarray, np.ndarray] | None = None) -> Pyramid:
+                 valid: tuple[np.ndarray, np.ndarray] | None = None, levels0: list[np.ndarray] | None = None
+                 ) -> Pyramid:
     """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
     level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
     finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
@@ -143,10 +144,14 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
     contrast away, so an aliased remnant of fine texture on a coarse level -- faint in grey values -- would weigh
     as much as real structure there. ``channels``:
     both frames' colour channels (C, H, W), pyramids of each built the same way (Pyramid.c0, c1). ``valid``:
-    the frames' validity masks (H, W) bool, carried down with the same blur (validity.mask_levels)."""
+    the frames' validity masks (H, W) bool, carried down with the same blur (validity.mask_levels). ``levels0``:
+    i0's pyramid for ``cfg`` when known (a stream's previous pair built it as its frame 1's: temporal.Seen);
+    used when its shapes are these."""
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
     antialias = antialias_steps(cfg, len(shapes))
-    grey = [build_pyramid(img, shapes, cfg.scale_factor, antialias) for img in (i0, i1)]
+    known = levels0 is not None and [level.shape for level in levels0] == shapes
+    grey = [levels0 if known and k == 0 else build_pyramid(img, shapes, cfg.scale_factor, antialias)
+            for k, img in enumerate((i0, i1))]
     colour = [None, None] if channels is None else \
         [channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels]
     masks = [None, None] if valid is None else \

@@ -14,6 +14,9 @@ The prediction replaces the coarse levels, the initialisation matcher and their 
 solved one, with ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` primal-dual iterations each (on the
 finest solved level ``cfg.stream_finest_warps`` x ``cfg.stream_finest_iterations`` where set).
 
+A pair's second frame is the next pair's first: what the pair computed of it -- its sorted sample, and where the
+pair's normalising map repeats its pyramid -- is handed on (:class:`Seen`, ``Prior.seen``) and not computed again.
+
 A per-frame check decides whether the prediction holds (:func:`prediction_fails`, :func:`result_fails`); when
 it does not, the caller runs the full single-pair solve (engine.estimate_pair) instead:
 
@@ -45,7 +48,8 @@ from .config import FlowConfig
 from .densify import push_pull
 from .engine import Judged, photometric_stage
 from .layout import interleaved_flow
-from .pyramid import Pyramid, make_pyramid, resize_state
+from .photometric import pair_map
+from .pyramid import Pyramid, make_pyramid, noise_gain, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
 
@@ -58,15 +62,33 @@ Splat = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndar
 
 
 @dataclass(frozen=True)
+class Seen:
+    """What a pair computed of its second frame that the next pair, whose first frame it is, need not compute
+    again: its sorted ``sample`` (photometric.sorted_sample: the photometric stage's ranges come from it); and,
+    from a pair the stream stage refined in ``normalise`` mode, the pair's normalising map (``key``:
+    photometric.pair_map and the noise gain), the frame's normalised pyramid (``levels``, finest first, as
+    pyramid.make_pyramid built it) and its normalised image on the start level by area average (``area``:
+    :func:`judged_on`). The next pair takes those only when its own map is the same -- the normalised frame is
+    then the same, bit for bit --, else it builds them again."""
+
+    sample: np.ndarray
+    key: tuple[float, ...] | None = None
+    levels: list[np.ndarray] | None = None
+    area: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
 class Prior:
     """What a stream knows before a pair: the previous pair's solver ``state`` (solver.PDState on its finest
     solved level: the flow v (2, h, w) px of that level on the grid of that pair's first frame, and the duals)
-    at this pair's resolution; that result's ``unexplained`` fraction (api.FlowResult); and this pair's
-    interval over the previous pair's (``interval_ratio``; 1 for evenly spaced stamps)."""
+    at this pair's resolution; that result's ``unexplained`` fraction (api.FlowResult); this pair's
+    interval over the previous pair's (``interval_ratio``; 1 for evenly spaced stamps); and what the previous
+    pair computed of this pair's first frame (``seen``, :class:`Seen`; None: computed again)."""
 
     state: PDState
     unexplained: float
     interval_ratio: float = 1.0
+    seen: Seen | None = None
 
 
 def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Splat) -> PDState:
@@ -119,15 +141,26 @@ def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted
     return refine_levels(pyr, cfg, backend, predicted, start, finest, stats, finest)
 
 
-def predicted_cost(judged: Judged, predicted: np.ndarray) -> float:
-    """The prediction's robust data cost: the fraction of sampled pixels of the judged pair (the photometric
-    stage's frames, resampled to the prediction's grid by area average) that the prediction (2, h, w) does not
-    explain, by the stage's own judge (grey-value residuals above photometric.RESIDUAL_OUTLIER, or census
-    signatures with the census data term)."""
+def judged_on(judged: Judged, shape: tuple[int, int], known0: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The judged pair (the photometric stage's frames) on a grid of ``shape`` (h, w), resampled by area
+    average; frame 0's is ``known0`` when given (:class:`Seen`)."""
+    h, w = shape
+    if judged.frames[0].shape == (h, w):
+        return judged.frames
+    n0, n1 = (cv2.resize(n, (w, h), interpolation=cv2.INTER_AREA) if k == 1 or known0 is None else known0
+              for k, n in enumerate(judged.frames))
+    return n0, n1
+
+
+def predicted_cost(judged: Judged, predicted: np.ndarray, frames: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> float:
+    """The prediction's robust data cost: the fraction of sampled pixels of the judged pair (``frames``: the
+    photometric stage's frames resampled to the prediction's grid by area average, :func:`judged_on`; computed
+    here when None) that the prediction (2, h, w) does not explain, by the stage's own judge (grey-value
+    residuals above photometric.RESIDUAL_OUTLIER, or census signatures with the census data term)."""
     h, w = predicted.shape[1:]
-    n0, n1 = judged.frames
-    if n0.shape != (h, w):
-        n0, n1 = (cv2.resize(n, (w, h), interpolation=cv2.INTER_AREA) for n in (n0, n1))
+    n0, n1 = judged_on(judged, (h, w)) if frames is None else frames
     return judged.judge(n0, n1, interleaved_flow(predicted, (h, w)))
 
 
@@ -158,27 +191,32 @@ def result_fails(cfg: FlowConfig, prior: Prior, unexplained: float) -> str | Non
 
 
 def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, prior: Prior
-                       ) -> tuple[PDState, SolveStats, Judged] | str:
+                       ) -> tuple[PDState, SolveStats, Judged, Seen] | str:
     """The stream stage on one pair (grey float32 (H, W) in [0, 1]): the photometric stage, the prediction
     from ``prior``, its check and its refinement -- (state on the finest solved level, stats, the Judged
-    pair) as engine.solve_pair returns them -- or the reason the prediction does not hold (the
-    caller then solves the pair in full). The result's own check (:func:`result_fails`) is the caller's, on
-    its reliability."""
+    pair) as engine.solve_pair returns them, and what it computed of i1 for the next pair (:class:`Seen`) --
+    or the reason the prediction does not hold (the caller then solves the pair in full). The result's own
+    check (:func:`result_fails`) is the caller's, on its reliability."""
     reason = prior_fails(cfg, prior)
     if reason is not None:
         return reason
     schedule = stream_schedule(cfg)
-    (s0, s1), judged = photometric_stage(i0, i1, cfg, backend)
+    seen = prior.seen
+    (s0, s1), judged = photometric_stage(i0, i1, cfg, backend, None if seen is None else seen.sample)
     normalised = judged.frames
     if cfg.photometric == "normalise" and s0 is not normalised[0]:
         # the stage hands the solver the normalised pair itself unless it found an exposure change between the
         # frames (then: local contrast, a data term of another scale than the carried state was solved on)
         return "exposure step"
-    pyr = make_pyramid(s0, s1, schedule)
+    key = (*pair_map(judged.samples), noise_gain(i0.shape, cfg)) if cfg.photometric == "normalise" else None
+    same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
+    pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None)
     start, _ = stream_span(pyr, schedule)
     predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat)
-    reason = prediction_fails(cfg, predicted_cost(judged, predicted.v))
+    frames = judged_on(judged, pyr.shapes[start], seen.area if same else None)
+    reason = prediction_fails(cfg, predicted_cost(judged, predicted.v, frames))
     if reason is not None:
         return reason
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes), stream=PREDICTED)
-    return refine_prediction(pyr, schedule, backend, predicted, stats), stats, judged
+    state = refine_prediction(pyr, schedule, backend, predicted, stats)
+    return state, stats, judged, Seen(judged.samples[1], key, pyr.i1, frames[1])

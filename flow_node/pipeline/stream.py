@@ -46,7 +46,7 @@ from ..core.flowio import flow_to_color
 from ..core.photometric import compares_signatures
 from ..core.refine import SolveStats
 from ..core.solver import PDState
-from ..core.temporal import FULL, PREDICTED, Prior
+from ..core.temporal import FULL, PREDICTED, Prior, Seen
 from ..core.validity import VALID_LEVEL, as_mask
 
 INPUT_SCALE_RANGE = (0.05, 1.0)
@@ -255,6 +255,7 @@ class FlowStream:
         self._mask: np.ndarray | None = None  # the validity mask in effect (input size, bool), set_mask
         self._prev_mask: np.ndarray | None = None  # _prev's mask at processing resolution
         self._prev_state: PDState | None = None  # the solver state that pair ended in (stream mode)
+        self._prev_seen: Seen | None = None  # what that pair computed of _prev (stream mode, Prior)
         self._prev_unexplained = 0.0  # that flow's unexplained fraction (stream mode)
         self._prev_interval = 0  # that pair's stamp interval, ns (stream mode)
         self.last_reset_reason: str = "first frame"
@@ -327,7 +328,7 @@ class FlowStream:
                 reason = reason or "input_scale changed"
             if pending.config != self._settings.config:
                 self._estimator.config = pending.config
-                self._prev_flow = self._prev_state = None
+                self._prev_flow = self._prev_state = self._prev_seen = None
             self._settings = pending
         return reason
 
@@ -352,7 +353,7 @@ class FlowStream:
                reason: str, mask: np.ndarray | None = None) -> None:
         self._prev, self._prev_planes, self._prev_key, self._prev_stamp = grey, planes, key, stamp_ns
         self._prev_mask = mask
-        self._prev_flow = self._prev_state = None
+        self._prev_flow = self._prev_state = self._prev_seen = None
         self.last_reset_reason = reason
 
     def process(self, frame: np.ndarray, stamp_ns: int, encoding: str = "",
@@ -384,7 +385,8 @@ class FlowStream:
         interval = stamp_ns - prev_stamp
         if s.config.stream_levels:
             ratio = interval / self._prev_interval if self._prev_interval > 0 else 1.0
-            prior = None if self._prev_state is None else Prior(self._prev_state, self._prev_unexplained, ratio)
+            prior = None if self._prev_state is None else Prior(self._prev_state, self._prev_unexplained, ratio,
+                                                                 self._prev_seen)
             result = self._estimator.estimate_next(prev, grey, prior, channels, pair_mask)  # all from _prepare
             self.stream_totals.count(result.stats.stream)
         else:
@@ -394,6 +396,7 @@ class FlowStream:
         self._prev, self._prev_planes, self._prev_stamp, self._prev_mask = grey, planes, stamp_ns, mask
         self._prev_flow = result.flow if s.config.temporal_init else None
         self._prev_state = result.state if s.config.stream_levels else None
+        self._prev_seen = result.seen if s.config.stream_levels else None
         self._prev_unexplained, self._prev_interval = result.unexplained, interval
         out = FlowOutput(result.flow, stamp_ns, prev_stamp, result.seconds, result.stats,
                          result.backend, s.config.model, s.input_scale, s.color_max_flow, result.unexplained,

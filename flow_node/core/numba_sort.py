@@ -1,0 +1,59 @@
+"""The photometric stage's sorted sample with a numba kernel: :func:`sorted_sample_numba`
+(photometric.sorted_sample), the numba backend's ``sample`` field.
+
+np.sort takes ~18 ns an element here (0.6 ms for the 34,000 samples of a 640x480 frame, twice a pair); an LSD
+radix sort on the floats' bit patterns -- mapped to unsigned keys that order as the floats do -- takes three
+counting passes of 11 bits. A sorted array of numbers is one array whichever way it was sorted, so the result
+equals np.sort's (test_photometric.py); only -0.0 and 0.0, equal as numbers, may come in another order. The
+frames are finite (api.to_grey), so there is no NaN to place.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .photometric import subsample
+
+_BITS = 11
+_DIGITS = 1 << _BITS
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def radix_sort_kernel(values, out):  # noqa: ANN001, ANN201
+    """out (n,) float32 = values (n,) float32 (finite, C-contiguous) in ascending order."""
+    n = values.size
+    bits = values.view(np.uint32)
+    keys = np.empty(n, np.uint32)
+    tmp = np.empty(n, np.uint32)
+    for k in range(n):  # negative floats: every bit flipped; others: the sign bit set
+        b = bits[k]
+        keys[k] = b ^ np.uint32(0xFFFFFFFF) if b & np.uint32(0x80000000) else b | np.uint32(0x80000000)
+    counts = np.empty(_DIGITS, np.int64)
+    for shift in (0, _BITS, 2 * _BITS):
+        counts[:] = 0
+        for k in range(n):
+            counts[(keys[k] >> shift) & (_DIGITS - 1)] += 1
+        total = 0
+        for d in range(_DIGITS):
+            c = counts[d]
+            counts[d] = total
+            total += c
+        for k in range(n):
+            d = (keys[k] >> shift) & (_DIGITS - 1)
+            tmp[counts[d]] = keys[k]
+            counts[d] += 1
+        keys, tmp = tmp, keys
+    out_bits = out.view(np.uint32)
+    for k in range(n):
+        b = keys[k]
+        out_bits[k] = b ^ np.uint32(0x80000000) if b & np.uint32(0x80000000) else b ^ np.uint32(0xFFFFFFFF)
+
+
+def sorted_sample_numba(img: np.ndarray) -> np.ndarray:
+    """photometric.sorted_sample with :func:`radix_sort_kernel`: the subsample of img (H, W), sorted, flat
+    float32."""
+    sample = np.ascontiguousarray(subsample(img), dtype=np.float32).ravel()
+    out = np.empty_like(sample)
+    radix_sort_kernel(sample, out)
+    return out
