@@ -244,6 +244,8 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
         (with ``mass``): then the prox of lam D on the brightness term ab . v + cb in the metric tv
         (:func:`prox_data_metric`)."""
         h, wd = v.shape[1], v.shape[2]
+        if bc:  # the term exists only with mass: a constant here, so the pixel loop keeps the mass path alone
+            mass = True
         total = 0.0
         for i in prange(h):
             iu = max(i - 1, 0)
