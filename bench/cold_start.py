@@ -9,8 +9,9 @@ module belongs to, with NUMBA_CACHE_DIR in a temporary folder: ``new install`` i
 folder empty (it compiles what the preset's path needs and fills the cache; one empty folder per preset),
 ``fresh`` a later process: its wall time, and the engine's time of its one call (the -v line). ``warm`` is
 the engine's time of a later call in one process (median of its 2nd-4th). ``start`` is the wall time of a
-process that imports the CLI and the numba backend and calls one cached kernel (numba's own one-time
-start-up: its typing and target registries, ~0.2 s), and does nothing else. Per row the three are measured
+process that imports the CLI and the numba backend, applies the numba patch ``main()`` applies
+(process.defer_kernel_bitcode) and calls one cached kernel (numba's own one-time start-up: its typing and
+target registries, ~0.1-0.2 s), and does nothing else. Per row the three are measured
 interleaved, --runs times (medians). The issue's target: fresh wall <= 1.5 x warm + start.
 """
 
@@ -42,7 +43,9 @@ seconds = [est.estimate_grey(i0, i1).seconds for _ in range(4)]
 print(sorted(seconds[1:])[1])"""
 _START = """import numpy as np
 import flow_node.cli.estimate
+from flow_node import process
 from flow_node.core import numba_backend, numba_fusion
+process.defer_kernel_bitcode()
 numba_backend.reliability_numba(np.zeros((4, 4), np.float32), np.zeros((4, 4), np.float32),
                                 np.zeros((4, 4, 2), np.float32))"""
 

@@ -7,6 +7,8 @@ from __future__ import annotations
 import ctypes
 import os
 
+from . import numba_patch
+
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameter numbers (malloc.h)
 KEEP_LIMIT = 256 << 20  # arrays up to this size come from the heap; twice it stays in the process when freed
 
@@ -21,6 +23,14 @@ def passive_thread_waits() -> None:
     this process unless the user set it. libgomp reads it once, when it loads, i.e. when the first parallel
     numba kernel runs: call this before any flow is computed."""
     os.environ.setdefault("OMP_WAIT_POLICY", OMP_WAIT_POLICY)
+
+
+def defer_kernel_bitcode() -> bool:
+    """Patch numba (the one place the package does; numba_patch.py says what and why) so that reading a cached
+    kernel skips parsing the LLVM bitcode stored beside its object code until a compilation links it in: a
+    fresh process's first flow reads its 3-8 kernels in ~1/3 of the time. Only on the numba versions it was
+    checked against (else numba's own read stays); returns whether it applies. Call before the first flow."""
+    return numba_patch.install()
 
 
 def keep_freed_environ(limit_bytes: int = KEEP_LIMIT) -> dict[str, str]:

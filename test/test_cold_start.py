@@ -23,6 +23,7 @@ from typing import Any
 import pytest
 
 import flow_node
+from flow_node import numba_patch
 from flow_node.bag import dask_worker
 from flow_node.core import FlowConfig, FlowEstimator, numba_confidence, numba_fusion
 
@@ -72,10 +73,11 @@ print(json.dumps(diffs))
 """
 
 
-def run_child(code: str = CHILD) -> dict[str, Any]:
-    """Run ``code`` (:data:`CHILD`) in a fresh interpreter on this checkout's flow_node; its JSON."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(flow_node.__file__).parents[1]),
-                                                        os.environ.get("PYTHONPATH", "")])}
+def run_child(code: str = CHILD, env_extra: dict[str, str] | None = None) -> dict[str, Any]:
+    """Run ``code`` (:data:`CHILD`) in a fresh interpreter on this checkout's flow_node (``env_extra`` added to
+    the environment); its JSON."""
+    path = os.pathsep.join([str(Path(flow_node.__file__).parents[1]), os.environ.get("PYTHONPATH", "")])
+    env = {**os.environ, **(env_extra or {}), "PYTHONPATH": path}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -140,12 +142,15 @@ def test_importing_the_engine_sets_no_process_state() -> None:
 
 
 def test_the_dask_workers_preload_lets_idle_threads_sleep(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A worker process of a Dask cluster runs no executable's main(): its preload applies the setting
-    (the executables' main() are checked in test_node.py)."""
+    """A worker process of a Dask cluster runs no executable's main(): its preload applies the settings
+    (the executables' main() are checked in test_node.py), numba's cached-kernel read among them."""
     monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
     monkeypatch.setattr(dask_worker, "keep_freed_memory", lambda: True)
+    deferred: list[bool] = []
+    monkeypatch.setattr(dask_worker, "defer_kernel_bitcode", lambda: deferred.append(True) or True)
     dask_worker.dask_setup(None)
     assert os.environ["OMP_WAIT_POLICY"] == "passive"
+    assert deferred == [True]
 
 
 def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -172,3 +177,130 @@ def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> Non
             monkeypatch.setattr(module, name, counting(module, name))
     FlowEstimator(FlowConfig.preset("fastest").replace(backend="numba")).warmup()
     assert called == {name for names in kernels.values() for name in names}
+
+
+# One process: the textured pan of CHILD moving far (initialisation, fusion) and a small motion, `realtime` and
+# `fastest`; in MODE "patched" the executables' numba patch first (process.defer_kernel_bitcode). Prints
+# the flows' SHA-256, flow_node's cache misses and how many kernel libraries were read with the bitcode
+# deferred (still unparsed), as JSON.
+PATCHED = """
+import gc, hashlib, json
+import numpy as np
+from numba.core.codegen import CPUCodeLibrary
+from numba.core.dispatcher import Dispatcher
+from flow_node import numba_patch, process
+applied = process.defer_kernel_bitcode() if MODE == "patched" else False
+from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
+from flow_node.core import FlowConfig, FlowEstimator
+flows = hashlib.sha256()
+for shift in ((40.0, 12.0), (1.5, -0.5)):
+    pan = Layer(Texture.random(np.random.default_rng(4), fmin=1 / 100), AffineMotion((119.5, 89.5), shift))
+    scene = Scene("pan", (240, 180), (pan,))
+    i0, i1 = ((scene.render(t) @ np.array([0.299, 0.587, 0.114])).astype(np.float32) for t in (0, 1))
+    for preset in ("realtime", "fastest"):
+        flows.update(FlowEstimator(FlowConfig.preset(preset).replace(backend="numba")).estimate_grey(i0, i1).flow)
+objects = gc.get_objects()
+misses = sum(sum(d.stats.cache_misses.values()) for d in objects
+             if isinstance(d, Dispatcher) and d.py_func.__module__.startswith("flow_node"))
+deferred = sum(isinstance(o, CPUCodeLibrary) and numba_patch.deferred(o) for o in objects)
+print(json.dumps({"applied": applied, "flows": flows.hexdigest(), "misses": misses, "deferred": deferred}))
+"""
+
+
+@pytest.mark.skipif(numba_patch.installed_numba() is None, reason="numba is not installed")
+def test_the_bitcode_patch_reads_the_same_kernels_and_flows() -> None:
+    """process.defer_kernel_bitcode (numba_patch.py): with it a fresh process reads every kernel from the cache
+    through the deferred path (none compiled, their bitcode left unparsed) and computes the same flows, bit for
+    bit, as numba's own read; on a numba version it was not checked against it does not apply."""
+    run_child(PATCHED.replace("MODE", "'stock'"))  # fills the cache
+    stock, patched = (run_child(PATCHED.replace("MODE", repr(mode))) for mode in ("stock", "patched"))
+    assert patched["applied"] == (numba_patch.installed_numba() in numba_patch.CHECKED)
+    assert stock["misses"] == patched["misses"] == 0, (stock, patched)
+    assert stock["flows"] == patched["flows"]
+    assert stock["deferred"] == 0
+    if patched["applied"]:
+        assert patched["deferred"] >= 7, patched  # bspline, linearise, iterate and the fusion's four
+
+
+@pytest.mark.skipif(numba_patch.installed_numba() not in numba_patch.CHECKED,
+                    reason="the patch applies only to the numba versions it was checked against")
+def test_the_patched_numba_functions_are_the_checked_ones() -> None:
+    """The numba functions the patch replaces or relies on are, in the installed numba, the source it was
+    written against (a numba upgrade that changed them must be checked and CHECKED / SOURCE_SHA256 updated)."""
+    assert numba_patch.stock_source_digest() == numba_patch.SOURCE_SHA256
+
+
+# One process, NUMBA_CACHE_DIR a fresh folder: a cached kernel read (patched) from the cache that an earlier
+# run of the same code filled, then a new, uncached kernel that calls it -- numba links the first one's module
+# into it, the one use of the deferred bitcode. Prints the results and whether the bitcode was deferred and
+# then parsed, as JSON.
+LINKED = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from flow_node import numba_patch, process
+process.defer_kernel_bitcode()
+import numba
+from callee import scaled
+first = scaled(3.0)
+library = scaled.overloads[scaled.signatures[0]].library
+deferred = numba_patch.deferred(library)
+@numba.njit
+def caller(x):
+    return scaled(x) + 1.0
+print(json.dumps({"first": first, "caller": caller(3.0), "deferred": deferred,
+                  "parsed": not numba_patch.deferred(library), "hits": sum(scaled.stats.cache_hits.values())}))
+"""
+
+
+@pytest.mark.skipif(numba_patch.installed_numba() not in numba_patch.CHECKED,
+                    reason="the patch applies only to the numba versions it was checked against")
+def test_a_deferred_kernel_links_into_a_new_compilation(tmp_path: Path) -> None:
+    """A kernel read with its bitcode deferred can still be linked into a later compilation that calls it:
+    the bitcode is parsed then, and the caller computes what the kernel does."""
+    (tmp_path / "callee.py").write_text("import numba\n\n\n@numba.njit(cache=True)\n"
+                                        "def scaled(x):\n    return x * 2.5 + 1.0\n")
+    code = LINKED.replace("sys.argv[1]", repr(str(tmp_path)))
+    env_cache = {"NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    run_child(code, env_cache)  # compiles `scaled` into the cache
+    out = run_child(code, env_cache)
+    assert out == {"first": 8.5, "caller": 9.5, "deferred": True, "parsed": True, "hits": 1}, out
+
+
+# One process: a large-motion `realtime` solve with numba's own read, which this wraps to compare, for every
+# kernel read from the cache, the defined symbols numba takes from the parsed bitcode with those the patch
+# takes from the object code. Prints the kernels read and those whose sets differ, as JSON.
+SYMBOLS = """
+import json
+import numpy as np
+from llvmlite import binding as ll
+from numba.core import codegen
+from flow_node import numba_patch
+from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
+from flow_node.core import FlowConfig, FlowEstimator
+stock, read, differ = codegen.CPUCodeLibrary._unserialize.__func__, [], []
+def compare(cls, codegen_, state):
+    name, kind, data = state
+    module = ll.parse_bitcode(data[1])
+    numba_names = {g.name for group in (module.functions, module.global_variables) for g in group
+                   if not g.is_declaration}
+    read.append(name)
+    if numba_patch.elf_defined_symbols(data[0]) != numba_names:
+        differ.append(name)
+    return stock(cls, codegen_, state)
+codegen.CPUCodeLibrary._unserialize = classmethod(compare)
+pan = Layer(Texture.random(np.random.default_rng(4), fmin=1 / 100), AffineMotion((119.5, 89.5), (40.0, 12.0)))
+scene = Scene("pan", (240, 180), (pan,))
+i0, i1 = ((scene.render(t) @ np.array([0.299, 0.587, 0.114])).astype(np.float32) for t in (0, 1))
+FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba")).estimate_grey(i0, i1)
+print(json.dumps({"read": read, "differ": differ}))
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux" or numba_patch.installed_numba() is None,
+                    reason="numba's object code is ELF on Linux only")
+def test_the_object_code_defines_the_symbols_numba_reads_from_the_bitcode() -> None:
+    """numba_patch.elf_defined_symbols gives, for each of the engine's kernels, exactly the names numba's own
+    read takes from the parsed bitcode (JitEngine._load_defined_symbols)."""
+    run_child(SYMBOLS)  # fills the cache
+    out = run_child(SYMBOLS)
+    assert len(out["read"]) >= 7 and not out["differ"], out

@@ -240,7 +240,7 @@ class _Applied(Exception):
     """Raised by the stand-in process setting: main() got as far as applying it."""
 
 
-@pytest.mark.parametrize("setting", ["keep_freed_memory", "passive_thread_waits"])
+@pytest.mark.parametrize("setting", ["keep_freed_memory", "passive_thread_waits", "defer_kernel_bitcode"])
 @pytest.mark.parametrize("module, argv", [
     ("flow_node.ros.node", []),
     ("flow_node.bag.cli", ["synth", "--frames", "2", "unused_bag"]),
@@ -252,7 +252,8 @@ def test_every_executable_applies_the_process_settings_before_its_work(setting: 
     """flow_node, flow_bag and flow_estimate all apply flow_node/process.py's settings in main(), before they
     touch any input: keep_freed_memory (the fault test above shows what it buys: without it every frame's
     arrays fault in fresh pages) and passive_thread_waits (idle numba threads sleep; libgomp reads it when
-    the first parallel kernel runs, so it must come before any flow)."""
+    the first parallel kernel runs, so it must come before any flow) and defer_kernel_bitcode (numba's cached
+    kernels read without their bitcode parsed: before the first flow reads them)."""
     import importlib
 
     mod = importlib.import_module(module)

@@ -24,7 +24,7 @@ from ..cli.common import (
 )
 from ..core.config import MODELS
 from ..core.errors import ConfigError, FlowError, one_line
-from ..process import keep_freed_memory, passive_thread_waits
+from ..process import defer_kernel_bitcode, keep_freed_memory, passive_thread_waits
 
 if TYPE_CHECKING:
     from ..core.config import FlowConfig
@@ -196,6 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     keep_freed_memory()  # every command runs frame after frame: reuse the freed per-frame arrays' pages
     passive_thread_waits()
+    defer_kernel_bitcode()
     try:
         if args.command == "play":  # rclpy logs through fd 2: keep it
             middleware.use_shipped_dds_profile()  # it publishes frames as a camera does (docs/node.md)

@@ -8,7 +8,7 @@ from __future__ import annotations
 import gc
 from typing import Any
 
-from ..process import keep_freed_memory, passive_thread_waits
+from ..process import defer_kernel_bitcode, keep_freed_memory, passive_thread_waits
 
 
 def dask_setup(worker: Any) -> None:
@@ -16,9 +16,11 @@ def dask_setup(worker: Any) -> None:
     nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, under which every per-frame array is a fresh
     mmap (bag tasks ran up to 2x slower); the embedded cluster's workers also get it through their environment
     (batch.WORKER_ENV), a worker of someone else's cluster only through this. Idle numba threads sleep
-    (process.passive_thread_waits), as in the executables."""
+    (process.passive_thread_waits) and cached kernels are read without parsing their bitcode
+    (process.defer_kernel_bitcode), as in the executables."""
     keep_freed_memory()
     passive_thread_waits()
+    defer_kernel_bitcode()
 
 
 def dask_teardown(worker: Any) -> None:

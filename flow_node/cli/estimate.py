@@ -30,7 +30,7 @@ from ..core.errors import ConfigError, FileFormatError, one_line, short_path
 from ..core.flowio import flo_bytes
 from ..core.volume import VOLUME_CONFIG, estimate_volume, is_volume
 from ..pipeline.codec import decode_bytes
-from ..process import keep_freed_memory, passive_thread_waits
+from ..process import defer_kernel_bitcode, keep_freed_memory, passive_thread_waits
 from .common import (
     OneLineParser,
     add_config_options,
@@ -220,6 +220,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     keep_freed_memory()
     passive_thread_waits()
+    defer_kernel_bitcode()
     silence_opencv_log()
     with native_stderr_silenced():
         return _run(args)

@@ -41,7 +41,7 @@ from ..core.errors import ConfigError, FlowError, InputError
 from ..pipeline.codec import decode
 from ..pipeline.derived import fits_for, warm_fits
 from ..pipeline.stream import FlowStream, StreamSettings
-from ..process import keep_freed_memory, passive_thread_waits
+from ..process import defer_kernel_bitcode, keep_freed_memory, passive_thread_waits
 from . import camera_info, diagnostics, lifecycle, security, startup
 from .mask_input import MaskInput
 from .messages import descriptor, executor_advice, publish_outputs, stamp_ns
@@ -359,6 +359,7 @@ def main(args: list[str] | None = None) -> int:
     reason when it cannot start (an unmanaged node whose configure failed: invalid parameters)."""
     keep_freed_memory()
     passive_thread_waits()
+    defer_kernel_bitcode()
     middleware.use_shipped_dds_profile()  # ros2 run, ros2 launch and python -m get the same delivery
     argv = sys.argv if args is None else args
     log = rclpy.logging.get_logger("flow_node")
