@@ -240,7 +240,7 @@ class FlowEstimator:
                 known = None if prior is None or prior.seen is None else prior.seen.sample
                 state, stats, judged = solve_pair(i0, i1, self._config, self._backend, channels=channels,
                                                   valid=valid, sample0=known)
-                seen = Seen(judged.samples[1]) if judged.samples is not None and valid is None else None  # i1 as given
+                seen = Seen(judged.samples[1]) if valid is None else None  # i1 as given
                 flow = interleaved_flow(state.v, stats.shapes[0])
                 unexplained = unexplained_of(flow, judged)
                 stats.stream = "" if reason is None else f"{FULL}: {reason}"

@@ -41,7 +41,7 @@ from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
-from .photometric import Reliability, Samples, compares_signatures, frame_samples, stage
+from .photometric import PairMap, Reliability, Samples, compares_signatures, frame_samples, pair_map, stage
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
@@ -54,11 +54,13 @@ class Judged:
     (``frames``, (H, W) float32 each) and the reliability figure that matches the stage's data term
     (``judge``: census signatures for ``census``, grey values otherwise); ``samples``: the input frames'
     sorted samples the stage took its ranges from (photometric.frame_samples; a stream hands frame 1's to its
-    next pair, temporal.Prior)."""
+    next pair, temporal.Prior); ``pmap``: the pair's normalising map (photometric.pair_map; None with census,
+    which maps each frame on its own)."""
 
     frames: tuple[np.ndarray, np.ndarray]
     judge: Reliability
-    samples: Samples | None = None
+    samples: Samples
+    pmap: PairMap | None = None
 
     def unexplained(self, flow: np.ndarray) -> float:
         """The fraction of sampled pixels ``flow`` (H, W, 2) px does not explain (photometric.reliability)."""
@@ -73,10 +75,11 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     reliability kernel, so the caller never branches on the mode. ``sample0``: frame 0's sorted sample when
     known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1)."""
     samples = frame_samples(i0, i1, sample0, backend.sample)
-    solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples)
-    judge = (partial(census_reliability, sample=backend.warper.sample) if compares_signatures(cfg.photometric)
-             else backend.reliability)
-    return solver_pair, Judged(frames, judge, samples)
+    signatures = compares_signatures(cfg.photometric)
+    pmap = None if signatures else pair_map(samples)
+    solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples, pmap)
+    judge = partial(census_reliability, sample=backend.warper.sample) if signatures else backend.reliability
+    return solver_pair, Judged(frames, judge, samples, pmap)
 
 
 def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray] | None, cfg: FlowConfig

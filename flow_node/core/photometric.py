@@ -166,7 +166,7 @@ def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return normalise_pair(i0, i1)[:2]
 
 
-def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, samples: Samples | None = None
+def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, pmap: PairMap | None = None
                    ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Both frames (H, W) float32 with frame 1's exposure matched to frame 0 (:func:`exposure_change`) and
     one affine map for the pair taking its robust range -- the frames' mean 2nd and 98th percentiles -- to
@@ -181,15 +181,19 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, samp
     finest solved level is coarser than the input: :func:`flow_node.core.pyramid.noise_gain`); rel is
     judged after it, and the presmoothing is left to that blur (wider than QUANT_SIGMA, it does the same
     on the level the data term lives on; both together take a low-contrast texture's signal too).
-    ``samples``: both frames' :func:`sorted_sample` when known (:func:`frame_samples`)."""
-    gain, offset, lo, hi, step = pair_map(frame_samples(i0, i1) if samples is None else samples)
+    ``pmap``: the pair's :func:`pair_map` when known (computed from :func:`frame_samples` otherwise)."""
+    gain, offset, lo, hi, step = pair_map(frame_samples(i0, i1)) if pmap is None else pmap
     if (gain, offset) != (1.0, 0.0):
         i1 = i1 * np.float32(gain) + np.float32(offset)
     n0, n1 = (affine_normalised(img, lo, hi, step, noise_gain) for img in (i0, i1))
     return n0, n1, (gain, offset) != (1.0, 0.0)
 
 
-def pair_map(samples: Samples) -> tuple[float, float, float, float, float]:
+# what normalise_pair maps a pair by: (gain, offset, lo, hi, step), :func:`pair_map`
+PairMap = tuple[float, float, float, float, float]
+
+
+def pair_map(samples: Samples) -> PairMap:
     """What :func:`normalise_pair` maps a pair by, from both frames' sorted samples: frame 1's exposure change
     (gain, offset; (1, 0) for none) and the pair's robust range (lo, hi) and quantisation step (of frame 0).
     Two pairs with equal maps (and noise gains) map an image they share to the same normalised image."""
@@ -243,20 +247,20 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
     return stage(i0, i1, mode)[0]
 
 
-def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, samples: Samples | None = None
-          ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, samples: Samples | None = None,
+          pmap: PairMap | None = None) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
     The second is the ``normalise`` result in every mode but ``census``, so the reliability figure has one
     meaning; ``census`` normalises each frame on its own (:func:`normalise_frame`, no exposure detection:
     its data term needs none) and returns that pair twice, for census.reliability. ``noise_gain``: see
     :func:`normalise_pair`. ``samples``: both frames' :func:`sorted_sample` when known (a stream knows its
     new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise; every mode's ranges
-    come from them."""
+    come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census`` uses it)."""
     s0, s1 = frame_samples(i0, i1) if samples is None else samples
     if compares_signatures(mode):
         pair = normalise_frame(i0, noise_gain, s0), normalise_frame(i1, noise_gain, s1)
         return pair, pair
-    n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, (s0, s1))
+    n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, pair_map((s0, s1)) if pmap is None else pmap)
     if mode == "density":
         return density_pair(i0, i1, noise_gain, (s0, s1)), (n0, n1)
     if mode == "none":

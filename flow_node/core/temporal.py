@@ -48,7 +48,6 @@ from .config import FlowConfig
 from .densify import push_pull
 from .engine import Judged, photometric_stage
 from .layout import interleaved_flow
-from .photometric import pair_map
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
@@ -208,7 +207,7 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         # the stage hands the solver the normalised pair itself unless it found an exposure change between the
         # frames (then: local contrast, a data term of another scale than the carried state was solved on)
         return "exposure step"
-    key = (*pair_map(judged.samples), noise_gain(i0.shape, cfg)) if cfg.photometric == "normalise" else None
+    key = (*judged.pmap, noise_gain(i0.shape, cfg)) if cfg.photometric == "normalise" and judged.pmap else None
     same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
     pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None)
     start, _ = stream_span(pyr, schedule)
