@@ -237,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
                      + (f"{100 * s[name]['with_confidence_ratio_median']:12.2f} %" if name in NEEDS_CONFIDENCE
                         else " " * 14) for s in (r["summary"] for r in results.values())]
             print(f"{name:22s}" + "".join(f"{c:>36s}" for c in cells))
+        print(f"{'realtime (ms)':22s}" + "".join(f"{r['summary']['engine_ms_median']:19.1f} ms"
+                                              for r in results.values()))
         write_json(args.output, {**head, "results": results})
         return 0
     size = tuple(int(v) for v in args.size.lower().split("x"))
