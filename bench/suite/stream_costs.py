@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from collections import defaultdict
 from collections.abc import Callable, Iterator
@@ -37,7 +36,7 @@ from flow_node.core import api, numba_backend, refine, temporal
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
-from ..common import machine, write_json
+from ..common import machine, run_record, write_result, wxh
 from .sequences import sequences
 from .streams import PERIOD_NS, parse_method
 
@@ -142,16 +141,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="directory for costs_<size>.{json,md}")
     args = ap.parse_args(argv)
     keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
-    w, h = (int(x) for x in args.size.split("x"))
+    w, h = wxh(args.size)
     results = [measure(m, (w, h), args.repeats) for m in (args.method or ["stream_lite=stream_lite"])]
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg()) + " (1, 5, 15 min)"
-    command = "python -m bench.suite.stream_costs " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = run_record("bench.suite.stream_costs", argv)["command"]
     md = markdown(results, command, load)
-    print(md)
-    if args.out is not None:
-        write_json(args.out / f"costs_{w}x{h}.json", {"command": command, "load": load, "machine": machine(),
-                                                      "results": results})
-        (args.out / f"costs_{w}x{h}.md").write_text(md)
+    res = {"command": command, "load": load, "machine": machine(), "results": results}
+    write_result(args.out and args.out / f"costs_{w}x{h}", res, md)
     return 0
 
 

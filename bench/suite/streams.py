@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
@@ -43,7 +42,7 @@ from flow_node.core.metrics import aee
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
-from ..common import REPO, machine, write_json
+from ..common import REPO, machine, run_record, write_result, wxh
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, parse_method
 from .sequences import FRAMES, KINDS, Sequence, bag_sequences, sequences
 
@@ -241,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not args.malloc_defaults:
         keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
-    w, h = (int(x) for x in args.size.split("x"))
+    w, h = wxh(args.size)
     methods = dict(parse_method(m) for m in args.method) or {
         n: FlowConfig.preset(p).replace(**kw) for n, (p, kw) in DEFAULT_METHODS.items()}
     if args.bags:
@@ -250,15 +249,9 @@ def main(argv: list[str] | None = None) -> int:
         res = run(methods, args.split, (w, h), frames=args.frames, source=seqs)
     else:
         res = run(methods, args.split, (w, h), tuple(args.kinds.split(",")), args.frames)
-    command = "python -m bench.suite.streams " + " ".join(argv if argv is not None else sys.argv[1:])
-    res["command"] = command
-    res["malloc_defaults"] = args.malloc_defaults
-    md = markdown(res, command)
-    print(md)
-    if args.out is not None:
-        stem = "bags" if args.bags else f"{args.split}_{w}x{h}"
-        write_json(args.out / f"{stem}.json", res)
-        (args.out / f"{stem}.md").write_text(md)
+    res |= {"command": run_record("bench.suite.streams", argv)["command"], "malloc_defaults": args.malloc_defaults}
+    md = markdown(res, res["command"])
+    write_result(args.out and args.out / ("bags" if args.bags else f"{args.split}_{w}x{h}"), res, md)
     return 0
 
 
