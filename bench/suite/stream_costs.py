@@ -1,21 +1,8 @@
-"""``python -m bench.suite.stream_costs``: where a stream preset's time per frame goes, against OpenCV DIS
-ultrafast run on the same frames (issue 26's second target: a stream preset at <= 2x DIS ultrafast's time).
-
-    python -m bench.suite.stream_costs --size 320x240 --method lite=stream_lite
-    python -m bench.suite.stream_costs --size 640x480 --method lite=stream_lite,stream_warps=8 --out DIR
-
-One tune sequence (a pan: every pair predicted) is streamed ``--repeats`` times through ``FlowStream.process``
-(as the node and ``flow_bag eval`` run it); after each frame DIS ultrafast computes the same pair, so load
-changes on a shared machine hit both alike. The engine's stages are timed by wrapping the functions the
-stream stage calls (the photometric stage, the pyramid, the prediction, its data cost, the refinement -- and
-within it the linearisation, the solver iterations and the median filter --, the upsampling to the input
-grid and the result's unexplained fraction). Each figure is the median over repeats of the mean per
-predicted frame (the first pair after a reset, solved in full, is left out), in ms and as a multiple of DIS
-ultrafast's median time per frame. "other" is the frame's time not in a stage (conversion, checks, Python
-between calls). Beside the wall time, the frame's CPU time (``time.process_time``: every thread of the
-process) is reported: for the engine's serial kernels it is close to the wall time the frame takes on a quiet
-machine, whatever the load (it does not count waiting for a core). The process keeps freed memory as the node
-does (flow_node.process.keep_freed_memory).
+"""``python -m bench.suite.stream_costs --size 320x240 --method lite=stream_lite[,key=value...] [--out DIR]``:
+where a stream preset's time per frame goes, against OpenCV DIS ultrafast on the same frames (issue 26: a
+stream preset at <= 2x DIS ultrafast's time). The tune pan is streamed 1 + ``--repeats`` times; every stage
+the stream stage calls (STAGES) is timed by wrapping its function, per predicted frame, with the frame's wall
+and CPU time and DIS ultrafast right after it; medians over the repeats (docs/suite.md, "Streams").
 """
 
 from __future__ import annotations

@@ -1,27 +1,9 @@
 """``python -m bench.suite.streams``: the suite's ``stream`` regime -- flow_node's stream presets (FlowStream,
 as the node and ``flow_bag eval`` run them), its single-pair presets and OpenCV DIS medium and ultrafast on
-the same exactly rendered sequences (bench/suite/sequences.py), frame by frame (docs/suite.md, "Streams").
-
-    python -m bench.suite.streams --split tune --size 320x240
-    python -m bench.suite.streams --split report --size 640x480 --out bench/results/suite/stream
-    python -m bench.suite.streams --split tune --method cand=stream_fast,stream_iterations=6 --kinds pan,cut
-    python -m bench.suite.streams --bags --out bench/results/suite/stream     # the bundled bags (128x96)
-
-Per frame every method takes its turn (the order rotating frame by frame, so load changes on a shared machine
-hit all alike), once: a stream method cannot repeat a frame without changing its state. A stream method is
-timed on ``FlowStream.process(frame)`` (one frame's conversion, the solve and its checks), a single-pair one on
-``FlowEstimator.estimate(previous, frame)``, DIS on ``calc`` of the two 8-bit frames. Scores: the AEE of each
-pair with ground truth (not the pair across a scene cut), its mean over the pairs, per kind, and the AEE on
-the pairs right after a cut or exposure step over that of the stream's own preset solving single pairs
-(``event_ratio``; the stream presets' base: STREAM_BASE).
-
-The process keeps freed memory as the node's and ``flow_bag``'s ``main()`` do
-(flow_node.process.keep_freed_memory; ``--malloc-defaults`` runs with glibc's defaults instead, as runs before
-issue 26's third round did). The 1-minute load average is recorded before each sequence and at the end
-(``load`` in the JSON, its range in the table): time ratios on a shared machine move with it. "CPU ms/frame"
-is each call's ``time.process_time`` (every thread of the process): for flow_node's presets, whose small
-levels run serial, about the wall time they take on a quiet machine whatever the load; for OpenCV DIS, which
-runs on all cores, the sum over its threads (more than its quiet wall time).
+the same exactly rendered sequences (bench/suite/sequences.py) or the bundled bags (``--bags``), frame by frame
+in rotating order, each frame timed once (wall and CPU time); scores and ``event_ratio``: docs/suite.md,
+"Streams", which also lists the commands. The process keeps freed memory as the node does
+(``--malloc-defaults``: glibc's defaults); the 1-minute load is recorded before each sequence and at the end.
 """
 
 from __future__ import annotations
