@@ -67,11 +67,11 @@ bench-accuracy: $(BENCH_STAMP)
 
 # The live node over DDS (issues 4, 13; ~5 min, nothing else running): latency and in-node overhead per preset
 # and size with the package's Fast DDS profile in both processes, then delivery of ~/flow to another process per
-# middleware setting; bench/results/node/node_latency.json, node_delivery.json.
+# middleware setting (bench.node, one mode each); bench/results/node/node_latency.json, node_delivery.json.
 bench-node: $(STAMP)
 	FASTRTPS_DEFAULT_PROFILES_FILE=$(CURDIR)/config/fastdds_localhost.xml \
-		$(PY) -m bench.node_latency --frames 20 --presets fastest realtime quality
-	$(PY) -m bench.node_delivery --seconds 10 --repeats 2
+		$(PY) -m bench.node latency --frames 20 --presets fastest realtime quality
+	$(PY) -m bench.node delivery --seconds 10 --repeats 2
 
 # Batch evaluation on Dask against a plain loop, 1 and 2 workers (issue 14; ~8 min on a quiet machine);
 # bench/results/batch/batch.json.

@@ -1,11 +1,10 @@
 """Batch evaluation on Dask: the Dask layer against a plain loop on one worker, and throughput with 1 and 2 workers.
 
-    .venv/bin/python -m bench.batch [--size 160x120:24 --size 320x240:12] [--distinct 8] [--frames 50]
-                                    [--preset realtime] [--repeats 3] [--variants loop,dask-1,dask-2]
-                                    [--out bench/results/batch/batch.json]
+    .venv/bin/python -m bench.batch [--size 160x120:24 --size 320x240:12] [--repeats 3]
+                                    [--variants loop,dask-1,dask-2] [--out bench/results/batch/batch.json]
 
-For every ``--size WxH:BAGS``: writes ``--distinct`` synthetic bags (flow_bag synth, scenes in turn, seeds
-0..) of ``--frames`` frames and copies them up to BAGS bags. Every run writes into a fresh output (nothing
+For every ``--size WxH:BAGS``: writes DISTINCT synthetic bags (flow_bag synth, scenes in turn, seeds 0..) of
+FRAMES frames and copies them up to BAGS bags, solved with PRESET. Every run writes into a fresh output (nothing
 cached). Whole processes, paired:
 ``loop`` (one process running ``evaluate_bag`` for every job in a plain for loop, then the same batch report:
 the same per-bag work without Dask) and ``flow_bag eval FOLDER --workers N -q`` (embedded LocalCluster, N = 1,
@@ -43,9 +42,10 @@ from flow_node.bag.scenes import SCENES
 from flow_node.bag.synth import SynthSpec, write_synth_bag
 from flow_node.core.config import FlowConfig
 
-from .common import REPO, run_record, write_json
+from .common import REPO, run_record, write_json, wxh
 
 VARIANTS = ("loop", "dask-1", "dask-2")  # order() pairs them
+DISTINCT, FRAMES, PRESET = 8, 50, "realtime"
 
 
 def make_bags(folder: Path, count: int, distinct: int, frames: int, size: tuple[int, int]) -> None:
@@ -57,10 +57,10 @@ def make_bags(folder: Path, count: int, distinct: int, frames: int, size: tuple[
         shutil.copytree(folder / f"bag_{k % distinct:03d}", folder / f"bag_{k:03d}")
 
 
-def loop_main(bags: str, out: str, preset: str) -> None:
+def loop_main(bags: str, out: str) -> None:
     """The peer: every job in a plain loop in this process, then the same batch report."""
     start = time.monotonic()
-    configs = [FlowConfig.preset(preset)]
+    configs = [FlowConfig.preset(PRESET)]
     opts = EvalOptions(progress=False)
     jobs = make_jobs(find_bags([bags], exclude=out), Path(out), configs, opts)
     Path(out).mkdir(parents=True)
@@ -68,19 +68,19 @@ def loop_main(bags: str, out: str, preset: str) -> None:
     write_batch_report(outcomes, Path(out), configs, time.monotonic() - start, "plain loop, 1 process")
 
 
-def command(variant: str, bags: Path, out: Path, preset: str) -> list[str]:
+def command(variant: str, bags: Path, out: Path) -> list[str]:
     if variant == "loop":
-        return [sys.executable, "-m", "bench.batch", "--loop-run", str(bags), str(out), "--preset", preset]
-    return [sys.executable, "-m", "flow_node.bag", "eval", str(bags), "--output", str(out), "--preset", preset,
+        return [sys.executable, "-m", "bench.batch", "--loop-run", str(bags), str(out)]
+    return [sys.executable, "-m", "flow_node.bag", "eval", str(bags), "--output", str(out), "--preset", PRESET,
             "--workers", variant.split("-")[1], "-q"]
 
 
-def run_variant(variant: str, bags: Path, out: Path, preset: str) -> dict[str, Any]:
+def run_variant(variant: str, bags: Path, out: Path) -> dict[str, Any]:
     """One timed run in a fresh interpreter; the numbers of its batch report."""
     shutil.rmtree(out, ignore_errors=True)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.monotonic()
-    proc = subprocess.run(command(variant, bags, out, preset), cwd=REPO, capture_output=True, text=True)
+    proc = subprocess.run(command(variant, bags, out), cwd=REPO, capture_output=True, text=True)
     wall = time.monotonic() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)  # the process and its worker processes, reaped
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
@@ -139,20 +139,19 @@ def summarise(runs: list[dict[str, Any]], repeats: int) -> dict[str, Any]:
 
 def _size(text: str) -> tuple[int, int, int]:
     size, _, count = text.partition(":")
-    w, h = (int(x) for x in size.lower().split("x"))
-    return w, h, int(count or 24)
+    return *wxh(size), int(count or 24)
 
 
 def measure_size(tmp: Path, size: tuple[int, int, int], args: argparse.Namespace) -> dict[str, Any]:
     """The paired whole-process runs on BAGS bags of one size."""
     w, h, count = size
     bags = tmp / f"bags_{w}x{h}"
-    make_bags(bags, count, min(args.distinct, count), args.frames, (w, h))
-    run_variant("loop", bags, tmp / "warm", args.preset)  # JIT cache and file cache warm
+    make_bags(bags, count, min(DISTINCT, count), FRAMES, (w, h))
+    run_variant("loop", bags, tmp / "warm")  # JIT cache and file cache warm
     runs = []
     for r in range(args.repeats):
         for v in order(r, tuple(args.variants.split(","))):
-            runs.append(run_variant(v, bags, tmp / "out", args.preset) | {"repeat": r})
+            runs.append(run_variant(v, bags, tmp / "out") | {"repeat": r})
             print(json.dumps(runs[-1] | {"size": f"{w}x{h}"}), flush=True)
     result = {"size": f"{w}x{h}", "bags": count, "runs": runs,
               "summary": summarise(runs, args.repeats) if runs else None}
@@ -165,16 +164,13 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", type=_size, action="append", metavar="WxH:BAGS",
                    help="frame size and bag count; repeatable (default: 160x120:24 and 320x240:12)")
-    p.add_argument("--distinct", type=int, default=8, help="distinct synthetic bags per size (the rest copies)")
-    p.add_argument("--frames", type=int, default=50)
-    p.add_argument("--preset", default="realtime")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--variants", default=",".join(VARIANTS), help="a subset of loop,dask-1,dask-2, in that order")
     p.add_argument("--out", default=str(REPO / "bench" / "results" / "batch" / "batch.json"))
     p.add_argument("--loop-run", nargs=2, metavar=("BAGS", "OUT"), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.loop_run:
-        loop_main(*args.loop_run, args.preset)
+        loop_main(*args.loop_run)
         return 0
     if any(os.environ.get(k) != v for k, v in WORKER_ENV.items()):  # run as the workers do (malloc reads it at start)
         os.execve(sys.executable, [sys.executable, "-m", "bench.batch", *sys.argv[1:]],
@@ -183,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     started, head = time.monotonic(), run_record("bench.batch", argv)
     with tempfile.TemporaryDirectory(prefix="bench_batch_") as tmp:
         sizes = [measure_size(Path(tmp), size, args) for size in args.size or [(160, 120, 24), (320, 240, 12)]]
-    write_json(Path(args.out), {**head, "frames": args.frames, "distinct": args.distinct, "preset": args.preset,
+    write_json(Path(args.out), {**head, "frames": FRAMES, "distinct": DISTINCT, "preset": PRESET,
                                 "repeats": args.repeats, "platform": platform.platform(),
                                 "load_average_at_end": os.getloadavg(), "bench_seconds": time.monotonic() - started,
                                 "sizes": sizes})

@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .common import DEFAULT_DATA, REPO, machine, write_json
+from .common import DEFAULT_DATA, REPO, run_record, write_json
 from .suite.data import LARGE_DATA
 
 PRESETS = ("quality", "balanced", "realtime", "fastest")
@@ -102,11 +102,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-new-install", action="store_true", help="skip the empty-cache first calls (slow)")
     p.add_argument("--out", type=Path, default=Path("bench/results/cold_start/cold_start.json"))
     args = p.parse_args(argv)
+    head = run_record("bench.cold_start", argv)  # the command, and the load as it starts
     with tempfile.TemporaryDirectory() as tmp:
         rows = [measure(pair, preset, Path(tmp), args.runs, not args.no_new_install)
                 for preset in args.presets.split(",") for pair in PAIRS]
-    write_json(args.out, {"command": "python -m bench.cold_start " + " ".join(sys.argv[1:]), "machine": machine(),
-                          "rows": rows})
+    write_json(args.out, {**head, "rows": rows})
     print("pair   preset    new install  fresh wall  first call  warm call  start  1.5 warm + start")
     for r in rows:
         new = f"{r['new_install_wall_s']:9.2f} s" if "new_install_wall_s" in r else "        -  "

@@ -46,3 +46,18 @@ def write_json(path: Path, payload: dict[str, Any]) -> None:
     """``payload`` as indented JSON at ``path`` (its folder made)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(payload, indent=1, sort_keys=False) + "\n")
+
+
+def wxh(text: str) -> tuple[int, int]:
+    """``"WxH"`` (a command line's size) -> (W, H)."""
+    w, h = (int(x) for x in text.lower().split("x"))
+    return w, h
+
+
+def write_result(stem: Path | None, payload: dict[str, Any], md: str) -> None:
+    """Print a result's Markdown ``md``; unless ``stem`` is None, write it as ``stem``.md and ``payload`` as
+    ``stem``.json (the folder made)."""
+    print(md)
+    if stem is not None:
+        write_json(stem.with_suffix(".json"), payload)
+        stem.with_suffix(".md").write_text(md)

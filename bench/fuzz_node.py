@@ -66,69 +66,53 @@ def png(img: np.ndarray, claim: tuple[int, int] | None = None) -> bytes:
 def hostile_raw(rng: np.random.Generator) -> tuple[str, Image]:
     """One broken (or merely unusual) Image message and its kind."""
     tex = texture(int(rng.integers(1000)))
-    kind = str(rng.choice(["step_small", "step_huge", "short", "long", "zero", "huge_dims", "encoding", "garbage_enc",
-                           "nan", "inf", "huge_float", "max_float", "big_endian16", "rgb_size", "other_size",
-                           "float_ok"]))
-    f = (tex / 255.0).astype(np.float32)
-    if kind == "step_small":
-        return kind, raw("mono8", W, H, W - 1, tex.tobytes()[: (W - 1) * H])
-    if kind == "step_huge":
-        return kind, raw("mono8", W, H, 2**31, tex.tobytes())
-    if kind in ("short", "long"):
-        data = tex.tobytes()
-        return kind, raw("mono8", W, H, W, data[: len(data) // 2] if kind == "short" else data + b"\0" * 77)
-    if kind == "zero":
-        return kind, raw("mono8", 0, H, 0, b"")
-    if kind == "huge_dims":
-        return kind, raw("mono8", 100000, 100000, 100000, b"\0" * 64)
-    if kind == "encoding":
-        return kind, raw(str(rng.choice(["nv21", "32FC3", "16SC1", "MONO8", "bayer_xyz8"])), W, H, W, tex.tobytes())
-    if kind == "garbage_enc":
-        return kind, raw(bytes(rng.integers(33, 127, 12, dtype=np.uint8)).decode(), W, H, W, tex.tobytes())
-    if kind in ("nan", "inf", "huge_float", "max_float"):
-        value = {"nan": np.nan, "inf": np.inf, "huge_float": 1e30, "max_float": 3.4e38}[kind]
+    f, data = (tex / 255.0).astype(np.float32), tex.tobytes()
+
+    def floats(value: float) -> Image:
         f[rng.integers(H, size=20), rng.integers(W, size=20)] = value
-        return kind, raw("32FC1", W, H, W * 4, f.tobytes())
-    if kind == "big_endian16":
-        return kind, raw("mono16", W, H, W * 2, (tex.astype(">u2") * 257).tobytes(), big=1)
-    if kind == "rgb_size":
-        rgb = np.dstack([texture(int(rng.integers(1000)), 48, 64)] * 3)
-        return kind, raw("rgb8", 64, 48, 64 * 3, rgb.tobytes())
-    if kind == "other_size":
-        return kind, raw("mono8", 40, 30, 40, texture(3, 30, 40).tobytes())
-    return kind, raw("32FC1", W, H, W * 4, f.tobytes())
+        return raw("32FC1", W, H, W * 4, f.tobytes())
+    make = {"step_small": lambda: raw("mono8", W, H, W - 1, data[: (W - 1) * H]),
+            "step_huge": lambda: raw("mono8", W, H, 2**31, data),
+            "short": lambda: raw("mono8", W, H, W, data[: len(data) // 2]),
+            "long": lambda: raw("mono8", W, H, W, data + b"\0" * 77),
+            "zero": lambda: raw("mono8", 0, H, 0, b""),
+            "huge_dims": lambda: raw("mono8", 100000, 100000, 100000, b"\0" * 64),
+            "encoding": lambda: raw(str(rng.choice(["nv21", "32FC3", "16SC1", "MONO8", "bayer_xyz8"])), W, H, W, data),
+            "garbage_enc": lambda: raw(bytes(rng.integers(33, 127, 12, dtype=np.uint8)).decode(), W, H, W, data),
+            "nan": lambda: floats(np.nan), "inf": lambda: floats(np.inf), "huge_float": lambda: floats(1e30),
+            "max_float": lambda: floats(3.4e38),
+            "big_endian16": lambda: raw("mono16", W, H, W * 2, (tex.astype(">u2") * 257).tobytes(), big=1),
+            "rgb_size": lambda: raw("rgb8", 64, 48, 64 * 3,
+                                    np.dstack([texture(int(rng.integers(1000)), 48, 64)] * 3).tobytes()),
+            "other_size": lambda: raw("mono8", 40, 30, 40, texture(3, 30, 40).tobytes()),
+            "float_ok": lambda: raw("32FC1", W, H, W * 4, f.tobytes())}
+    kind = str(rng.choice(list(make)))
+    return kind, make[kind]()
 
 
 def hostile_compressed(rng: np.random.Generator) -> tuple[str, CompressedImage]:
     """One broken (or merely unusual) CompressedImage and its kind."""
     tex = texture(int(rng.integers(1000)))
-    kind = str(rng.choice(["truncated", "flipped", "claim_png", "claim_jpeg", "garbage", "empty", "depth",
-                           "other_size", "jpeg_ok"]))
-    fmt = "png"
-    if kind == "truncated":
-        data = png(tex)[: int(rng.integers(8, 400))]
-    elif kind == "flipped":
+
+    def flipped() -> bytes:
         b = bytearray(png(tex))
         for k in rng.integers(8, len(b), 5):
             b[k] ^= int(rng.integers(1, 256))
-        data = bytes(b)
-    elif kind == "claim_png":
-        data = png(tex, (100000, 100000))
-    elif kind == "claim_jpeg":
+        return bytes(b)
+
+    def claim_jpeg() -> bytes:
         b = bytearray(cv2.imencode(".jpg", tex)[1].tobytes())
         sof = b.index(b"\xff\xc0")
         b[sof + 5:sof + 9] = struct.pack(">HH", 60000, 60000)
-        data, fmt = bytes(b), "jpeg"
-    elif kind == "garbage":
-        data = bytes(rng.integers(0, 256, int(rng.integers(1, 500)), dtype=np.uint8))
-    elif kind == "empty":
-        data = b""
-    elif kind == "depth":
-        data, fmt = png(tex.astype(np.uint16)), "16UC1; compressedDepth png"
-    elif kind == "other_size":
-        data = png(texture(5, 30, 40))
-    else:
-        data, fmt = cv2.imencode(".jpg", tex)[1].tobytes(), "jpeg"
+        return bytes(b)
+    make = {"truncated": lambda: (png(tex)[: int(rng.integers(8, 400))], "png"), "flipped": lambda: (flipped(), "png"),
+            "claim_png": lambda: (png(tex, (100000, 100000)), "png"), "claim_jpeg": lambda: (claim_jpeg(), "jpeg"),
+            "garbage": lambda: (bytes(rng.integers(0, 256, int(rng.integers(1, 500)), dtype=np.uint8)), "png"),
+            "empty": lambda: (b"", "png"), "depth": lambda: (png(tex.astype(np.uint16)), "16UC1; compressedDepth png"),
+            "other_size": lambda: (png(texture(5, 30, 40)), "png"),
+            "jpeg_ok": lambda: (cv2.imencode(".jpg", tex)[1].tobytes(), "jpeg")}
+    kind = str(rng.choice(list(make)))
+    data, fmt = make[kind]()
     msg = CompressedImage(format=fmt)
     msg.data = array.array("B", data)
     return kind, msg

@@ -10,14 +10,15 @@ distance d to the nearest image edge (px). docs/engine.md, "Mass preservation", 
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 
+from .common import md_table, run_record, write_result
 from .suite import synthetic
 
 BANDS = ((0, 2), (2, 5), (5, 10), (10, 20), (20, 40), (40, 10**6))  # [lo, hi) px from the nearest edge
@@ -32,11 +33,11 @@ def band_aee(err: np.ndarray) -> dict[str, float]:
     return {(f"{lo}+" if hi >= 10**6 else f"{lo}-{hi}"): float(err[(d >= lo) & (d < hi)].mean()) for lo, hi in BANDS}
 
 
-def measure(index: int, configs: dict[str, FlowConfig]) -> list[dict[str, object]]:
+def measure(index: int, configs: dict[str, FlowConfig]) -> list[dict[str, Any]]:
     """One report pair of fine_320 (index into the motion cycle) under each config: AEE and AEE per band."""
     i0, i1, gt, label = synthetic._pair(synthetic.REPORT_SEED0 + index, index, (320, 240))
     q0, q1 = synthetic.quantise(i0, 8), synthetic.quantise(i1, 8)
-    rows: list[dict[str, object]] = []
+    rows: list[dict[str, Any]] = []
     for name, cfg in configs.items():
         flow = FlowEstimator(cfg).estimate(q0, q1).flow
         err = np.hypot(flow[..., 0] - gt[..., 0], flow[..., 1] - gt[..., 1])
@@ -52,18 +53,12 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     configs = {"brightness": FlowConfig(), "mass": FlowConfig().with_overrides(["constraint=mass", *args.set])}
     rows = [r for k in args.pairs.split(",") for r in measure(int(k), configs)]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.with_suffix(".json").write_text(json.dumps({"overrides": args.set, "rows": rows}, indent=1))
-    keys = list(rows[0]["bands"])  # type: ignore[arg-type]
-    lines = [f"Command: `python -m bench.mass_border --pairs {args.pairs}"
-             + "".join(f" --set {s}" for s in args.set) + "`; AEE (px) by distance to the nearest edge (px)", "",
-             "| pair | method | AEE | " + " | ".join(keys) + " |", "|---|---|---:|" + "---:|" * len(keys)]
-    for r in rows:
-        bands: dict[str, float] = r["bands"]  # type: ignore[assignment]
-        lines.append(f"| {r['pair']} | {r['method']} | {r['aee']:.4f} | "
-                     + " | ".join(f"{bands[k]:.4f}" for k in keys) + " |")
-    args.out.with_suffix(".md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    keys = list(rows[0]["bands"])
+    table = md_table(["pair", "method", "AEE", *keys], ([r["pair"], r["method"], f"{r['aee']:.4f}",
+                                                         *(f"{r['bands'][k]:.4f}" for k in keys)] for r in rows), True)
+    write_result(args.out, {"overrides": args.set, "rows": rows}, "\n".join(
+        [f"Command: `{run_record('bench.mass_border', argv)['command']}`; AEE (px) by distance to the nearest "
+         "edge (px)", "", *table]) + "\n")
 
 
 if __name__ == "__main__":

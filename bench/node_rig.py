@@ -1,10 +1,9 @@
-"""The live node as its own process and a client beside it: what the node benches (node_latency,
-security_latency, fuzz_node) share.
+"""The live node as its own process (``python -m flow_node.ros.node``, as ``ros2 run`` starts it) and an rclpy
+client beside it in a private context, spun by one executor thread: what bench.node and bench.fuzz_node share.
 
-The node runs as ``python -m flow_node.ros.node`` (as ``ros2 run`` does) with the given ROS parameters and
-names; the client is an rclpy node in a private context, spun by one single-threaded executor thread, that
-publishes frames to the node's input and records the node's ~/flow messages (with their arrival time) and its
-/diagnostics windows (key -> value, plus ``_message``).
+The client publishes frames to the node's input and records its ~/flow messages (with their arrival time) and
+its /diagnostics windows (key -> value, plus ``_message``). ``ProcessRig`` adds the closed loop (one frame in
+flight) and the open loop (frames at 30 Hz) of bench.node's latency and security modes.
 """
 
 from __future__ import annotations
@@ -17,15 +16,24 @@ import time
 from collections.abc import Callable
 from typing import IO, Any
 
+import cv2
+import numpy as np
 import rclpy
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import Image
+from std_msgs.msg import Header
+
+from flow_node.core.api import FlowEstimator
+from flow_node.pipeline.codec import array_to_image_fields, image_to_array
+from flow_node.ros.messages import image_msg as ros_image_msg
 
 NODE_COMMAND = (sys.executable, "-m", "flow_node.ros.node")
 WARMING = "warming up the engine"  # the node's diagnostics message until its engine is warm
+SHIFT = (2.0, 1.0)  # (u, v) px between ProcessRig's frames
 
 
 def wait(pred: Callable[[], Any], timeout: float) -> bool:
@@ -48,8 +56,7 @@ def stop(proc: subprocess.Popen, timeout: float = 30.0) -> tuple[str | None, int
         return out, proc.returncode
     except subprocess.TimeoutExpired:
         proc.kill()
-        out, _ = proc.communicate()
-        return out, None
+        return proc.communicate()[0], None
 
 
 class NodeProcess:
@@ -117,3 +124,108 @@ class NodeProcess:
         rclpy.try_shutdown(context=self.ctx)
         self.thread.join(timeout=5.0)
         return code
+
+
+class Frames:
+    """A smooth mono8 texture (h, w) moved by SHIFT per frame, wrapping around: ``pan`` keeps moving (a stream,
+    what the stream presets predict), ``alternate`` goes back and forth between two frames."""
+
+    def __init__(self, h: int, w: int, motion: str = "alternate") -> None:
+        tex = cv2.GaussianBlur(np.random.default_rng(1).random((h, w)).astype(np.float32), (0, 0), 2.0)
+        self.base = ((tex - tex.min()) / (tex.max() - tex.min()) * 255).round().astype(np.uint8)
+        self.motion = motion
+
+    def frame(self, k: int) -> np.ndarray:
+        """Frame k (k >= 0)."""
+        steps = k if self.motion == "pan" else k % 2
+        return np.roll(self.base, (int(SHIFT[1]) * steps, int(SHIFT[0]) * steps), axis=(0, 1))
+
+    def msg(self, k: int, stamp_ns: int) -> Image:
+        """Frame k as a mono8 Image stamped ``stamp_ns``, built as the node builds its own."""
+        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        return ros_image_msg(Header(stamp=Time(sec=sec, nanosec=nanosec), frame_id="bench"),
+                             array_to_image_fields(self.frame(k), "mono8"))
+
+    def aee(self, k: int, flow: np.ndarray) -> float:
+        """AEE of the flow of pair (k, k + 1) (its truth: +-SHIFT) away from the wrapped borders (8 px)."""
+        sign = 1.0 if self.motion == "pan" or k % 2 == 0 else -1.0
+        inner = sign * flow[8:-8, 8:-8]
+        return float(np.hypot(inner[..., 0] - SHIFT[0], inner[..., 1] - SHIFT[1]).mean())
+
+
+class ProcessRig(NodeProcess):
+    """The node at /bench/flow_bench with ``preset``, fed by /bench/bench_client; its diagnostics every
+    ``PERIOD`` s, so that a window of the closed loop holds at most one solve."""
+
+    NAME, PERIOD = "flow_bench", 0.05
+
+    def __init__(self, preset: str) -> None:
+        super().__init__("/bench", self.NAME, {"preset": preset, "diagnostics_period": str(self.PERIOD)},
+                         "bench_client", "/bench")
+        self.backend = self.last()["backend"]
+
+    def closed_loop(self, seq: Frames, n: int, timeout: float, engine: FlowEstimator) -> list[dict[str, float]]:
+        """n flows, one frame in flight at a time; per flow (s): latency (publish -> flow received), the node's
+        solve, in-node overhead (its handling time minus the solve) and time in rclpy's publish, and the
+        engine called here on the same pair just before (same load); and the flow's AEE (px)."""
+        out, stamp = [], 1
+        while not wait(lambda: self.handled() >= 1, 2.0):  # best-effort input: resend the first frame
+            self.pub.publish(seq.msg(0, stamp))
+        for k in range(n):
+            stamp += 1
+            direct = engine.estimate(seq.frame(k), seq.frame(k + 1)).seconds
+            before, t0 = self.count(), time.perf_counter()
+            self.pub.publish(seq.msg(k + 1, stamp))
+            if not wait(lambda b=before: self.count() > b, timeout):
+                raise RuntimeError("no flow received (frame lost?)")
+            t1, msg = self.flows[-1]
+            d = self.window(k + 1, timeout)
+            solve, overhead, publish = (float(d[f"{s} mean (ms)"]) / 1e3
+                                        for s in ("solve time", "node overhead", "publish time"))
+            out.append({"engine": direct, "latency": t1 - t0, "solve": solve, "node_overhead": overhead,
+                        "node_publish": publish, "aee": seq.aee(k, image_to_array(msg))})
+        return out
+
+    def open_loop(self, seq: Frames, start_k: int, seconds: float, rate: float = 30.0) -> dict[str, float]:
+        """Publish at ``rate`` Hz for ``seconds``: output rate, drops, the fraction of the time spent solving;
+        the node's totals (``node_outputs``, ``node_solve_s``) include the frames still solving at the end."""
+        before, d0, start, k = self.count(), self.counters(), time.perf_counter(), 0
+        while time.perf_counter() - start < seconds:
+            self.pub.publish(seq.msg(start_k + k, 10_000 + k))
+            k += 1
+            time.sleep(max(0.0, start + k / rate - time.perf_counter()))
+        elapsed = time.perf_counter() - start
+        busy, outputs = self.counters()["busy"] - d0["busy"], self.count() - before
+        time.sleep(0.5)  # let the last counters arrive
+        d1 = self.counters()
+        return {"published": k, "received": d1["received"] - d0["received"], "dropped": d1["dropped"] - d0["dropped"],
+                "outputs": outputs, "node_outputs": d1["published"] - d0["published"],
+                "node_solve_s": d1["busy"] - d0["busy"], "seconds": elapsed, "output_rate_hz": outputs / elapsed,
+                "solver_busy_fraction": busy / elapsed}
+
+    def handled(self) -> int:
+        """Frames the node has handled (published or started a pair with)."""
+        last = self.last()
+        return 0 if last is None else int(last["frames published"]) + int(last["resets"])
+
+    def window(self, published: int, timeout: float) -> dict[str, str]:
+        """The diagnostics window of the ``published``-th output."""
+        def find() -> dict[str, str] | None:
+            with self.lock:
+                return next((d for d in self.diag if int(d["frames published"]) == published), None)
+        if not wait(lambda: find() is not None, timeout):
+            raise RuntimeError(f"no diagnostics for output {published}")
+        return find()
+
+    def counters(self) -> dict[str, float]:
+        """received, dropped, published (totals) and busy (s solved since start: each window's mean solve time
+        times its solves, since a loaded node's window can be longer than the timer period)."""
+        busy, published = 0.0, 0
+        with self.lock:
+            for d in self.diag:
+                solves = int(d["frames published"]) - published
+                busy += float(d["solve time mean (ms)"]) / 1e3 * solves if solves else 0.0
+                published += solves
+            last = self.diag[-1]
+        return {"received": int(last["frames received"]), "dropped": int(last["frames dropped"]),
+                "published": published, "busy": busy}

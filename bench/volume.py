@@ -21,7 +21,7 @@ import numpy as np
 
 from flow_node.core.volume import VOLUME_CONFIG, estimate_volume
 
-from .common import REPO, machine, md_table, write_json
+from .common import REPO, machine, md_table, run_record, write_result
 
 RESULTS = REPO / "bench" / "results" / "volume"
 # flow_node's volume defaults (core/volume.py VOLUME_CONFIG), both methods on one thread: the shared 2-core
@@ -138,9 +138,7 @@ def run(sizes: list[int], big_scenes: tuple[str, ...], seed: int) -> dict[str, A
             row["time_ratio"] = round(row["flow_node"]["seconds"] / row["skimage"]["seconds"], 3)
             print(row, flush=True)
             rows.append(row)
-    sized = " ".join(f"--sizes {s}" for s in sizes)
-    return {"command": f"python -m bench.volume {sized} --big {','.join(big_scenes)}",
-            "settings": SETTINGS, "incompressibility": cfg_inc.incompressibility, "seed": seed,
+    return {"settings": SETTINGS, "incompressibility": cfg_inc.incompressibility, "seed": seed,
             "machine": machine(), "rows": rows}
 
 
@@ -156,17 +154,17 @@ def markdown(result: dict[str, Any]) -> str:
     return "\n".join(lines + md_table(head, rows)) + "\n"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, action="append", help="cube sides (first: every scene; others: "
                     "--big scenes); default 64 and 128")
     ap.add_argument("--big", default="shift,shear", help="scenes run at the larger sizes")
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--out", type=Path, default=RESULTS / "volume.json")
-    args = ap.parse_args()
-    result = run(args.sizes or [64, 128], tuple(args.big.split(",")), args.seed)
-    write_json(args.out, result)
-    args.out.with_suffix(".md").write_text(markdown(result))
+    args = ap.parse_args(argv)
+    command = run_record("bench.volume", argv)["command"]
+    result = {"command": command, **run(args.sizes or [64, 128], tuple(args.big.split(",")), args.seed)}
+    write_result(args.out.with_suffix(""), result, markdown(result))
 
 
 if __name__ == "__main__":

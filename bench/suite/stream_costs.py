@@ -1,28 +1,14 @@
-"""``python -m bench.suite.stream_costs``: where a stream preset's time per frame goes, against OpenCV DIS
-ultrafast run on the same frames (issue 26's second target: a stream preset at <= 2x DIS ultrafast's time).
-
-    python -m bench.suite.stream_costs --size 320x240 --method lite=stream_lite
-    python -m bench.suite.stream_costs --size 640x480 --method lite=stream_lite,stream_warps=8 --out DIR
-
-One tune sequence (a pan: every pair predicted) is streamed ``--repeats`` times through ``FlowStream.process``
-(as the node and ``flow_bag eval`` run it); after each frame DIS ultrafast computes the same pair, so load
-changes on a shared machine hit both alike. The engine's stages are timed by wrapping the functions the
-stream stage calls (the photometric stage, the pyramid, the prediction, its data cost, the refinement -- and
-within it the linearisation, the solver iterations and the median filter --, the upsampling to the input
-grid and the result's unexplained fraction). Each figure is the median over repeats of the mean per
-predicted frame (the first pair after a reset, solved in full, is left out), in ms and as a multiple of DIS
-ultrafast's median time per frame. "other" is the frame's time not in a stage (conversion, checks, Python
-between calls). Beside the wall time, the frame's CPU time (``time.process_time``: every thread of the
-process) is reported: for the engine's serial kernels it is close to the wall time the frame takes on a quiet
-machine, whatever the load (it does not count waiting for a core). The process keeps freed memory as the node
-does (flow_node.process.keep_freed_memory).
+"""``python -m bench.suite.stream_costs --size 320x240 --method lite=stream_lite[,key=value...] [--out DIR]``:
+where a stream preset's time per frame goes, against OpenCV DIS ultrafast on the same frames (issue 26: a
+stream preset at <= 2x DIS ultrafast's time). The tune pan is streamed 1 + ``--repeats`` times; every stage
+the stream stage calls (STAGES) is timed by wrapping its function, per predicted frame, with the frame's wall
+and CPU time and DIS ultrafast right after it; medians over the repeats (docs/suite.md, "Streams").
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from collections import defaultdict
 from collections.abc import Callable, Iterator
@@ -37,7 +23,7 @@ from flow_node.core import api, numba_backend, refine, temporal
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
-from ..common import machine, write_json
+from ..common import machine, run_record, write_result, wxh
 from .sequences import sequences
 from .streams import PERIOD_NS, parse_method
 
@@ -142,16 +128,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="directory for costs_<size>.{json,md}")
     args = ap.parse_args(argv)
     keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
-    w, h = (int(x) for x in args.size.split("x"))
+    w, h = wxh(args.size)
     results = [measure(m, (w, h), args.repeats) for m in (args.method or ["stream_lite=stream_lite"])]
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg()) + " (1, 5, 15 min)"
-    command = "python -m bench.suite.stream_costs " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = run_record("bench.suite.stream_costs", argv)["command"]
     md = markdown(results, command, load)
-    print(md)
-    if args.out is not None:
-        write_json(args.out / f"costs_{w}x{h}.json", {"command": command, "load": load, "machine": machine(),
-                                                      "results": results})
-        (args.out / f"costs_{w}x{h}.md").write_text(md)
+    res = {"command": command, "load": load, "machine": machine(), "results": results}
+    write_result(args.out and args.out / f"costs_{w}x{h}", res, md)
     return 0
 
 

@@ -1,34 +1,15 @@
 """``python -m bench.suite.streams``: the suite's ``stream`` regime -- flow_node's stream presets (FlowStream,
 as the node and ``flow_bag eval`` run them), its single-pair presets and OpenCV DIS medium and ultrafast on
-the same exactly rendered sequences (bench/suite/sequences.py), frame by frame (docs/suite.md, "Streams").
-
-    python -m bench.suite.streams --split tune --size 320x240
-    python -m bench.suite.streams --split report --size 640x480 --out bench/results/suite/stream
-    python -m bench.suite.streams --split tune --method cand=stream_fast,stream_iterations=6 --kinds pan,cut
-    python -m bench.suite.streams --bags --out bench/results/suite/stream     # the bundled bags (128x96)
-
-Per frame every method takes its turn (the order rotating frame by frame, so load changes on a shared machine
-hit all alike), once: a stream method cannot repeat a frame without changing its state. A stream method is
-timed on ``FlowStream.process(frame)`` (one frame's conversion, the solve and its checks), a single-pair one on
-``FlowEstimator.estimate(previous, frame)``, DIS on ``calc`` of the two 8-bit frames. Scores: the AEE of each
-pair with ground truth (not the pair across a scene cut), its mean over the pairs, per kind, and the AEE on
-the pairs right after a cut or exposure step over that of the stream's own preset solving single pairs
-(``event_ratio``; the stream presets' base: STREAM_BASE).
-
-The process keeps freed memory as the node's and ``flow_bag``'s ``main()`` do
-(flow_node.process.keep_freed_memory; ``--malloc-defaults`` runs with glibc's defaults instead, as runs before
-issue 26's third round did). The 1-minute load average is recorded before each sequence and at the end
-(``load`` in the JSON, its range in the table): time ratios on a shared machine move with it. "CPU ms/frame"
-is each call's ``time.process_time`` (every thread of the process): for flow_node's presets, whose small
-levels run serial, about the wall time they take on a quiet machine whatever the load; for OpenCV DIS, which
-runs on all cores, the sum over its threads (more than its quiet wall time).
+the same exactly rendered sequences (bench/suite/sequences.py) or the bundled bags (``--bags``), frame by frame
+in rotating order, each frame timed once (wall and CPU time); scores and ``event_ratio``: docs/suite.md,
+"Streams", which also lists the commands. The process keeps freed memory as the node does
+(``--malloc-defaults``: glibc's defaults); the 1-minute load is recorded before each sequence and at the end.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
@@ -43,7 +24,7 @@ from flow_node.core.metrics import aee
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
-from ..common import REPO, machine, write_json
+from ..common import REPO, machine, run_record, write_result, wxh
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, parse_method
 from .sequences import FRAMES, KINDS, Sequence, bag_sequences, sequences
 
@@ -241,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not args.malloc_defaults:
         keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
-    w, h = (int(x) for x in args.size.split("x"))
+    w, h = wxh(args.size)
     methods = dict(parse_method(m) for m in args.method) or {
         n: FlowConfig.preset(p).replace(**kw) for n, (p, kw) in DEFAULT_METHODS.items()}
     if args.bags:
@@ -250,15 +231,9 @@ def main(argv: list[str] | None = None) -> int:
         res = run(methods, args.split, (w, h), frames=args.frames, source=seqs)
     else:
         res = run(methods, args.split, (w, h), tuple(args.kinds.split(",")), args.frames)
-    command = "python -m bench.suite.streams " + " ".join(argv if argv is not None else sys.argv[1:])
-    res["command"] = command
-    res["malloc_defaults"] = args.malloc_defaults
-    md = markdown(res, command)
-    print(md)
-    if args.out is not None:
-        stem = "bags" if args.bags else f"{args.split}_{w}x{h}"
-        write_json(args.out / f"{stem}.json", res)
-        (args.out / f"{stem}.md").write_text(md)
+    res |= {"command": run_record("bench.suite.streams", argv)["command"], "malloc_defaults": args.malloc_defaults}
+    md = markdown(res, res["command"])
+    write_result(args.out and args.out / ("bags" if args.bags else f"{args.split}_{w}x{h}"), res, md)
     return 0
 
 

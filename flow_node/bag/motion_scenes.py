@@ -6,7 +6,7 @@ image centre, or an approaching plane (a zoom by s = 1 + 1 / tau per frame about
 and textured ellipses and boxes moving relative to it. Each object moves exactly as the background plus a
 constant ``delta`` (1.5-3 px/frame), so its flow deviates from the dominant motion by |delta| at every
 pixel, and the moving mask of the pair 0 -> 1 is exactly the objects' pixels in frame 0
-(``Scene.layer_map(0) > 0``). Pure numpy; used by ``bench.motion_regime`` and the tests.
+(``Scene.layer_map(0) > 0``). Pure numpy; used by ``bench.motion`` and the tests.
 """
 
 from __future__ import annotations
