@@ -5,7 +5,7 @@ loads; a masked-off lane whose address is on a page that is not mapped, or not t
 microcode assist on every vector step. A 2-plane data term read as the quadratic term's 5 planes did that in
 a fresh process (its heap's top untouched): the first flow of ``quality`` ran the primal pass ~8x slower.
 Here the problem's arrays end right before an inaccessible page: the solve must take about the time it
-takes on ordinary arrays (measured ~5-8x slower before the planes were clamped) and give the same bits.
+takes on ordinary arrays (3.4x slower before the planes were clamped) and give the same bits.
 """
 
 from __future__ import annotations
