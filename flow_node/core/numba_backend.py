@@ -94,15 +94,40 @@ def _f32c(x: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(x, dtype=_F32)
 
 
-def work_buffers(v: np.ndarray, w: np.ndarray | None) -> tuple[np.ndarray, ...]:
-    """(v_bar, w_bar, xbuf, zero_b) for this shape: the extrapolated variables (2, H, W) and (2, 2, H, W),
-    the per-thread row scratch of the primal kernel (threads, 2, W + 1) and the zero Bregman row (2, 1, W),
-    float32. The calling thread's scratch arrays (workspace.py), reused across calls and frames."""
+def work_buffers(v: np.ndarray, w: np.ndarray | None, rows: dict[str, np.ndarray] | None = None
+                 ) -> tuple[np.ndarray, ...]:
+    """(v_bar, w_bar, xbuf, zero_b) for this shape: the extrapolated variables (2, H, W) and (2, 2, H, W)
+    (without w: the zero row of :func:`zero_rows`), the per-thread row scratch of the primal kernel
+    (threads, 2, W + 1) and the zero Bregman row (2, 1, W), float32. The calling thread's scratch arrays
+    (workspace.py), reused across calls and frames. ``rows``: :func:`zero_rows` (width) if the caller has them."""
     width = v.shape[2]
-    zero_b = scratch("numba.zero_b", (2, 1, width))
-    zero_b.fill(0.0)
-    return (scratch("numba.v_bar", v.shape), scratch("numba.w_bar", w.shape) if w is not None else _DUMMY4,
-            scratch("numba.xbuf", (numba.config.NUMBA_NUM_THREADS, 2, width + 1)), zero_b)
+    rows = zero_rows(width) if rows is None else rows
+    return (scratch("numba.v_bar", v.shape), scratch("numba.w_bar", w.shape) if w is not None else rows["w_bar"],
+            scratch("numba.xbuf", (numba.config.NUMBA_NUM_THREADS, 2, width + 1)), rows["b"])
+
+
+# shapes of the zero rows that stand for an absent array a pixel loop of the kernels indexes (W = width)
+ZERO_ROWS = {"b": lambda w: (2, 1, w), "w_bar": lambda w: (2, 2, 1, w), "p": lambda w: (1, w),
+             "tv": lambda w: (2, 1, w), "qpad": lambda w: (2, 2, 1, w + 2), "g0": lambda w: (2, 1, w)}
+
+
+def zero_rows(width: int) -> dict[str, np.ndarray]:
+    """Zero rows for images ``width`` wide, float32, written (so their pages are present): the Bregman term
+    without one (``b``), and what the iteration kernels get instead of w_bar, p, tv and qpad when the model
+    has none, and the linearisation instead of frame 0's gradient when the scheme needs none (shapes
+    :data:`ZERO_ROWS`). The kernels clamp their row index into these (numba_kernels.py: a
+    flag's branch in a pixel loop becomes masked loads, and a masked lane on an untouched page costs a
+    microcode assist per vector step). Views of one of the calling thread's scratch arrays, zeroed on every
+    call (~11 W floats)."""
+    shapes = {name: shape(width) for name, shape in ZERO_ROWS.items()}
+    sizes = {name: int(np.prod(shape)) for name, shape in shapes.items()}
+    flat = scratch("numba.zero_rows", (sum(sizes.values()),))
+    flat.fill(0.0)
+    out, start = {}, 0
+    for name, shape in shapes.items():
+        out[name] = flat[start:start + sizes[name]].reshape(shape)
+        start += sizes[name]
+    return out
 
 
 def row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -126,7 +151,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
         state.w = _f32c(state.w)
     if state.z is not None:
         state.z = _f32c(state.z)
-    v_bar, w_bar, xbuf, zero_b = work_buffers(state.v, state.w)
+    rows = zero_rows(state.v.shape[2])
+    v_bar, w_bar, xbuf, zero_b = work_buffers(state.v, state.w, rows)
     mass = problem.m is not None
     bc = mass and problem.ab is not None
     if mass:
@@ -150,9 +176,9 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
         parallel_at(state.v.shape[1] * state.v.shape[2], PARALLEL_MIN_PIXELS if min_pixels is None else min_pixels),
         problem.q is not None,
-        mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else _DUMMY2, qpad if mass else _DUMMY4,
+        mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else rows["p"], qpad if mass else rows["qpad"],
         sp if mass else _DUMMY2,
-        tv if mass else _DUMMY3, _F32(1.0 / p.alpha),
+        tv if mass else rows["tv"], _F32(1.0 / p.alpha),
         _f32c(problem.ab) if bc else _DUMMY3, _f32c(problem.cb) if bc else _DUMMY2))
     if mass:
         shift_slow_modes(problem, state, p)
@@ -197,7 +223,8 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
     interpolated = scheme == "interpolated"
     parallel = parallel_at(h * w, LINEARISE_PARALLEL_MIN_PIXELS if min_pixels is None else min_pixels)
     rows, base = row_scratch(w)
-    nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else _DUMMY3, _f32c(flow0),
+    nw.linearise_kernel(_f32c(i0), _f32c(source1), _f32c(grad_i0) if interpolated else zero_rows(w)["g0"],
+                        _f32c(flow0),
                         KERNEL_CODES[kernel], interpolated, a, c, rows, base, parallel)
     return a, c
 

@@ -10,7 +10,18 @@ updated in their own row loops, so the model flags branch outside the loops that
 
 Array layout (models.py): v (2, H, W), y (2, 2, H, W) [dir, comp], w (2, 2, H, W), z (2, 2, 2, H, W)
 [dir2, dir, comp], a (2, H, W), c (H, W), b (2, H, W); all float32 C-contiguous. Models without w/z
-pass 1x1 dummies of the same rank (never read); without a Bregman term b is a (2, 1, W) zero row.
+pass 1x1 dummies of the same rank where only a row function reads them (w, z, m, sp), zero rows where a
+pixel loop indexes them (w_bar (2, 2, 1, W); without mass p (1, W), tv (2, 1, W), qpad (2, 2, 1, W + 2));
+without a Bregman term b is a (2, 1, W) zero row.
+
+Every load stays inside the array it indexes, whatever the flags (``mass``, ``quad``, ``ext``): LLVM turns the
+flag branches of a pixel loop into AVX-512 masked loads, and a masked-off lane whose address lies on a page
+that is not mapped or not yet touched costs a microcode assist (fault suppression) on every vector step. A
+data term without ``quad`` has 2 planes, not 5, and the extra variables of a model without them are zero
+rows (1 row, the level's width) -- so plane and row indices are clamped once per row (like ``b``'s), never
+per pixel. Unclamped, the quadratic term's planes 2-4 of a 2-plane ``a`` lay past its end, in a fresh
+process on the heap's untouched top: its first flow ran the primal pass ~8x slower (issue 29, docs/engine.md
+"Compiled kernels").
 
 Boundaries: grad is the forward difference with a zero last column/row, div the backward difference that
 is its exact negative adjoint (operators.py): rows use clamped neighbour indices times a 0/1 mask, columns
@@ -206,6 +217,7 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
         for i in prange(h):
             ir = min(i + 1, h - 1)
             rm = _ONE if i < h - 1 else _ZERO
+            iw = min(np.int64(i), w_bar.shape[2] - 1)  # w_bar is a (2, 2, 1, W) zero row without w
             for seg in range(2):  # interior columns (right neighbour j + 1), then the last column (none)
                 j0, j1, rr = (0, wd - 1, 1) if seg == 0 else (wd - 1, wd, 0)
                 for j in range(j0, j1):
@@ -215,10 +227,10 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
                     g10 = (v_bar[0, ir, j] - v_bar[0, i, j]) * rm
                     g11 = (v_bar[1, ir, j] - v_bar[1, i, j]) * rm
                     if ext:
-                        g00 -= w_bar[0, 0, i, j]
-                        g01 -= w_bar[0, 1, i, j]
-                        g10 -= w_bar[1, 0, i, j]
-                        g11 -= w_bar[1, 1, i, j]
+                        g00 -= w_bar[0, 0, iw, j]
+                        g01 -= w_bar[0, 1, iw, j]
+                        g10 -= w_bar[1, 0, iw, j]
+                        g11 -= w_bar[1, 1, iw, j]
                     t0, t1, t2, t3 = prox_dual4(
                         (y[0, 0, i, j] + sigma * g00) * l2_scale, (y[0, 1, i, j] + sigma * g01) * l2_scale,
                         (y[1, 0, i, j] + sigma * g10) * l2_scale, (y[1, 1, i, j] + sigma * g11) * l2_scale,
@@ -247,11 +259,17 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
         if bc:  # the term exists only with mass: a constant here, so the pixel loop keeps the mass path alone
             mass = True
         total = 0.0
+        last = a.shape[0] - 1  # the quadratic term's planes 2-4 (a is (2, H, W) without it: read plane 1 instead)
+        k2, k3, k4 = min(2, last), min(3, last), min(4, last)
         for i in prange(h):
             iu = max(i - 1, 0)
             ru = _ONE if i > 0 else _ZERO
             rd = _ONE if i < h - 1 else _ZERO
             ib = min(np.int64(i), b.shape[1] - 1)  # b is a (2, 1, W) zero row when there is no Bregman term
+            # without mass, p (1, W), tv (2, 1, W) and qpad (2, 2, 1, W + 2) are zero rows: clamped row indices
+            ip, it = min(np.int64(i), p.shape[0] - 1), min(np.int64(i), tv.shape[1] - 1)
+            qlast = qpad.shape[2] - 1
+            q0, q1, q2 = min(np.int64(i), qlast), min(np.int64(i) + 1, qlast), min(np.int64(i) + 2, qlast)
             # x-part of div y: px[j] (j < W-1) - px[j-1] (j > 0) = q[j + 1] - q[j] with q = (0, px[:-1], 0)
             q = xbuf[numba.get_thread_id()]
             q[0, 0] = _ZERO
@@ -268,19 +286,19 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
                 v0, v1 = v[0, i, j], v[1, i, j]
                 vt0, vt1 = v0 + tau * (div0 + b[0, ib, j]), v1 + tau * (div1 + b[1, ib, j])
                 if mass:
-                    s0 = a[0, i, j] * p[i, j] + np.float32(0.5) * (
-                        qpad[0, 0, i + 1, j] - qpad[0, 0, i + 1, j + 2]
-                        + qpad[0, 1, i, j + 1] - qpad[0, 1, i + 2, j + 1])
-                    s1 = a[1, i, j] * p[i, j] + np.float32(0.5) * (
-                        qpad[1, 0, i + 1, j] - qpad[1, 0, i + 1, j + 2]
-                        + qpad[1, 1, i, j + 1] - qpad[1, 1, i + 2, j + 1])
-                    n0 = v0 + tv[0, i, j] * (div0 + b[0, ib, j] - s0)
-                    n1 = v1 + tv[1, i, j] * (div1 + b[1, ib, j] - s1)
+                    s0 = a[0, i, j] * p[ip, j] + np.float32(0.5) * (
+                        qpad[0, 0, q1, j] - qpad[0, 0, q1, j + 2]
+                        + qpad[0, 1, q0, j + 1] - qpad[0, 1, q2, j + 1])
+                    s1 = a[1, i, j] * p[ip, j] + np.float32(0.5) * (
+                        qpad[1, 0, q1, j] - qpad[1, 0, q1, j + 2]
+                        + qpad[1, 1, q0, j + 1] - qpad[1, 1, q2, j + 1])
+                    n0 = v0 + tv[0, it, j] * (div0 + b[0, ib, j] - s0)
+                    n1 = v1 + tv[1, it, j] * (div1 + b[1, ib, j] - s1)
                     if bc:
-                        n0, n1 = prox_data_metric(n0, n1, ab[0, i, j], ab[1, i, j], cb[i, j], tv[0, i, j],
-                                                  tv[1, i, j], lam, data_l1, _ZERO)
+                        n0, n1 = prox_data_metric(n0, n1, ab[0, i, j], ab[1, i, j], cb[i, j], tv[0, it, j],
+                                                  tv[1, it, j], lam, data_l1, _ZERO)
                 elif quad:
-                    n0, n1 = prox_quadratic(vt0, vt1, a[0, i, j], a[1, i, j], a[2, i, j], a[3, i, j], a[4, i, j],
+                    n0, n1 = prox_quadratic(vt0, vt1, a[0, i, j], a[1, i, j], a[k2, i, j], a[k3, i, j], a[k4, i, j],
                                             tau_d)
                 else:
                     n0, n1 = prox_data(vt0, vt1, a[0, i, j], a[1, i, j], c[i, j], tau_d, data_l1, soft)
@@ -328,8 +346,9 @@ def _make_iterate(bc: bool):  # noqa: ANN202
         model's data term (:func:`prox_data`; 0 = the model's own); ``mass``: mass
         preservation, M = ``m`` (2, 2, H, W), its dual ``p`` (H, W), the scratch ``qpad`` (2, 2, H + 2, W + 2) of
         M p (zero ring), the steps ``sp`` (H, W) and ``tv`` (2, H, W) (models.mass_steps) and the data weight
-        ``lam`` (else 1x1 dummies); in ``iterate_bc``, with mass, the brightness term ``ab`` (2, H, W), ``cb``
-        (H, W) beside it (models.prox_data_metric; else dummies). Returns the number of iterations run."""
+        ``lam`` (else dummies; zero rows for p, qpad and tv: numba_backend.zero_rows); in ``iterate_bc``, with
+        mass, the brightness term ``ab`` (2, H, W), ``cb`` (H, W) beside it (models.prox_data_metric; else
+        dummies). Returns the number of iterations run."""
         n = 2.0 * v.shape[1] * v.shape[2]
         k = 0
         head = (v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad, soft, mass, p,

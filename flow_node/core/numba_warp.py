@@ -112,6 +112,7 @@ def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, ba
     h, w = i0.shape
     right, bottom = np.float32(w - 1), np.float32(h - 1)
     zero = np.float32(0.0)
+    ig = min(np.int64(i), g0.shape[1] - 1)  # g0 is a (2, 1, W) zero row when not ``interpolated``
     for j in range(w):
         mx, my = np.float32(j) + flow[0, i, j], np.float32(i) + flow[1, i, j]
         inside = mx >= 0 and mx <= right and my >= 0 and my <= bottom
@@ -141,8 +142,8 @@ def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, ba
         a0 = tap_sum(src, 1, wx, wy, cols, rows)
         a1 = tap_sum(src, 2, wx, wy, cols, rows)
         if interpolated:
-            a0 = _HALF * (g0[0, i, j] + a0)
-            a1 = _HALF * (g0[1, i, j] + a1)
+            a0 = _HALF * (g0[0, ig, j] + a0)
+            a1 = _HALF * (g0[1, ig, j] + a1)
         a[0, i, j] = a0
         a[1, i, j] = a1
         c[i, j] = i1w - i0[i, j] - a0 * flow[0, i, j] - a1 * flow[1, i, j]
@@ -152,7 +153,8 @@ def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, ba
 def linearise_kernel(i0, src, g0, flow, kernel, interpolated, a, c, scratch, base, parallel):  # noqa: ANN001, ANN201
     """operators.linearise in one pass: a (2, H, W) and c (H, W) of the data term linearised around flow
     (2, H, W), from i0 (H, W), the warp source src (3, H, W) = coefficients of [I1, dI1/dx, dI1/dy] and,
-    when ``interpolated``, frame 0's gradient g0 (2, H, W) (else a dummy, not read). ``scratch`` (threads,
+    when ``interpolated``, frame 0's gradient g0 (2, H, W) (else a (2, 1, W) zero row, not read: its row index
+    is clamped, numba_kernels.py says why). ``scratch`` (threads,
     9, W) float32 and ``base`` (threads, 2, W) int32 are per-thread row scratch. Rows in parallel when
     ``parallel``."""
     if parallel:
