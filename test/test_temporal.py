@@ -120,8 +120,9 @@ def test_stream_mode_off_is_the_single_pair_solve() -> None:
 
 
 def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: pytest.MonkeyPatch) -> None:
-    """temporal.Seen: a pair's second frame's sorted sample, and (with the same normalising map) its pyramid and
-    start-level image, start the next pair; its flows are those of a pair that computes them again, bit for bit.
+    """temporal.Seen: a pair's second frame's sorted sample, and (with the same normalising map) its normalised
+    frame, pyramid and start-level image, start the next pair; its flows are those of a pair that computes them
+    again, bit for bit.
     A texture rolled by 3 px per frame: the same grey values on the sampled grid, so the same map every pair;
     the last frame is 0.002 brighter (no exposure step, another map): its pair builds everything again."""
     base = cv2.GaussianBlur(np.random.default_rng(4).random((120, 162), dtype=np.float32), (0, 0), 1.5)
@@ -138,14 +139,20 @@ def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: p
     first = est.estimate_next(seq[0], seq[1], None)
     assert first.seen is not None and first.seen.levels is None  # a full solve hands on the sample only
     carried, fresh = first, first
+    shared: list[bool] = []  # the judged frame 0 is the previous pair's judged frame 1 itself
     for t in range(2, 6):
+        previous = carried
         carried = est.estimate_next(seq[t - 1], seq[t], Prior(carried.state, carried.unexplained, seen=carried.seen))
         fresh = est.estimate_next(seq[t - 1], seq[t], Prior(fresh.state, fresh.unexplained))
         assert carried.stats.stream == fresh.stats.stream == PREDICTED
         np.testing.assert_array_equal(carried.flow, fresh.flow)
         assert carried.unexplained == fresh.unexplained
+        assert carried.frames is not None and fresh.frames is not None and previous.frames is not None
+        np.testing.assert_array_equal(carried.frames[0], fresh.frames[0])
+        shared.append(carried.frames[0] is previous.frames[1])
     # carried pairs after the first predicted one, but not the last
     assert reused == [False, False, True, False, True, False, False, False]
+    assert shared == [False, True, True, False]
 
 
 def test_an_exposure_step_is_solved_in_full() -> None:
