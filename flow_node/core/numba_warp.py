@@ -240,7 +240,8 @@ def unexplained_kernel(i0, i1, flow, stride, threshold):  # noqa: ANN001, ANN201
 
     Row by row in two passes, as :func:`_linearise_row`: the sampled pixels' tap weights and inside flags (no
     gathers, no branches: vectorised) into row scratch, then the gathers of the pixels inside (the same
-    weights, taps and sums as one pass per pixel gave: 2-3x faster, the same counts)."""
+    weights, taps and sums as one pass per pixel gave: with :func:`tap_sum`'s unsigned indices 1.6x faster at
+    320x240, the same counts)."""
     h, w = i0.shape
     right, bottom = np.float32(w - 1), np.float32(h - 1)
     zero = np.float32(0.0)

@@ -90,11 +90,12 @@ class Prior:
     seen: Seen | None = None
 
 
-def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Splat) -> PDState:
+def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Splat,
+            fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull) -> PDState:
     """The previous pair's solver state carried to the new pair's first frame on a grid of ``shape``:
     resampled to it (flow vectors rescaled), the flow multiplied by the interval ``ratio``, everything
     splatted forward along the flow (``splat``), the flow's holes filled by normalised convolution
-    (densify.push_pull), the other variables' holes left at 0. A new PDState, float32."""
+    (``fill``: densify.push_pull or a backend's), the other variables' holes left at 0. A new PDState, float32."""
     state = previous if previous.v.shape[1:] == shape else resize_state(previous, shape)
     flow = state.v * np.float32(ratio) if ratio != 1.0 else state.v
     others = [a for a in (state.y, state.w, state.z) if a is not None]
@@ -106,7 +107,7 @@ def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Spla
     y = next(moved)
     w = next(moved) if state.w is not None else None
     z = next(moved) if state.z is not None else None
-    return PDState(push_pull(values, weight), y, w, z)
+    return PDState(fill(values, weight), y, w, z)
 
 
 def stream_span(pyr: Pyramid, cfg: FlowConfig) -> tuple[int, int]:
@@ -212,7 +213,7 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
     same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
     pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None)
     start, _ = stream_span(pyr, schedule)
-    predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat)
+    predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat, backend.fill)
     frames = judged_on(judged, pyr.shapes[start], seen.area if same else None)
     reason = prediction_fails(cfg, predicted_cost(judged, predicted.v, frames))
     if reason is not None:
