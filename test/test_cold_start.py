@@ -90,7 +90,7 @@ def test_a_fresh_process_compiles_no_kernel() -> None:
     used = {name: hm for name, hm in second["stats"].items() if sum(hm)}
     for kernel in ("iterate", "linearise_kernel", "bspline_columns", "unexplained_kernel", "residual_kernel",
                    "choose_kernel", "settle_kernel", "consistent_kernel", "planes_kernel", "terms_kernel",
-                   "confidence_kernel", "radix_sort_kernel"):
+                   "confidence_kernel", "radix_sort_kernel", "gradient_kernel"):
         assert any(name.endswith("." + kernel) for name in used), (kernel, sorted(used))
     compiled = {name: misses for name, (_, misses) in used.items() if misses}
     assert not compiled, f"compiled again in a fresh process (not cached): {compiled}"

@@ -10,8 +10,8 @@ import pytest
 
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowConfig, FlowEstimator, temporal
-from flow_node.core.densify import forward_propagate, splat_forward
-from flow_node.core.numba_temporal import splat_numba
+from flow_node.core.densify import forward_propagate, push_pull, splat_forward
+from flow_node.core.numba_temporal import push_pull_numba, splat_numba
 from flow_node.core.solver import PDState
 from flow_node.core.temporal import FULL, PREDICTED, Prior, predict, prior_fails, result_fails
 
@@ -48,6 +48,23 @@ def test_numba_splat_equals_the_reference(seed: int) -> None:
         np.testing.assert_allclose(a, b, atol=1e-5, rtol=0)
     np.testing.assert_array_equal(got[2], ref[2])
     np.testing.assert_array_equal(ref[0], forward_propagate(flow)[0])  # the engine's one forward splat
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_numba_fill_equals_the_reference_bit_for_bit(seed: int) -> None:
+    """The numba backend's hole fill (numba_temporal.push_pull_numba: the pull steps in one kernel) gives
+    densify.push_pull's field bit for bit: a splatted flow's holes, sparse seeds with fractional weights, a
+    level without any seed, and a tiny grid."""
+    rng = np.random.default_rng(seed)
+    flow = rng.normal(0.0, 3.0, (2, 37, 53)).astype(np.float32)
+    values, _, weight = splat_numba(flow, np.zeros((1, 37, 53), np.float32))
+    sparse = (rng.random((37, 53)) < 0.03) * rng.random((37, 53))
+    cases = [(values, weight), (flow, sparse.astype(np.float32)), (flow, np.zeros((37, 53), np.float32)),
+             (flow[:, :3, :2], np.eye(3, 2, dtype=np.float32))]
+    for v, w in cases:
+        want, got = push_pull(v, w), push_pull_numba(v, w)
+        assert got.dtype == np.float32 and np.array_equal(got.view(np.int32), want.view(np.int32))
+    assert 0.3 < weight.mean() < 0.9  # the splat left holes to fill
 
 
 def test_prediction_of_a_steady_pan_is_exact_inside_and_filled_at_the_border() -> None:
@@ -120,8 +137,9 @@ def test_stream_mode_off_is_the_single_pair_solve() -> None:
 
 
 def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: pytest.MonkeyPatch) -> None:
-    """temporal.Seen: a pair's second frame's sorted sample, and (with the same normalising map) its pyramid and
-    start-level image, start the next pair; its flows are those of a pair that computes them again, bit for bit.
+    """temporal.Seen: a pair's second frame's sorted sample, and (with the same normalising map) its normalised
+    frame, pyramid and start-level image, start the next pair; its flows are those of a pair that computes them
+    again, bit for bit.
     A texture rolled by 3 px per frame: the same grey values on the sampled grid, so the same map every pair;
     the last frame is 0.002 brighter (no exposure step, another map): its pair builds everything again."""
     base = cv2.GaussianBlur(np.random.default_rng(4).random((120, 162), dtype=np.float32), (0, 0), 1.5)
@@ -138,14 +156,20 @@ def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: p
     first = est.estimate_next(seq[0], seq[1], None)
     assert first.seen is not None and first.seen.levels is None  # a full solve hands on the sample only
     carried, fresh = first, first
+    shared: list[bool] = []  # the judged frame 0 is the previous pair's judged frame 1 itself
     for t in range(2, 6):
+        previous = carried
         carried = est.estimate_next(seq[t - 1], seq[t], Prior(carried.state, carried.unexplained, seen=carried.seen))
         fresh = est.estimate_next(seq[t - 1], seq[t], Prior(fresh.state, fresh.unexplained))
         assert carried.stats.stream == fresh.stats.stream == PREDICTED
         np.testing.assert_array_equal(carried.flow, fresh.flow)
         assert carried.unexplained == fresh.unexplained
+        assert carried.frames is not None and fresh.frames is not None and previous.frames is not None
+        np.testing.assert_array_equal(carried.frames[0], fresh.frames[0])
+        shared.append(carried.frames[0] is previous.frames[1])
     # carried pairs after the first predicted one, but not the last
     assert reused == [False, False, True, False, True, False, False, False]
+    assert shared == [False, True, True, False]
 
 
 def test_an_exposure_step_is_solved_in_full() -> None:

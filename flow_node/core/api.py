@@ -154,6 +154,9 @@ class FlowEstimator:
         with self._backend.running():
             warm_fusion(self._backend)
             self._backend.splat(np.zeros((2,) + shape, np.float32), np.zeros((4,) + shape, np.float32))  # stream
+            holes = np.ones(shape, np.float32)
+            holes[0, 0] = 0.0  # one hole: the fill's pull steps run
+            self._backend.fill(np.zeros((2,) + shape, np.float32), holes)
         still = np.zeros(shape + (2,), np.float32)
         self.confidence(f0, f1, still)
         self.confidence_at(f0, f1, still, np.zeros(1, np.int64), np.zeros(1, np.int64))  # points alone

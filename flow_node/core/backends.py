@@ -15,11 +15,11 @@ import numpy as np
 from .census import CensusForm, LevelSignature, census_form, level_signature
 from .colour import ColourForm, colour_form
 from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
-from .densify import splat_forward
+from .densify import push_pull, splat_forward
 from .errors import ConfigError
 from .fusion import Fuse, fuse
 from .initialise import Consistent, forward_backward_consistent
-from .operators import Linearise, linearise
+from .operators import ImageGradient, Linearise, image_gradient, linearise
 from .photometric import Reliability, reliability, sorted_sample
 from .solver import LevelSolver, solve_numpy
 from .warping import NUMPY_WARPER, Warper
@@ -36,10 +36,11 @@ class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
     reliability figure, the fusion and its forward-backward check, the census data term's level
     signature and per-warp form (``colour_form``: its colour version, colour.py), the per-pixel confidence of
-    a flow, the stream stage's forward splat (temporal.predict) and the photometric stage's sorted sample of a
-    frame (photometric.sorted_sample; the same array in every backend) (same semantics in every backend;
-    the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on
-    and the context that binds them (:meth:`running`).
+    a flow, the stream stage's forward splat (temporal.predict), the photometric stage's sorted sample of a
+    frame (photometric.sorted_sample; the same array in every backend), the data term's image gradient
+    (operators.image_gradient) and the stream stage's hole fill (densify.push_pull) (same semantics in every
+    backend; the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels
+    run on and the context that binds them (:meth:`running`).
     """
 
     name: str
@@ -58,6 +59,8 @@ class Backend(NamedTuple):
     splat: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] = splat_forward
     confidence_at: ConfidenceAt = confidence_at  # the confidence at pixel points only (the fits' samples)
     sample: Callable[[np.ndarray], np.ndarray] = sorted_sample  # the photometric stage's sorted sample of a frame
+    gradient: ImageGradient = image_gradient  # the data term's image gradient (operators.image_gradient)
+    fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull  # the stream stage's hole fill (densify.push_pull)
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -184,4 +187,5 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    numba_backend.thread_count, Deferred(_numba_census, "colour_form_numba"),
                    splat=Deferred(_numba_temporal, "splat_numba"),
                    confidence_at=Deferred(_numba_confidence, "confidence_at_numba"),
-                   sample=Deferred(_numba_sort, "sorted_sample_numba"))
+                   sample=Deferred(_numba_sort, "sorted_sample_numba"), gradient=numba_backend.image_gradient_numba,
+                   fill=Deferred(_numba_temporal, "push_pull_numba"))

@@ -12,16 +12,32 @@ Flows are channel-first (2, H, W) px; images (H, W) float32.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
+
+# blend(weight (h, w), weighted [(h, w)], coarse [(h, w)]) -> [(h, w)]: blend_level or a backend's kernel
+Blend = Callable[[np.ndarray, list[np.ndarray], list[np.ndarray]], list[np.ndarray]]
 
 GUIDE_RADIUS = 8  # px, guided filter window radius at full resolution
 GUIDE_EPS = 1e-3  # guided filter regularisation (intensity^2): edges with contrast above ~0.03 are kept
 
 
-def push_pull(values: np.ndarray, weight: np.ndarray) -> np.ndarray:
+def blend_level(weight: np.ndarray, weighted: list[np.ndarray], coarse: list[np.ndarray]) -> list[np.ndarray]:
+    """One step of :func:`push_pull`'s pull phase on a level: each channel's own estimate (``weighted`` / its
+    ``weight`` (h, w)) where the level has a quarter of full weight or more, the coarser level's (``coarse``,
+    pyrUp'd to (h, w)) elsewhere, blended linearly in between. float32 (h, w) per channel. The numpy reference
+    (numba_temporal.blend_level_numba: the same values in one kernel)."""
+    keep = np.clip(weight * 4.0, 0.0, 1.0)  # support of a quarter of full weight or more: own estimate
+    own = [c / np.maximum(weight, 1e-12) for c in weighted]
+    return [(keep * o + (1.0 - keep) * u).astype(np.float32) for o, u in zip(own, coarse, strict=True)]
+
+
+def push_pull(values: np.ndarray, weight: np.ndarray, blend: Blend = blend_level) -> np.ndarray:
     """Fill (2, H, W) ``values`` known where ``weight`` (H, W) > 0 (weight = confidence, e.g. 1) into a
-    dense (2, H, W) float32 field; known pixels keep (almost) their values. All-zero weight gives zeros."""
+    dense (2, H, W) float32 field; known pixels keep (almost) their values. All-zero weight gives zeros.
+    ``blend``: :func:`blend_level` or a backend's kernel (the same values)."""
     if not np.any(weight > 0):
         return np.zeros(values.shape, np.float32)
     w = weight.astype(np.float32)
@@ -35,10 +51,7 @@ def push_pull(values: np.ndarray, weight: np.ndarray) -> np.ndarray:
     est = [np.where(lw > 1e-6, c / safe, c.sum() / max(lw.sum(), 1e-12)).astype(np.float32) for c in lvw]
     for lw, lvw in reversed(levels[:-1]):
         h, w_ = lw.shape
-        up = [cv2.pyrUp(e, dstsize=(w_, h)) for e in est]
-        keep = np.clip(lw * 4.0, 0.0, 1.0)  # support of a quarter of full weight or more: own estimate
-        own = [c / np.maximum(lw, 1e-12) for c in lvw]
-        est = [(keep * o + (1.0 - keep) * u).astype(np.float32) for o, u in zip(own, up, strict=True)]
+        est = blend(lw, lvw, [cv2.pyrUp(e, dstsize=(w_, h)) for e in est])
     return np.stack(est)
 
 

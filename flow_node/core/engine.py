@@ -68,18 +68,35 @@ class Judged:
 
 
 def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
-                      sample0: np.ndarray | None = None) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
+                      sample0: np.ndarray | None = None, known0: tuple[MapKey, np.ndarray] | None = None
+                      ) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
     """The photometric stage (photometric.stage with the pyramid's noise gain) and its own judge: what the
     solver sees of the pair (H, W) float32, and the :class:`Judged` pair. A census data term is judged on
     signatures (census.reliability, with the backend's sampler), a grey-value one by the backend's
     reliability kernel, so the caller never branches on the mode. ``sample0``: frame 0's sorted sample when
-    known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1)."""
+    known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1); ``known0``: frame 0
+    normalised by a previous pair, with that pair's :func:`map_key`, taken when this pair's key is the same
+    (the normalised frame is then the same bit for bit: temporal.Seen)."""
     samples = frame_samples(i0, i1, sample0, backend.sample)
     signatures = compares_signatures(cfg.photometric)
     pmap = None if signatures else pair_map(samples)
-    solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples, pmap)
+    n0 = None
+    if known0 is not None and known0[0] is not None and map_key(pmap, i0.shape, cfg) == known0[0]:
+        n0 = known0[1]
+    solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples, pmap, n0)
     judge = partial(census_reliability, sample=backend.warper.sample) if signatures else backend.reliability
     return solver_pair, Judged(frames, judge, samples, pmap)
+
+
+# what a pair's normalised frames depend on besides the frames: its pair_map and the noise gain (map_key)
+MapKey = tuple[float, ...]
+
+
+def map_key(pmap: PairMap | None, shape: tuple[int, int], cfg: FlowConfig) -> MapKey | None:
+    """In ``normalise`` mode, the pair's normalising map (photometric.pair_map) with the noise gain for
+    ``shape``: two pairs with equal keys map a frame they share to the same normalised frame (temporal.Seen).
+    None in other modes (the stream stage then builds everything again)."""
+    return (*pmap, noise_gain(shape, cfg)) if cfg.photometric == "normalise" and pmap else None
 
 
 def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray] | None, cfg: FlowConfig

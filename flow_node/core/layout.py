@@ -10,15 +10,19 @@ import numpy as np
 def interleaved_flow(v: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """The engine's output: a (2, h, w) flow as float32 (H, W, 2) at ``shape``, vectors in pixels of ``shape``.
 
-    Interleaves at the solved size, then (if it differs) rescales the vectors there and resizes bilinearly:
+    Rescales the vectors at the solved size (if it differs), interleaves there and resizes bilinearly:
     bilinear interpolation is linear, so scaling first gives the same field and the full-size array is
-    written once, not three times (resize, scale, interleave).
+    written once, not three times (resize, scale, interleave). The scaling is a float32 product per
+    channel-first plane (the same products as on the interleaved array, whose length-2 innermost axis made
+    numpy's broadcast loop ~10x slower: 0.35 ms per frame at 640x480).
     """
-    small = cv2.merge([v[0].astype(np.float32, copy=False), v[1].astype(np.float32, copy=False)])
     h, w = shape
+    u, v1 = (c.astype(np.float32, copy=False) for c in v)
+    if v.shape[1:] != (h, w):
+        u, v1 = u * np.float32(w / v.shape[2]), v1 * np.float32(h / v.shape[1])
+    small = cv2.merge([u, v1])
     if small.shape[:2] == (h, w):
         return small
-    small *= np.array([w / v.shape[2], h / v.shape[1]], dtype=np.float32)
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 

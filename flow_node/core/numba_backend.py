@@ -28,6 +28,7 @@ import numpy as np
 from . import numba_kernels as nk
 from . import numba_warp as nw
 from .models import mass_steps
+from .operators import image_gradient
 from .photometric import RESIDUAL_OUTLIER, reliability_stride
 from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams, shift_slow_modes
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
@@ -87,7 +88,7 @@ def cache_dir() -> str:
 def parallel_at(pixels: int, min_pixels: int) -> bool:
     """Whether a level of ``pixels`` runs the parallel kernels: more than one thread bound and at least
     ``min_pixels`` pixels."""
-    return threads() > 1 and pixels >= min_pixels
+    return pixels >= min_pixels and threads() > 1  # the size first: threads() costs ~2 us a call
 
 
 def _f32c(x: np.ndarray) -> np.ndarray:
@@ -227,6 +228,21 @@ def linearise_numba(i0: np.ndarray, source1: np.ndarray, grad_i0: np.ndarray | N
                         _f32c(flow0),
                         KERNEL_CODES[kernel], interpolated, a, c, rows, base, parallel)
     return a, c
+
+
+def image_gradient_numba(img: np.ndarray, scheme: str, out: np.ndarray | None = None) -> np.ndarray:
+    """operators.image_gradient with one kernel (nw.gradient_kernel) for a float32 C-contiguous image (H, W) and a
+    float32 C-contiguous ``out`` (2, H, W) or none; anything else (a volume, another dtype or layout) goes to the
+    reference. The same values bit for bit."""
+    if (img.ndim != 2 or img.dtype != _F32 or not img.flags.c_contiguous
+            or (out is not None and (out.dtype != _F32 or not out.flags.c_contiguous))):
+        return image_gradient(img, scheme, out)
+    if out is None:
+        out = np.empty((2,) + img.shape, _F32)
+    elif np.may_share_memory(img, out):
+        raise ValueError("image_gradient: out overlaps the image")
+    nw.gradient_kernel(img, scheme != "forward", out)
+    return out
 
 
 def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray) -> float:

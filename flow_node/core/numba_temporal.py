@@ -1,5 +1,6 @@
 """The stream stage's forward splat with a numba kernel: :func:`splat_numba` (densify.splat_forward), the
-numba backend's ``splat`` field.
+numba backend's ``splat`` field; and its hole fill's pull steps in one kernel per channel: :func:`push_pull_numba`
+(densify.push_pull), the ``fill`` field.
 
 The reference (densify.forward_targets) sorts every landing pixel by (target, -speed) and keeps the first of
 each target; here one serial pass over the source pixels in raster order keeps, per target, the fastest so
@@ -13,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from .densify import push_pull
 
 _F32 = np.float32
 
@@ -49,3 +52,32 @@ def splat_numba(flow: np.ndarray, carried: np.ndarray) -> tuple[np.ndarray, np.n
     weight = np.zeros((h, w), _F32)
     splat_kernel(f, c, out, out_carried, weight, np.full((h, w), -1.0, _F32))
     return out, out_carried, weight
+
+
+@njit(cache=True, error_model="numpy", nogil=True)  # no fastmath: the reference's float32 roundings, no fused ops
+def blend_kernel(weight, weighted, coarse, out):  # noqa: ANN001, ANN201
+    """densify.blend_level for one channel in one pass: out (h, w) = keep * (weighted / max(weight, 1e-12)) +
+    (1 - keep) * coarse with keep = clip(4 weight, 0, 1); all (h, w) float32, weight >= 0."""
+    four, one, zero, tiny = _F32(4.0), _F32(1.0), _F32(0.0), _F32(1e-12)
+    for i in range(weight.shape[0]):
+        for j in range(weight.shape[1]):
+            lw = weight[i, j]
+            keep = min(max(lw * four, zero), one)
+            out[i, j] = keep * (weighted[i, j] / max(lw, tiny)) + (one - keep) * coarse[i, j]
+
+
+def blend_level_numba(weight: np.ndarray, weighted: list[np.ndarray], coarse: list[np.ndarray]) -> list[np.ndarray]:
+    """densify.blend_level with :func:`blend_kernel` per channel (the same values bit for bit)."""
+    w = np.ascontiguousarray(weight, dtype=_F32)
+    out = []
+    for c, u in zip(weighted, coarse, strict=True):
+        out.append(np.empty(w.shape, _F32))
+        blend_kernel(w, np.ascontiguousarray(c, dtype=_F32), np.ascontiguousarray(u, dtype=_F32), out[-1])
+    return out
+
+
+def push_pull_numba(values: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """densify.push_pull with :func:`blend_level_numba` for its pull steps (the numba backend's ``fill``): the
+    same field bit for bit, without the reference's ten numpy calls per level (~45 us per stream frame at
+    320x240, on the 80x60 start level)."""
+    return push_pull(values, weight, blend_level_numba)

@@ -70,9 +70,13 @@ def taps(mx, my, h, w, kernel):  # noqa: ANN001, ANN201
 
 @njit(**_JIT)
 def tap_sum(img, ch, wx, wy, cols, rows):  # noqa: ANN001, ANN201
-    """sum of weight * img[ch] over the taps of :func:`taps` (rows outer, as warping.sample_coefficients)."""
-    c0, c1, c2, c3 = cols
-    r0, r1, r2, r3 = rows
+    """sum of weight * img[ch] over the taps of :func:`taps` (rows outer, as warping.sample_coefficients).
+    The indices (never negative: mirrored or interior) are read as unsigned, so that numba emits no
+    negative-index wraparound per load (48 selects per linearised pixel; the sums are the same, 25-35 %
+    less time in the gathers)."""
+    c0, c1, c2, c3 = np.uint64(cols[0]), np.uint64(cols[1]), np.uint64(cols[2]), np.uint64(cols[3])
+    r0, r1, r2, r3 = np.uint64(rows[0]), np.uint64(rows[1]), np.uint64(rows[2]), np.uint64(rows[3])
+    ch = np.uint64(ch)
     wx0, wx1, wx2, wx3 = wx
     wy0, wy1, wy2, wy3 = wy
     return (wy0 * (wx0 * img[ch, r0, c0] + wx1 * img[ch, r0, c1] + wx2 * img[ch, r0, c2] + wx3 * img[ch, r0, c3])
@@ -166,6 +170,37 @@ def linearise_kernel(i0, src, g0, flow, kernel, interpolated, a, c, scratch, bas
             _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch[0], base[0])
 
 
+@njit(cache=True, error_model="numpy", nogil=True)  # no fastmath: (b - a) * 0.5 exactly as numpy rounds it
+def gradient_kernel(img, central, out):  # noqa: ANN001, ANN201
+    """operators.image_gradient of an image (H, W) into out (2, H, W) in one pass: the central difference
+    (I(x+1) - I(x-1)) * 0.5 (``central``) or the forward one I(x+1) - I(x), along x (out[0]) and y (out[1]),
+    zero on the border entries the reference leaves zero."""
+    h, w = img.shape
+    half = np.float32(0.5)
+    zero = np.float32(0.0)
+    for i in range(h):
+        gx, gy = out[0, i], out[1, i]
+        if central:
+            gx[0] = zero
+            for j in range(1, w - 1):
+                gx[j] = (img[i, j + 1] - img[i, j - 1]) * half
+            gx[w - 1] = zero
+            if i == 0 or i == h - 1:
+                gy[:] = zero
+            else:
+                for j in range(w):
+                    gy[j] = (img[i + 1, j] - img[i - 1, j]) * half
+        else:
+            for j in range(w - 1):
+                gx[j] = img[i, j + 1] - img[i, j]
+            gx[w - 1] = zero
+            if i == h - 1:
+                gy[:] = zero
+            else:
+                for j in range(w):
+                    gy[j] = img[i + 1, j] - img[i, j]
+
+
 @njit(**_JIT)
 def bspline_columns(img, pole, horizon):  # noqa: ANN001, ANN201
     """In place: the B-spline direct transform of every column of each plane of img (N, H, W), run over
@@ -203,16 +238,42 @@ def bspline_columns(img, pole, horizon):  # noqa: ANN001, ANN201
 def unexplained_kernel(i0, i1, flow, stride, threshold):  # noqa: ANN001, ANN201
     """photometric.reliability's counts in one pass: over every ``stride``-th pixel of i0 (H, W) whose target
     x + flow (flow (H, W, 2)) stays inside, how many there are and how many have |I1(x + flow) - I0(x)| >
-    ``threshold`` (I1 (1, H, W) sampled with the Keys kernel, no prefilter). -> (inside, unexplained)."""
+    ``threshold`` (I1 (1, H, W) sampled with the Keys kernel, no prefilter). -> (inside, unexplained).
+
+    Row by row in two passes, as :func:`_linearise_row`: the sampled pixels' tap weights and inside flags (no
+    gathers, no branches: vectorised) into row scratch, then the gathers of the pixels inside (the same
+    weights, taps and sums as one pass per pixel gave: with :func:`tap_sum`'s unsigned indices 1.6x faster at
+    320x240, the same counts)."""
     h, w = i0.shape
     right, bottom = np.float32(w - 1), np.float32(h - 1)
+    zero = np.float32(0.0)
+    n = (w + stride - 1) // stride
+    weights = np.empty((9, n), np.float32)
+    base = np.empty((2, n), np.int64)
     inside = 0
     bad = 0
     for i in range(0, h, stride):
-        for j in range(0, w, stride):
+        for k in range(n):
+            j = k * stride
             mx, my = np.float32(j) + flow[i, j, 0], np.float32(i) + flow[i, j, 1]
-            if mx >= 0 and mx <= right and my >= 0 and my <= bottom:
-                wx, wy, cols, rows = taps(mx, my, h, w, 0)
-                inside += 1
-                bad += abs(tap_sum(i1, 0, wx, wy, cols, rows) - i0[i, j]) > threshold
+            ok = mx >= 0 and mx <= right and my >= 0 and my <= bottom
+            mx = mx if ok else zero  # outside (or NaN): a harmless position, not counted below
+            my = my if ok else zero
+            xi, yi = np.int64(mx), np.int64(my)  # mx, my >= 0: truncation is the floor
+            weights[0, k], weights[1, k], weights[2, k], weights[3, k] = cubic_weights4(mx - np.float32(xi), 0)
+            weights[4, k], weights[5, k], weights[6, k], weights[7, k] = cubic_weights4(my - np.float32(yi), 0)
+            weights[8, k] = _ONE if ok else zero
+            base[0, k], base[1, k] = xi, yi
+        for k in range(n):
+            if weights[8, k] == zero:
+                continue
+            wx = (weights[0, k], weights[1, k], weights[2, k], weights[3, k])
+            wy = (weights[4, k], weights[5, k], weights[6, k], weights[7, k])
+            xi, yi = base[0, k], base[1, k]
+            if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:  # interior: one branch for both axes
+                cols, rows = (xi - 1, xi, xi + 1, xi + 2), (yi - 1, yi, yi + 1, yi + 2)
+            else:
+                cols, rows = _tap_indices(xi, w), _tap_indices(yi, h)
+            inside += 1
+            bad += abs(tap_sum(i1, 0, wx, wy, cols, rows) - i0[i, k * stride]) > threshold
     return inside, bad

@@ -120,16 +120,21 @@ def warp_maps(flow: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return map_x, map_y, inside
 
 
+# image_gradient(img, scheme, out) -> gradient: :func:`image_gradient` or a backend's kernel (the same values)
+ImageGradient = Callable[..., np.ndarray]
+
+
 def warp_source(i1: np.ndarray, scheme: str, kernel: str, warper: Warper = NUMPY_WARPER,
-                out: np.ndarray | None = None) -> np.ndarray:
+                out: np.ndarray | None = None, gradient: ImageGradient = image_gradient) -> np.ndarray:
     """What each warp of one level samples: (3, H, W) float32 = [I1, its image gradient (scheme)] as the
     kernel's coefficients. Built once per level. For the B-spline only I1 is prefiltered and the gradient
     taken of its coefficients: both filters are linear and shift-invariant, so that is the prefiltered
     gradient (away from the one-pixel border) at a third of the prefilter's cost. ``out``: a float32
-    (3, H, W) array to write into (returned), else a new one."""
+    (3, H, W) array to write into (returned), else a new one. ``gradient``: :func:`image_gradient` or a
+    backend's."""
     src = np.empty((3,) + np.shape(i1), dtype=np.float32) if out is None else out
     src[0] = warper.coefficients(i1, kernel)
-    image_gradient(src[0], scheme, out=src[1:])
+    gradient(src[0], scheme, out=src[1:])
     return src
 
 

@@ -166,8 +166,8 @@ def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return normalise_pair(i0, i1)[:2]
 
 
-def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, pmap: PairMap | None = None
-                   ) -> tuple[np.ndarray, np.ndarray, bool]:
+def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, pmap: PairMap | None = None,
+                   n0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
     """Both frames (H, W) float32 with frame 1's exposure matched to frame 0 (:func:`exposure_change`) and
     one affine map for the pair taking its robust range -- the frames' mean 2nd and 98th percentiles -- to
     [0, 1].
@@ -181,12 +181,15 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, pmap
     finest solved level is coarser than the input: :func:`flow_node.core.pyramid.noise_gain`); rel is
     judged after it, and the presmoothing is left to that blur (wider than QUANT_SIGMA, it does the same
     on the level the data term lives on; both together take a low-contrast texture's signal too).
-    ``pmap``: the pair's :func:`pair_map` when known (computed from :func:`frame_samples` otherwise)."""
+    ``pmap``: the pair's :func:`pair_map` when known (computed from :func:`frame_samples` otherwise). ``n0``:
+    i0 already mapped by this very map and noise gain (a stream's previous pair mapped it as its frame 1:
+    temporal.Seen), taken as it is."""
     gain, offset, lo, hi, step = pair_map(frame_samples(i0, i1)) if pmap is None else pmap
     if (gain, offset) != (1.0, 0.0):
         i1 = i1 * np.float32(gain) + np.float32(offset)
-    n0, n1 = (affine_normalised(img, lo, hi, step, noise_gain) for img in (i0, i1))
-    return n0, n1, (gain, offset) != (1.0, 0.0)
+    if n0 is None:
+        n0 = affine_normalised(i0, lo, hi, step, noise_gain)
+    return n0, affine_normalised(i1, lo, hi, step, noise_gain), (gain, offset) != (1.0, 0.0)
 
 
 # what normalise_pair maps a pair by: (gain, offset, lo, hi, step), :func:`pair_map`
@@ -248,19 +251,21 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
 
 
 def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, samples: Samples | None = None,
-          pmap: PairMap | None = None) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+          pmap: PairMap | None = None, n0: np.ndarray | None = None
+          ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
     The second is the ``normalise`` result in every mode but ``census``, so the reliability figure has one
     meaning; ``census`` normalises each frame on its own (:func:`normalise_frame`, no exposure detection:
     its data term needs none) and returns that pair twice, for census.reliability. ``noise_gain``: see
     :func:`normalise_pair`. ``samples``: both frames' :func:`sorted_sample` when known (a stream knows its
     new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise; every mode's ranges
-    come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census`` uses it)."""
+    come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census`` uses it); ``n0``: i0
+    normalised by that map when known (:func:`normalise_pair`; not used by ``census``)."""
     s0, s1 = frame_samples(i0, i1) if samples is None else samples
     if compares_signatures(mode):
         pair = normalise_frame(i0, noise_gain, s0), normalise_frame(i1, noise_gain, s1)
         return pair, pair
-    n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, pair_map((s0, s1)) if pmap is None else pmap)
+    n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, pair_map((s0, s1)) if pmap is None else pmap, n0)
     if mode == "density":
         return density_pair(i0, i1, noise_gain, (s0, s1)), (n0, n1)
     if mode == "none":

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -24,14 +25,21 @@ ANTIALIAS = 0.7  # blur (px of the finer level, times 1/scale) of every step whe
 
 def pyramid_shapes(shape: tuple[int, ...], levels: int, scale: float, min_size: int) -> list[tuple[int, ...]]:
     """Level shapes, finest first: shape * scale**l, stopping before a side would drop below min_size (an
-    image's (H, W) or a volume's (Z, Y, X))."""
-    shapes = [tuple(shape)]
+    image's (H, W) or a volume's (Z, Y, X)). A new list each call (computed once per argument set: a stream
+    asks for the same every frame)."""
+    return list(_pyramid_shapes(tuple(shape), levels, scale, min_size))
+
+
+@lru_cache(maxsize=64)
+def _pyramid_shapes(shape: tuple[int, ...], levels: int, scale: float, min_size: int) -> tuple[tuple[int, ...], ...]:
+    """:func:`pyramid_shapes` as a tuple, cached."""
+    shapes = [shape]
     for lvl in range(1, levels):
         level = tuple(round(n * scale**lvl) for n in shape)
         if min(level) < min_size or level == shapes[-1]:
             break
         shapes.append(level)
-    return shapes
+    return tuple(shapes)
 
 
 def build_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0
@@ -122,13 +130,18 @@ def noise_gain(shape: tuple[int, int], cfg: FlowConfig) -> float:
     """The factor by which white noise (a quantisation error, say) shrinks on the finest solved level of the
     pyramid of an image of ``shape`` for ``cfg``: 1 when that is the input resolution, else 1 / (2 sqrt(pi)
     sigma), the noise gain of a Gaussian of sigma input px -- the anti-alias blur of :func:`build_pyramid`
-    accumulated down to that level (subsampling leaves the noise's variance as it is)."""
-    shapes = pyramid_shapes(shape, cfg.levels, cfg.scale_factor, cfg.min_size)
-    finest = min(cfg.finest_level, len(shapes) - 1)
+    accumulated down to that level (subsampling leaves the noise's variance as it is). Cached per argument
+    set (a stream asks for the same every frame)."""
+    return _noise_gain(tuple(shape), cfg.levels, cfg.scale_factor, cfg.min_size, cfg.finest_level)
+
+
+@lru_cache(maxsize=64)
+def _noise_gain(shape: tuple[int, int], levels: int, scale: float, min_size: int, finest_level: int) -> float:
+    """:func:`noise_gain` of the config fields it depends on."""
+    finest = min(finest_level, len(_pyramid_shapes(shape, levels, scale, min_size)) - 1)
     if finest == 0:
         return 1.0
-    s = cfg.scale_factor
-    sigma = math.sqrt(sum((ANTIALIAS / s / s**k) ** 2 for k in range(finest)))
+    sigma = math.sqrt(sum((ANTIALIAS / scale / scale**k) ** 2 for k in range(finest)))
     return min(1.0, 1.0 / (2.0 * math.sqrt(math.pi) * sigma))
 
 

@@ -22,7 +22,7 @@ from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS, weight_coefficient, weight_data, weight_quadratic
-from .operators import gain_linearise, image_gradient, mass_gain, mass_linearise, warp_source
+from .operators import gain_linearise, mass_gain, mass_linearise, warp_source
 from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
@@ -119,8 +119,8 @@ def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
     fused kernel) around v0."""
     h, w = i0.shape
     src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper,
-                       out=scratch("refine.source", (3, h, w)))
-    g0 = (image_gradient(i0, cfg.gradient_scheme, out=scratch("refine.grad0", (2, h, w)))
+                       out=scratch("refine.source", (3, h, w)), gradient=backend.gradient)
+    g0 = (backend.gradient(i0, cfg.gradient_scheme, out=scratch("refine.grad0", (2, h, w)))
           if cfg.gradient_scheme == "interpolated" else None)
 
     def around(v0: np.ndarray) -> Problem:

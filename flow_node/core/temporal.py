@@ -46,9 +46,9 @@ import numpy as np
 from .backends import Backend
 from .config import FlowConfig
 from .densify import push_pull
-from .engine import Judged, photometric_stage
+from .engine import Judged, map_key, photometric_stage
 from .layout import interleaved_flow
-from .pyramid import Pyramid, make_pyramid, noise_gain, resize_state
+from .pyramid import Pyramid, make_pyramid, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
 
@@ -65,10 +65,10 @@ class Seen:
     """What a pair computed of its second frame that the next pair, whose first frame it is, need not compute
     again: its sorted ``sample`` (photometric.sorted_sample: the photometric stage's ranges come from it); and,
     from a pair the stream stage refined in ``normalise`` mode, the pair's normalising map (``key``:
-    photometric.pair_map and the noise gain), the frame's normalised pyramid (``levels``, finest first, as
-    pyramid.make_pyramid built it) and its normalised image on the start level by area average (``area``:
-    :func:`judged_on`). The next pair takes those only when its own map is the same -- the normalised frame is
-    then the same, bit for bit --, else it builds them again."""
+    engine.map_key), the frame's normalised pyramid (``levels``, finest first, as pyramid.make_pyramid built
+    it; level 0, the normalised frame itself, is the next pair's normalised frame 0) and its normalised image
+    on the start level by area average (``area``: :func:`judged_on`). The next pair takes those only when its
+    own map is the same -- the normalised frame is then the same, bit for bit --, else it builds them again."""
 
     sample: np.ndarray
     key: tuple[float, ...] | None = None
@@ -90,11 +90,12 @@ class Prior:
     seen: Seen | None = None
 
 
-def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Splat) -> PDState:
+def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Splat,
+            fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull) -> PDState:
     """The previous pair's solver state carried to the new pair's first frame on a grid of ``shape``:
     resampled to it (flow vectors rescaled), the flow multiplied by the interval ``ratio``, everything
     splatted forward along the flow (``splat``), the flow's holes filled by normalised convolution
-    (densify.push_pull), the other variables' holes left at 0. A new PDState, float32."""
+    (``fill``: densify.push_pull or a backend's), the other variables' holes left at 0. A new PDState, float32."""
     state = previous if previous.v.shape[1:] == shape else resize_state(previous, shape)
     flow = state.v * np.float32(ratio) if ratio != 1.0 else state.v
     others = [a for a in (state.y, state.w, state.z) if a is not None]
@@ -106,7 +107,7 @@ def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Spla
     y = next(moved)
     w = next(moved) if state.w is not None else None
     z = next(moved) if state.z is not None else None
-    return PDState(push_pull(values, weight), y, w, z)
+    return PDState(fill(values, weight), y, w, z)
 
 
 def stream_span(pyr: Pyramid, cfg: FlowConfig) -> tuple[int, int]:
@@ -201,17 +202,18 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         return reason
     schedule = stream_schedule(cfg)
     seen = prior.seen
-    (s0, s1), judged = photometric_stage(i0, i1, cfg, backend, None if seen is None else seen.sample)
+    known0 = None if seen is None or seen.key is None or not seen.levels else (seen.key, seen.levels[0])
+    (s0, s1), judged = photometric_stage(i0, i1, cfg, backend, None if seen is None else seen.sample, known0)
     normalised = judged.frames
     if cfg.photometric == "normalise" and s0 is not normalised[0]:
         # the stage hands the solver the normalised pair itself unless it found an exposure change between the
         # frames (then: local contrast, a data term of another scale than the carried state was solved on)
         return "exposure step"
-    key = (*judged.pmap, noise_gain(i0.shape, cfg)) if cfg.photometric == "normalise" and judged.pmap else None
+    key = map_key(judged.pmap, i0.shape, cfg)
     same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
     pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None)
     start, _ = stream_span(pyr, schedule)
-    predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat)
+    predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat, backend.fill)
     frames = judged_on(judged, pyr.shapes[start], seen.area if same else None)
     reason = prediction_fails(cfg, predicted_cost(judged, predicted.v, frames))
     if reason is not None:
