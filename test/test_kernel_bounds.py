@@ -36,11 +36,12 @@ class Guarded:
         self.libc = ctypes.CDLL("libc.so.6", use_errno=True)
         self.libc.mprotect.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
 
-    def like(self, x: np.ndarray) -> np.ndarray:
-        """A copy of ``x`` (float32, C order) whose last byte is the last one before the guard."""
+    def like(self, x: np.ndarray, guard_bytes: int = 0) -> np.ndarray:
+        """A copy of ``x`` (float32, C order) whose last byte is the last one before the guard (at least
+        ``guard_bytes`` long)."""
         page = mmap.PAGESIZE
         n = x.size * 4
-        data_pages, guard_pages = -(-n // page), -(-4 * n // page) + 1
+        data_pages, guard_pages = -(-n // page), -(-max(4 * n, guard_bytes) // page) + 1
         mm = mmap.mmap(-1, (data_pages + guard_pages) * page)
         self.maps.append(mm)
         raw = np.frombuffer(mm, np.uint8)

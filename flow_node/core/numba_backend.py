@@ -110,19 +110,23 @@ def work_buffers(v: np.ndarray, w: np.ndarray | None, rows: dict[str, np.ndarray
 # shapes of the zero rows that stand for an absent array a pixel loop of the kernels indexes (W = width)
 ZERO_ROWS = {"b": lambda w: (2, 1, w), "w_bar": lambda w: (2, 2, 1, w), "p": lambda w: (1, w),
              "tv": lambda w: (2, 1, w), "qpad": lambda w: (2, 2, 1, w + 2), "g0": lambda w: (2, 1, w)}
+# the same for the volume kernels (numba_volume.py; X = width): w_bar without w, z of tv_l2, gi0 without the
+# interpolated scheme -- one row of one slice, read at a clamped (slice, row) index
+VOLUME_ZERO_ROWS = {"w_bar": lambda x: (3, 3, 1, 1, x), "z": lambda x: (3, 3, 3, 1, 1, x),
+                    "gi0": lambda x: (3, 1, 1, x)}
 
 
-def zero_rows(width: int) -> dict[str, np.ndarray]:
+def zero_rows(width: int, volume: bool = False) -> dict[str, np.ndarray]:
     """Zero rows for images ``width`` wide, float32, written (so their pages are present): the Bregman term
     without one (``b``), and what the iteration kernels get instead of w_bar, p, tv and qpad when the model
     has none, and the linearisation instead of frame 0's gradient when the scheme needs none (shapes
-    :data:`ZERO_ROWS`). The kernels clamp their row index into these (numba_kernels.py: a
-    flag's branch in a pixel loop becomes masked loads, and a masked lane on an untouched page costs a
-    microcode assist per vector step). Views of one of the calling thread's scratch arrays, zeroed on every
-    call (~11 W floats)."""
-    shapes = {name: shape(width) for name, shape in ZERO_ROWS.items()}
+    :data:`ZERO_ROWS`; ``volume``: the volume kernels', :data:`VOLUME_ZERO_ROWS`). The kernels clamp their
+    row index into these (numba_kernels.py: a flag's branch in a pixel loop becomes masked loads, and a
+    masked lane on an untouched page costs a microcode assist per vector step). Views of one of the calling
+    thread's scratch arrays, zeroed on every call (~11 W floats; volumes 39 X)."""
+    shapes = {name: shape(width) for name, shape in (VOLUME_ZERO_ROWS if volume else ZERO_ROWS).items()}
     sizes = {name: int(np.prod(shape)) for name, shape in shapes.items()}
-    flat = scratch("numba.zero_rows", (sum(sizes.values()),))
+    flat = scratch("numba.volume_rows" if volume else "numba.zero_rows", (sum(sizes.values()),))
     flat.fill(0.0)
     out, start = {}, 0
     for name, shape in shapes.items():

@@ -9,8 +9,10 @@ forward differences are zero across the far border (clamped neighbour index time
 divergence is their exact negative adjoint.
 
 Layout (models.py): v (3, Z, Y, X) with v[0] = x, v[1] = y, v[2] = z; y (3, 3, Z, Y, X) [dir, comp]; w like
-y; z (3, 3, 3, Z, Y, X) [dir2, dir, comp]; s (Z, Y, X); a (3, Z, Y, X); c (Z, Y, X). Arrays a model does not
-use are passed as small dummies of the same rank (never read). All float32 C-contiguous.
+y; z (3, 3, 3, Z, Y, X) [dir2, dir, comp]; s (Z, Y, X); a (3, Z, Y, X); c (Z, Y, X); float32 C-contiguous. Loads
+stay inside the arrays given whatever the flags (numba_kernels.py, masked loads): what a pixel loop indexes
+without its model (w_bar, tv_l2's z, gi0) is a zero row (numba_backend.zero_rows) read at a (slice, row) index
+clamped once per row; w and s, read only in row loops that their flag guards, are 1x1x1 dummies.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 from numba import njit, prange
 
 from .models import step_sizes
-from .numba_backend import PARALLEL_MIN_PIXELS
+from .numba_backend import PARALLEL_MIN_PIXELS, zero_rows
 from .numba_kernels import REG_CODES
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 
@@ -40,11 +42,10 @@ def dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2
     Neighbours are clamped (the difference across the far border is then 0); along x the row runs in two
     segments, interior columns (step 1) and the last one (step 0), so the inner loop has no branch."""
     nz, ny, nx = v_bar.shape[1], v_bar.shape[2], v_bar.shape[3]
-    l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
-    s_scale = _ONE / (_ONE + sigma / rel_inc) if inc else _ONE
-    kn = min(k + 1, nz - 1)
+    l2_scale, s_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE, (_ONE / (_ONE + sigma / rel_inc) if inc else _ONE)
+    kn, kw = min(k + 1, nz - 1), min(np.int64(k), w_bar.shape[2] - 1)  # kw, iw: 0 in a zero row
     for i in range(ny):
-        i_n = min(i + 1, ny - 1)
+        i_n, iw = min(i + 1, ny - 1), min(i, w_bar.shape[3] - 1)
         n2[:] = _ZERO
         for c in range(3):
             for seg in range(2):
@@ -53,9 +54,9 @@ def dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2
                     f0 = v_bar[c, k, i, j]
                     gx, gy, gz = v_bar[c, k, i, j + rr] - f0, v_bar[c, k, i_n, j] - f0, v_bar[c, kn, i, j] - f0
                     if reg >= 2:
-                        gx -= w_bar[0, c, k, i, j]
-                        gy -= w_bar[1, c, k, i, j]
-                        gz -= w_bar[2, c, k, i, j]
+                        gx -= w_bar[0, c, kw, iw, j]
+                        gy -= w_bar[1, c, kw, iw, j]
+                        gz -= w_bar[2, c, kw, iw, j]
                     tx = (y[0, c, k, i, j] + sigma * gx) * l2_scale
                     ty = (y[1, c, k, i, j] + sigma * gy) * l2_scale
                     tz = (y[2, c, k, i, j] + sigma * gz) * l2_scale
@@ -97,8 +98,7 @@ def primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1
     nz, ny, nx = v.shape[1], v.shape[2], v.shape[3]
     kp, ok, pk = max(k - 1, 0), _ONE if k < nz - 1 else _ZERO, _ONE if k > 0 else _ZERO
     yx = y[0]  # (3, Z, Y, X): the x direction of y, by component
-    q = vt[3]
-    acc = 0.0
+    q, acc = vt[3], 0.0
     for i in range(ny):
         ip, oi, pi = max(i - 1, 0), _ONE if i < ny - 1 else _ZERO, _ONE if i > 0 else _ZERO
         for cc in range(3):
@@ -141,8 +141,7 @@ def step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_i
     v_bar, w_bar on k, k + 1 (not yet). Same result as the two passes, each slice's arrays read while still
     in cache. Returns sum |v_new - v|^2."""
     nz, nx = v.shape[1], v.shape[3]
-    n2, vt = np.empty(nx, np.float32), np.empty((4, nx + 1), np.float32)
-    total = 0.0
+    n2, vt, total = np.empty(nx, np.float32), np.empty((4, nx + 1), np.float32), 0.0
     for k in range(nz + 1):
         if k < nz:
             dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2)
@@ -175,6 +174,7 @@ def _make_kernels(parallel: bool):  # noqa: ANN202
         nz, ny, nx = i0.shape
         for k in prange(nz):
             for i in range(ny):
+                kg, ig = min(np.int64(k), gi0.shape[1] - 1), min(i, gi0.shape[2] - 1)  # 0 in a zero row
                 for j in range(nx):
                     px, py, pz = j + v0[0, k, i, j], i + v0[1, k, i, j], k + v0[2, k, i, j]
                     if not (0.0 <= px <= nx - 1 and 0.0 <= py <= ny - 1 and 0.0 <= pz <= nz - 1):
@@ -188,9 +188,9 @@ def _make_kernels(parallel: bool):  # noqa: ANN202
                     s2 = _trilinear(src, 2, x0, y0, z0, x1, y1, z1, fx, fy, fz)
                     s3 = _trilinear(src, 3, x0, y0, z0, x1, y1, z1, fx, fy, fz)
                     if interpolated:
-                        s1 = np.float32(0.5) * (gi0[0, k, i, j] + s1)
-                        s2 = np.float32(0.5) * (gi0[1, k, i, j] + s2)
-                        s3 = np.float32(0.5) * (gi0[2, k, i, j] + s3)
+                        s1 = np.float32(0.5) * (gi0[0, kg, ig, j] + s1)
+                        s2 = np.float32(0.5) * (gi0[1, kg, ig, j] + s2)
+                        s3 = np.float32(0.5) * (gi0[2, kg, ig, j] + s3)
                     a[0, k, i, j], a[1, k, i, j], a[2, k, i, j] = s1, s2, s3
                     c[k, i, j] = (s0 - i0[k, i, j] - s1 * v0[0, k, i, j] - s2 * v0[1, k, i, j]
                                   - s3 * v0[2, k, i, j])
@@ -255,8 +255,9 @@ def _z_row(w_bar, z, n2, k, i, kn, i_n, sigma, rel1, iso):  # noqa: ANN001, ANN2
 def _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg, q):  # noqa: ANN001, ANN201
     """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w. Row
     (k, i); q: (X + 1,) scratch for :func:`_x_div`."""
-    nx = w.shape[4]
-    shrink = _ONE + tau * rel1
+    nx, shrink = w.shape[4], _ONE + tau * rel1
+    zk, zi = min(np.int64(k), z.shape[3] - 1), min(i, z.shape[4] - 1)  # z's (slice, row): 0 in tv_l2's zero row
+    zkp, zip_ = min(np.int64(kp), zk), min(ip, zi)
     zx = z[0].reshape((9,) + z.shape[3:])  # the x direction of z, (dir, comp) flattened
     for d in range(3):
         for c in range(3):
@@ -265,8 +266,8 @@ def _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg, q):  # 
             for j in range(nx):
                 wt = w[d, c, k, i, j] + tau * y[d, c, k, i, j]
                 if reg == 3:
-                    dz = (q[j + 1] - q[j] + z[1, d, c, k, i, j] * oi - z[1, d, c, k, ip, j] * pi
-                          + z[2, d, c, k, i, j] * ok - z[2, d, c, kp, i, j] * pk)
+                    dz = (q[j + 1] - q[j] + z[1, d, c, zk, zi, j] * oi - z[1, d, c, zk, zip_, j] * pi
+                          + z[2, d, c, zk, zi, j] * ok - z[2, d, c, zkp, zi, j] * pk)
                     wt += tau * dz
                 else:
                     wt = wt / shrink
@@ -282,8 +283,7 @@ _, _, linearise_ser = _make_kernels(False)
 def iterate(v, y, w, z, s, v_bar, w_bar, a, c, tau, sigma, tau_d, rel1, rel_inc,  # noqa: ANN001, ANN201
             data_l1, reg, iso, inc, iterations, tolerance, check_every, parallel):
     """Up to ``iterations`` primal-dual steps (stopping rule of solver.solve_numpy). Returns the count."""
-    n = 3.0 * v.shape[1] * v.shape[2] * v.shape[3]
-    k = 0
+    n, k = 3.0 * v.shape[1] * v.shape[2] * v.shape[3], 0
     for k in range(1, iterations + 1):
         if parallel:
             dual_pass_par(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc)
@@ -296,7 +296,7 @@ def iterate(v, y, w, z, s, v_bar, w_bar, a, c, tau, sigma, tau_d, rel1, rel_inc,
 
 
 # ------------------------------------------------------------------------------------- the solver's glue
-_DUMMY = {n: np.zeros((3,) * n + (1, 1, 1), np.float32) for n in (0, 2, 3)}
+_DUMMY = {n: np.zeros((3,) * n + (1, 1, 1), np.float32) for n in (0, 2)}  # w, s: read in guarded row loops
 
 
 def _c32(x: np.ndarray) -> np.ndarray:
@@ -322,12 +322,12 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         state.z = _c32(state.z)
     if inc and state.s is None:
         state.s = np.zeros(state.v.shape[1:], np.float32)
-    w = state.w if spec.extended else _DUMMY[2]
-    z = state.z if spec.regulariser == "tv_tv" else _DUMMY[3]
+    w, rows = (state.w if spec.extended else _DUMMY[2]), zero_rows(state.v.shape[3], volume=True)
+    z = state.z if spec.regulariser == "tv_tv" else rows["z"]
     s = _c32(state.s) if inc else _DUMMY[0]
-    state.s = s if inc else state.s
-    f32 = np.float32
-    return iterate(state.v, state.y, w, z, s, state.v.copy(), w.copy(), _c32(problem.a), _c32(problem.c),
+    state.s, f32 = (s if inc else state.s), np.float32
+    return iterate(state.v, state.y, w, z, s, state.v.copy(), w.copy() if spec.extended else rows["w_bar"],
+                   _c32(problem.a), _c32(problem.c),
                    f32(tau), f32(sigma), f32(tau / p.alpha), f32(p.alpha1 / p.alpha),
                    f32(p.incompressibility / p.alpha), spec.data == "l1", REG_CODES[spec.regulariser],
                    p.tv_norm == "isotropic", inc, p.iterations, p.tolerance, CHECK_EVERY,
@@ -337,10 +337,10 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
 def linearise_numba(i0: np.ndarray, src: np.ndarray, v0: np.ndarray, gi0: np.ndarray | None
                     ) -> tuple[np.ndarray, np.ndarray]:
     """volume.linearise3 with the trilinear kernel: (a (3, Z, Y, X), c (Z, Y, X)) float32."""
-    a = np.empty((3,) + i0.shape, np.float32)
-    c = np.empty(i0.shape, np.float32)
+    a, c = np.empty((3,) + i0.shape, np.float32), np.empty(i0.shape, np.float32)
     kernel = linearise_par if _parallel(i0.shape) else linearise_ser
-    kernel(_c32(i0), _c32(src), _c32(v0), _DUMMY[0][None] if gi0 is None else _c32(gi0), gi0 is not None, a, c)
+    kernel(_c32(i0), _c32(src), _c32(v0), zero_rows(i0.shape[2], volume=True)["gi0"] if gi0 is None else _c32(gi0),
+           gi0 is not None, a, c)
     return a, c
 
 
