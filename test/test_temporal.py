@@ -216,3 +216,65 @@ def test_stream_alpha_weights_the_refinement_from_the_prediction_only() -> None:
     assert res[0].stats.stream == res[1].stats.stream == PREDICTED
     np.testing.assert_array_equal(same.flow, res[0].flow)  # stream_alpha == alpha: as 0
     assert np.abs(res[1].flow - res[0].flow).max() > 1e-3
+
+
+def test_warp_tolerance_zero_runs_every_warp_and_changes_nothing() -> None:
+    """stream_warp_tolerance 0 (off) and a tolerance no warp goes below run the same warps to the same flow,
+    bit for bit: the early stop's check alone leaves the refinement as it was."""
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numpy")
+    seq = frames(pan(2), 3)
+    off, tiny = FlowEstimator(cfg), FlowEstimator(cfg.replace(stream_warp_tolerance=1e-9))
+    first = off.estimate_next(seq[0], seq[1], None)
+    prior = Prior(first.state, first.unexplained)
+    a, b = off.estimate_next(seq[1], seq[2], prior), tiny.estimate_next(seq[1], seq[2], prior)
+    assert a.stats.stream == b.stats.stream == PREDICTED
+    assert a.stats.skipped_warps == b.stats.skipped_warps == 0
+    assert a.stats.iterations == b.stats.iterations
+    np.testing.assert_array_equal(a.flow, b.flow)
+
+
+@pytest.mark.parametrize("median_last", [0, 1])
+def test_warp_tolerance_stops_a_steady_pan_early_on_both_backends(median_last: int) -> None:
+    """A positive stream_warp_tolerance ends a stream level's warps once a warp barely moved the flow: on a steady
+    pan, whose prediction is nearly right, warps are skipped (fewer iterations), the flow stays within 0.1 px, and
+    the numba backend stops where the numpy reference does, with the same flow (to its kernels' round-off). A
+    pair solved in full (the first) never stops early."""
+    cfg = FlowConfig.preset("stream_fast").replace(stream_warp_tolerance=0.1, stream_median_last=median_last)
+    scene = pan(6)
+    seq = frames(scene, 3)
+    first = FlowEstimator(cfg.replace(backend="numpy")).estimate_next(seq[0], seq[1], None)
+    plain = FlowEstimator(cfg.replace(backend="numpy", stream_warp_tolerance=0.0, stream_median_last=0))
+    np.testing.assert_array_equal(first.flow, plain.estimate_next(seq[0], seq[1], None).flow)
+    assert first.stats.skipped_warps == 0
+    prior = Prior(first.state, first.unexplained)  # both backends refine the same prediction
+    out = {}
+    for backend in ("numpy", "numba"):
+        est = FlowEstimator(cfg.replace(backend=backend))
+        full = FlowEstimator(cfg.replace(backend=backend, stream_warp_tolerance=0.0, stream_median_last=0))
+        res, ref = est.estimate_next(seq[1], seq[2], prior), full.estimate_next(seq[1], seq[2], prior)
+        assert res.stats.stream == ref.stats.stream == PREDICTED
+        assert res.stats.skipped_warps > 0 and ref.stats.skipped_warps == 0
+        assert res.stats.total_iterations == (ref.stats.total_iterations
+                                              - res.stats.skipped_warps * cfg.stream_iterations)
+        gt = scene.ground_truth(2)
+        assert aee(res.flow, gt) < max(0.1, 1.5 * aee(ref.flow, gt))  # 1 warp a level instead of 3: 0.045 vs 0.035
+        out[backend] = res
+    assert out["numpy"].stats.iterations == out["numba"].stats.iterations
+    # end to end (prediction, warps, solver, median filter on two levels): each kernel agrees to 1e-5, their
+    # chain to a few 1e-5
+    np.testing.assert_allclose(out["numba"].flow, out["numpy"].flow, atol=1e-4, rtol=0)
+
+
+def test_median_last_filters_a_stream_level_once() -> None:
+    """stream_median_last 1: a predicted pair's levels are median-filtered after their last warp only -- another
+    flow than filtering after every warp; a pair solved in full is filtered after every warp as before."""
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numpy")
+    seq = frames(pan(8), 3)
+    every, last = FlowEstimator(cfg), FlowEstimator(cfg.replace(stream_median_last=1))
+    first = [e.estimate_next(seq[0], seq[1], None) for e in (every, last)]
+    np.testing.assert_array_equal(first[0].flow, first[1].flow)
+    prior = Prior(first[0].state, first[0].unexplained)
+    res = [e.estimate_next(seq[1], seq[2], prior) for e in (every, last)]
+    assert res[0].stats.stream == res[1].stats.stream == PREDICTED
+    assert res[0].stats.iterations == res[1].stats.iterations
+    assert np.abs(res[1].flow - res[0].flow).max() > 1e-4
