@@ -191,12 +191,6 @@ class FlowConfig:
                                        "(0 = stream_iterations)", lo=0, hi=100000)
     stream_alpha: float = _f(0.0, "stream mode: regularisation weight of the refinement from the prediction (0 = "
                              "alpha; a pair solved in full always uses alpha)", lo=0.0, hi=1000.0)
-    stream_warp_tolerance: float = _f(0.0, "stream mode: a level refined from the prediction stops warping once a "
-                                      "warp changed its flow by less than this RMS (px of the level; 0 = off: "
-                                      "every warp runs; single pairs never stop early)", lo=0.0, hi=100.0)
-    stream_median_last: int = _f(0, "stream mode: 1 = the median filter runs only after a level's last warp "
-                                 "(or the warp it stops at), not after every warp (0: every warp, as single "
-                                 "pairs)", choices=(0, 1))
     stream_max_predicted: float = _f(0.5, "stream mode: the pair is solved in full when more than this fraction "
                                      "of the prediction's pixels is unexplained (its robust data cost on its "
                                      "start level: a scene cut, a jump)", lo=0.0, hi=1.0)

@@ -48,8 +48,6 @@ class SolveStats:
     init_share: float = 0.0
     final_init_share: float = 0.0
     stream: str = ""  # in a stream mode (temporal.py): 'predicted', or 'full: <why the prediction failed>'
-    skipped_warps: int = 0  # warps a level's early stop (WarpStop) left out
-
 
     @property
     def total_iterations(self) -> int:
@@ -62,25 +60,6 @@ def median_filter(v: np.ndarray, size: int) -> np.ndarray:
     for ch, dst in zip(v, out, strict=True):
         cv2.medianBlur(np.ascontiguousarray(ch), size, dst=dst)
     return out
-
-
-@dataclass(frozen=True)
-class WarpStop:
-    """Adaptive warping (the stream refinement only, temporal.py): a level stops warping once a warp changed
-    its flow by less than ``tolerance`` RMS (px of the level; 0 = every warp runs); ``median_last``: the median
-    filter runs only after the level's last warp, or the one it stops at."""
-
-    tolerance: float = 0.0
-    median_last: bool = False
-
-
-NO_STOP = WarpStop()
-
-
-def flow_change(after: np.ndarray, before: np.ndarray) -> float:
-    """RMS over the level of |after - before|, two flows (2, h, w) px of the level."""
-    d = after - before
-    return float(np.sqrt(np.mean(d[0] * d[0] + d[1] * d[1])))
 
 
 def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
@@ -100,16 +79,15 @@ def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
 
 
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState, on_finest: bool,
-                bregman_steps: int = 0, stop: WarpStop = NO_STOP) -> tuple[int, int, int]:
+                bregman_steps: int = 0) -> tuple[int, int]:
     """As many warps as :func:`level_schedule` gives (``on_finest``: ``level`` is the finest solved one):
     linearise around the current flow, run the backend's solver and median-filter the flow; then
     ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives on ``level`` and is updated in
     place. The data term (``cfg.photometric``): grey values (the backend's fused
     warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked; the level's warp source and
     frame 0's gradient are scratch arrays reused from call to call, workspace.py) or census signatures
-    (:func:`census_problem`; with the pyramid's colour channels :func:`colour_problem`). ``stop``
-    (:class:`WarpStop`) may end the level's warps early and run the median filter after the last one only.
-    Returns (iterations, Bregman iterations, warps skipped)."""
+    (:func:`census_problem`; with the pyramid's colour channels :func:`colour_problem`). Returns (iterations,
+    Bregman iterations)."""
     warps, per_warp = level_schedule(cfg, on_finest)
     params = level_params(cfg, level, per_warp)
     robust = params.spec.data == "l1"
@@ -121,21 +99,15 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
     valid = pyr.valid(level)
-    skipped = 0
     for warp in range(warps):
         if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
             state.v = fill_flow(state.v, data_weight(*valid, state.v))
-        before = state.v.copy() if stop.tolerance > 0.0 else None
         problem = linearised(state.v)
         iterations += backend.solve(problem, state, params)
-        settled = before is not None and warp < warps - 1 and flow_change(state.v, before) < stop.tolerance
-        if cfg.median_filter and (not stop.median_last or settled or warp == warps - 1):
+        if cfg.median_filter:
             state.v = median_filter(state.v, cfg.median_filter)
-        if settled:
-            skipped = warps - 1 - warp
-            break
     extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
-    return iterations, extra, skipped
+    return iterations, extra
 
 
 # a level's linearisation: flow v0 (2, h, w) -> the problem of one warp around it
@@ -259,21 +231,19 @@ def masked_problem(linearised: Linearisation, valid0: np.ndarray, valid1: np.nda
 
 
 def refine_levels(pyr: Pyramid, cfg: FlowConfig, backend: Backend, state: PDState, first: int, last: int,
-                  stats: SolveStats, finest: int, stop: WarpStop = NO_STOP) -> PDState:
+                  stats: SolveStats, finest: int) -> PDState:
     """Solve levels ``first`` down to ``last`` (first >= last), carrying primal and dual variables to each
     finer level (flow vectors rescaled). ``state`` may live on any level; it is resampled to ``first``.
     ``finest`` is the finest level the solve goes down to (:func:`finest_level`): that level gets the
     ``cfg.finest_warps`` / ``cfg.finest_iterations`` schedule and, when ``last`` reaches it, the Bregman steps
-    (``cfg.bregman_iterations``). ``stop``: each level's early stop (:class:`WarpStop`; the stream refinement's).
-    Iterations and skipped warps are added to ``stats``; returns the state on ``last``."""
+    (``cfg.bregman_iterations``). Iterations are added to ``stats``; returns the state on ``last``."""
     for lvl in range(first, last - 1, -1):
         if state.v.shape[1:] != pyr.shapes[lvl]:
             state = resize_state(state, pyr.shapes[lvl])
         steps = cfg.bregman_iterations if lvl == finest else 0
-        its, extra, skipped = solve_level(pyr, lvl, cfg, backend, state, lvl == finest, steps, stop)
+        its, extra = solve_level(pyr, lvl, cfg, backend, state, lvl == finest, steps)
         stats.iterations[lvl] += its
         stats.bregman_iterations += extra
-        stats.skipped_warps += skipped
     return state
 
 

@@ -49,7 +49,7 @@ from .densify import push_pull
 from .engine import Judged, map_key, photometric_stage
 from .layout import interleaved_flow
 from .pyramid import Pyramid, make_pyramid, resize_state
-from .refine import SolveStats, WarpStop, finest_level, refine_levels
+from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
 
 PREDICTED = "predicted"  # SolveStats.stream of a pair solved from the prediction
@@ -134,14 +134,11 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
 def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: PDState,
                       stats: SolveStats) -> PDState:
     """Refine the ``predicted`` state (:func:`predict`, on the start level of :func:`stream_span`) down to
-    the finest solved level with :func:`stream_schedule`'s warps (``cfg`` is that schedule); a level stops
-    warping once a warp moved its flow by less than ``cfg.stream_warp_tolerance`` RMS px, and with
-    ``cfg.stream_median_last`` its median filter runs after its last warp only (refine.WarpStop). Returns the
-    state on the finest solved level; iterations and skipped warps go to ``stats``."""
+    the finest solved level with :func:`stream_schedule`'s warps (``cfg`` is that schedule). Returns the state
+    on the finest solved level; iterations go to ``stats``."""
     start, finest = stream_span(pyr, cfg)
     stats.start_level = start
-    stop = WarpStop(cfg.stream_warp_tolerance, bool(cfg.stream_median_last))
-    return refine_levels(pyr, cfg, backend, predicted, start, finest, stats, finest, stop)
+    return refine_levels(pyr, cfg, backend, predicted, start, finest, stats, finest)
 
 
 def judged_on(judged: Judged, shape: tuple[int, int], known0: np.ndarray | None = None
