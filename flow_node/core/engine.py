@@ -54,13 +54,13 @@ class Judged:
     (``frames``, (H, W) float32 each) and the reliability figure that matches the stage's data term
     (``judge``: census signatures for ``census``, grey values otherwise); ``samples``: the input frames'
     sorted samples the stage took its ranges from (photometric.frame_samples; a stream hands frame 1's to its
-    next pair, temporal.Prior); ``pmap``: the pair's normalising map (photometric.pair_map; None with census,
-    which maps each frame on its own)."""
+    next pair, temporal.Prior); ``key``: the pair's :func:`map_key` (its normalising map and noise gain; None
+    outside ``normalise`` mode), computed once here for the stream stage's reuse (temporal.Seen)."""
 
     frames: tuple[np.ndarray, np.ndarray]
     judge: Reliability
     samples: Samples
-    pmap: PairMap | None = None
+    key: MapKey | None = None
 
     def unexplained(self, flow: np.ndarray) -> float:
         """The fraction of sampled pixels ``flow`` (H, W, 2) px does not explain (photometric.reliability)."""
@@ -80,12 +80,11 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     samples = frame_samples(i0, i1, sample0, backend.sample)
     signatures = compares_signatures(cfg.photometric)
     pmap = None if signatures else pair_map(samples)
-    n0 = None
-    if known0 is not None and known0[0] is not None and map_key(pmap, i0.shape, cfg) == known0[0]:
-        n0 = known0[1]
+    key = map_key(pmap, i0.shape, cfg)
+    n0 = known0[1] if known0 is not None and key is not None and key == known0[0] else None
     solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples, pmap, n0)
     judge = partial(census_reliability, sample=backend.warper.sample) if signatures else backend.reliability
-    return solver_pair, Judged(frames, judge, samples, pmap)
+    return solver_pair, Judged(frames, judge, samples, key)
 
 
 # what a pair's normalised frames depend on besides the frames: its pair_map and the noise gain (map_key)

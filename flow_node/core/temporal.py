@@ -46,7 +46,7 @@ import numpy as np
 from .backends import Backend
 from .config import FlowConfig
 from .densify import push_pull
-from .engine import Judged, map_key, photometric_stage
+from .engine import Judged, photometric_stage
 from .layout import interleaved_flow
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .refine import SolveStats, finest_level, refine_levels
@@ -209,7 +209,7 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         # the stage hands the solver the normalised pair itself unless it found an exposure change between the
         # frames (then: local contrast, a data term of another scale than the carried state was solved on)
         return "exposure step"
-    key = map_key(judged.pmap, i0.shape, cfg)
+    key = judged.key
     same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
     pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None)
     start, _ = stream_span(pyr, schedule)
