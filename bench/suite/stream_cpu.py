@@ -16,6 +16,7 @@ one line; no file. bench.suite.stream_costs has the per-stage times against DIS.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 
@@ -26,6 +27,7 @@ from flow_node.core.temporal import PREDICTED
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
+from ..common import wxh
 from .sequences import sequences
 from .streams import PERIOD_NS
 
@@ -61,10 +63,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--preset", default="stream_fast")
     ap.add_argument("--repeats", type=int, default=6)
     args = ap.parse_args(argv)
-    w, h = (int(x) for x in args.size.split("x"))
+    w, h = wxh(args.size)
     keep_freed_memory()  # as the node's main() and bench.suite.streams do
-    with open("/proc/loadavg") as f:
-        load = f.read().split()[0]
+    load = f"{os.getloadavg()[0]:.2f}"
     best, median, n = cpu_per_frame(args.preset, (w, h), args.kind, args.repeats)
     print(f"{args.preset} {w}x{h} {args.kind}: CPU ms per predicted frame {1e3 * best:.3f} (per-frame min over "
           f"{args.repeats} passes), {1e3 * median:.3f} (median pass); {n} frames; load {load}")
