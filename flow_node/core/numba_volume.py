@@ -42,7 +42,8 @@ def dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2
     Neighbours are clamped (the difference across the far border is then 0); along x the row runs in two
     segments, interior columns (step 1) and the last one (step 0), so the inner loop has no branch."""
     nz, ny, nx = v_bar.shape[1], v_bar.shape[2], v_bar.shape[3]
-    l2_scale, s_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE, (_ONE / (_ONE + sigma / rel_inc) if inc else _ONE)
+    l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
+    s_scale = _ONE / (_ONE + sigma / rel_inc) if inc else _ONE
     kn, kw = min(k + 1, nz - 1), min(np.int64(k), w_bar.shape[2] - 1)  # kw, iw: 0 in a zero row
     for i in range(ny):
         i_n, iw = min(i + 1, ny - 1), min(i, w_bar.shape[3] - 1)
@@ -98,7 +99,8 @@ def primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1
     nz, ny, nx = v.shape[1], v.shape[2], v.shape[3]
     kp, ok, pk = max(k - 1, 0), _ONE if k < nz - 1 else _ZERO, _ONE if k > 0 else _ZERO
     yx = y[0]  # (3, Z, Y, X): the x direction of y, by component
-    q, acc = vt[3], 0.0
+    q = vt[3]
+    acc = 0.0
     for i in range(ny):
         ip, oi, pi = max(i - 1, 0), _ONE if i < ny - 1 else _ZERO, _ONE if i > 0 else _ZERO
         for cc in range(3):
@@ -141,7 +143,8 @@ def step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_i
     v_bar, w_bar on k, k + 1 (not yet). Same result as the two passes, each slice's arrays read while still
     in cache. Returns sum |v_new - v|^2."""
     nz, nx = v.shape[1], v.shape[3]
-    n2, vt, total = np.empty(nx, np.float32), np.empty((4, nx + 1), np.float32), 0.0
+    n2, vt = np.empty(nx, np.float32), np.empty((4, nx + 1), np.float32)
+    total = 0.0
     for k in range(nz + 1):
         if k < nz:
             dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2)
@@ -255,7 +258,8 @@ def _z_row(w_bar, z, n2, k, i, kn, i_n, sigma, rel1, iso):  # noqa: ANN001, ANN2
 def _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg, q):  # noqa: ANN001, ANN201
     """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w. Row
     (k, i); q: (X + 1,) scratch for :func:`_x_div`."""
-    nx, shrink = w.shape[4], _ONE + tau * rel1
+    nx = w.shape[4]
+    shrink = _ONE + tau * rel1
     zk, zi = min(np.int64(k), z.shape[3] - 1), min(i, z.shape[4] - 1)  # z's (slice, row): 0 in tv_l2's zero row
     zkp, zip_ = min(np.int64(kp), zk), min(ip, zi)
     zx = z[0].reshape((9,) + z.shape[3:])  # the x direction of z, (dir, comp) flattened
@@ -283,7 +287,8 @@ _, _, linearise_ser = _make_kernels(False)
 def iterate(v, y, w, z, s, v_bar, w_bar, a, c, tau, sigma, tau_d, rel1, rel_inc,  # noqa: ANN001, ANN201
             data_l1, reg, iso, inc, iterations, tolerance, check_every, parallel):
     """Up to ``iterations`` primal-dual steps (stopping rule of solver.solve_numpy). Returns the count."""
-    n, k = 3.0 * v.shape[1] * v.shape[2] * v.shape[3], 0
+    n = 3.0 * v.shape[1] * v.shape[2] * v.shape[3]
+    k = 0
     for k in range(1, iterations + 1):
         if parallel:
             dual_pass_par(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc)
@@ -322,10 +327,12 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams) -> int:
         state.z = _c32(state.z)
     if inc and state.s is None:
         state.s = np.zeros(state.v.shape[1:], np.float32)
-    w, rows = (state.w if spec.extended else _DUMMY[2]), zero_rows(state.v.shape[3], volume=True)
+    rows = zero_rows(state.v.shape[3], volume=True)
+    w = state.w if spec.extended else _DUMMY[2]
     z = state.z if spec.regulariser == "tv_tv" else rows["z"]
     s = _c32(state.s) if inc else _DUMMY[0]
-    state.s, f32 = (s if inc else state.s), np.float32
+    state.s = s if inc else state.s
+    f32 = np.float32
     return iterate(state.v, state.y, w, z, s, state.v.copy(), w.copy() if spec.extended else rows["w_bar"],
                    _c32(problem.a), _c32(problem.c),
                    f32(tau), f32(sigma), f32(tau / p.alpha), f32(p.alpha1 / p.alpha),
