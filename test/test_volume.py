@@ -20,6 +20,7 @@ from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.volume import area_matrix, estimate_volume, linearise3, warp_source3
 
 nv = pytest.importorskip("flow_node.core.numba_volume")
+nvr = pytest.importorskip("flow_node.core.numba_volume_resample")
 
 SHIFT = (1.5, -0.75, 0.5)  # x, y, z voxels
 FAST = dict(levels=3, warps=3, iterations=30, finest_warps=3, finest_iterations=30, min_size=4, alpha=0.06,
@@ -185,7 +186,7 @@ def test_numba_resampling_matches_numpy() -> None:
     f = np.random.default_rng(4).random((2, 3, 9, 10, 11), dtype=np.float32)
     for shape, matrix in (((5, 4, 6), area_matrix), ((17, 20, 13), linear_matrix), ((9, 5, 11), area_matrix)):
         ref = resample(f, shape, matrix)
-        fast = nv.resample_numba(f, shape, matrix)
+        fast = nvr.resample_numba(f, shape, matrix)
         assert fast.shape == ref.shape == (2, 3) + shape
         assert np.abs(fast - ref).max() < 1e-5
 

@@ -1,5 +1,5 @@
 """numba kernels of the 3-D engine (core/volume.py): the primal-dual iteration on volumes and the trilinear
-linearisation of one warp.
+linearisation of one warp (the pyramid's resampling: numba_volume_resample.py).
 
 The same arithmetic as solver.solve_numpy (the oracle) on (Z, Y, X) grids, for all five models (integer
 flags as in numba_kernels.py: ``reg`` from REG_CODES, ``data_l1``, ``iso``) and the incompressibility
@@ -18,7 +18,6 @@ clamped once per row; w and s, read only in row loops that their flag guards, ar
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numba
 import numpy as np
@@ -349,64 +348,3 @@ def linearise_numba(i0: np.ndarray, src: np.ndarray, v0: np.ndarray, gi0: np.nda
     kernel(_c32(i0), _c32(src), _c32(v0), zero_rows(i0.shape[2], volume=True)["gi0"] if gi0 is None else _c32(gi0),
            gi0 is not None, a, c)
     return a, c
-
-
-@njit(**_JIT)
-def resample_axis(f, idx, wts, axis):  # noqa: ANN001, ANN201
-    """f (M, Z, Y, X) resampled along ``axis`` (0 = z, 1 = y, 2 = x) by sparse rows: output o is
-    sum_t wts[o, t] * f[..., idx[o, t], ...] (volume.resample's matrices, nonzeros only). float32."""
-    m_, nz, ny, nx = f.shape
-    n, taps = idx.shape
-    if axis == 2:
-        out = np.zeros((m_, nz, ny, n), np.float32)
-        for m in range(m_):
-            for k in range(nz):
-                for i in range(ny):
-                    for o in range(n):
-                        acc = _ZERO
-                        for t in range(taps):
-                            acc += wts[o, t] * f[m, k, i, idx[o, t]]
-                        out[m, k, i, o] = acc
-    elif axis == 1:
-        out = np.zeros((m_, nz, n, nx), np.float32)
-        for m in range(m_):
-            for k in range(nz):
-                for o in range(n):
-                    for t in range(taps):
-                        w, r = wts[o, t], idx[o, t]
-                        for j in range(nx):
-                            out[m, k, o, j] += w * f[m, k, r, j]
-    else:
-        out = np.zeros((m_, n, ny, nx), np.float32)
-        for m in range(m_):
-            for o in range(n):
-                for t in range(taps):
-                    w, r = wts[o, t], idx[o, t]
-                    for i in range(ny):
-                        for j in range(nx):
-                            out[m, o, i, j] += w * f[m, r, i, j]
-    return out
-
-
-def sparse_rows(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A resampling matrix (n_out, n_in) as (indices, weights) (n_out, taps) of each row's nonzeros (padded
-    with weight 0)."""
-    taps = max(1, int((matrix != 0).sum(axis=1).max()))
-    idx = np.zeros((matrix.shape[0], taps), np.int64)
-    wts = np.zeros((matrix.shape[0], taps), np.float32)
-    for o, row in enumerate(matrix):
-        nz = np.flatnonzero(row)
-        idx[o, :len(nz)], wts[o, :len(nz)] = nz, row[nz]
-    return idx, wts
-
-
-def resample_numba(f: np.ndarray, shape: tuple[int, int, int], matrix: Callable[[int, int], np.ndarray]
-                   ) -> np.ndarray:
-    """volume.resample with :func:`resample_axis`: f (..., Z, Y, X) -> (..., *shape) float32."""
-    lead = f.shape[:-3]
-    out = _c32(f).reshape((-1,) + f.shape[-3:])
-    for axis in (2, 1, 0):
-        n_in, n_out = out.shape[axis + 1], shape[axis]
-        if n_in != n_out:
-            out = resample_axis(out, *sparse_rows(matrix(n_in, n_out)), axis)
-    return out.reshape(lead + tuple(shape))

@@ -197,10 +197,10 @@ def select_volume_backend(name: str) -> VolumeBackend:
         return NUMPY_VOLUME
     if not numba_available():
         raise ConfigError("backend 'numba' requested but numba cannot be imported")
-    from . import numba_backend, numba_volume  # optional dependency: imported only when selected
+    from . import numba_backend, numba_volume, numba_volume_resample  # optional dependency: imported only when selected
 
     return VolumeBackend("numba", numba_volume.linearise_numba, numba_volume.solve_numba,
-                         numba_volume.resample_numba, numba_backend.thread_count)
+                         numba_volume_resample.resample_numba, numba_backend.thread_count)
 
 
 # ------------------------------------------------------------------------------------------- driver
