@@ -37,7 +37,8 @@ BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "colour_form"
                  "sample", "reliability")
 # (module, function) timed where the engine calls it through that module's global name
 SPANS: tuple[tuple[Any, str], ...] = (
-    (engine, "photometric_stage"), (engine, "census_reliability"), (engine, "initialise"), (engine, "make_pyramid"), (refine, "median_filter"),
+    (engine, "photometric_stage"), (engine, "census_reliability"), (engine, "initialise"), (engine, "make_pyramid"),
+    (refine, "median_filter"),
     (refine, "warp_source"), (numba_census, "warped_kernel"), (numba_census, "signature_numba"),
     (numba_census, "form_kernel"), (numba_census, "census_kernel"))
 
@@ -82,7 +83,7 @@ def patched(spans: Spans) -> Iterator[None]:
 def timed_estimator(cfg: FlowConfig, spans: Spans) -> FlowEstimator:
     """An estimator for ``cfg`` whose backend's :data:`BACKEND_SPANS` fields are timed into ``spans``."""
     backend = select_backend(cfg.backend, cfg.threads, cfg.parallel_min_pixels).resolved()
-    fields = {f: spans.wrap(f, getattr(backend, f)) for f in BACKEND_SPANS}
+    fields = {f: spans.wrap(f, getattr(backend, f)) for f in BACKEND_SPANS if hasattr(backend, f)}
     return FlowEstimator(cfg, backend=backend._replace(**fields))
 
 
