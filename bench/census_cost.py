@@ -34,11 +34,10 @@ PRESETS = ("realtime", "fastest", "quality")
 TERMS = ("normalise", "census")
 # backend fields timed (the backend's own functions, whatever module they live in)
 BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "colour_form", "fuse", "consistent", "gradient",
-                 "sample", "reliability")
+                 "sample", "reliability", "census_reliability")
 # (module, function) timed where the engine calls it through that module's global name
 SPANS: tuple[tuple[Any, str], ...] = (
-    (engine, "photometric_stage"), (engine, "census_reliability"), (engine, "initialise"), (engine, "make_pyramid"),
-    (refine, "median_filter"),
+    (engine, "photometric_stage"), (engine, "initialise"), (engine, "make_pyramid"), (refine, "median_filter"),
     (refine, "warp_source"), (numba_census, "warped_kernel"), (numba_census, "signature_numba"),
     (numba_census, "form_kernel"), (numba_census, "census_kernel"))
 

@@ -16,6 +16,7 @@ from flow_node.core.metrics import aee
 from flow_node.core.models import MODEL_SPECS, prox_data_quadratic, quadratic_data
 from flow_node.core.numba_backend import WARPER, solve_numba, thread_count
 from flow_node.core.numba_census import census_form_numba, level_signature_numba
+from flow_node.core.numba_census import reliability_numba as census_reliability_numba
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.warping import NUMPY_WARPER
 
@@ -210,3 +211,8 @@ def test_census_reliability_flags_a_wrong_flow_and_passes_a_right_one_under_gamm
     wrong = census.reliability(i0, curved, np.zeros_like(gt), WARPER.sample)
     assert right < 0.1 and wrong > 0.5
     assert census.reliability(i0, curved, gt) == pytest.approx(right, abs=1e-6)  # numpy sampling, same figure
+    # the numba kernel: the same figure, also for a flow whose targets reach the border (mirrored taps)
+    jitter = gt + 3.0 * np.random.default_rng(13).standard_normal(gt.shape).astype(np.float32)
+    for flow in (gt, np.zeros_like(gt), jitter):
+        assert census_reliability_numba(i0, curved, flow) == pytest.approx(census.reliability(i0, curved, flow),
+                                                                            abs=1e-6)

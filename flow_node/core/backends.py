@@ -13,6 +13,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .census import CensusForm, LevelSignature, census_form, level_signature
+from .census import reliability as census_reliability
 from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .densify import push_pull, splat_forward
 from .errors import ConfigError
@@ -37,9 +38,10 @@ class Backend(NamedTuple):
     signature and per-warp form (grey or colour channels alike), the per-pixel confidence of
     a flow, the stream stage's forward splat (temporal.predict), the photometric stage's sorted sample of a
     frame (photometric.sorted_sample; the same array in every backend), the data term's image gradient
-    (operators.image_gradient) and the stream stage's hole fill (densify.push_pull) (same semantics in every
-    backend; the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels
-    run on and the context that binds them (:meth:`running`).
+    (operators.image_gradient), the stream stage's hole fill (densify.push_pull) and the census data term's
+    reliability figure (census.reliability) (same semantics in every backend; the defaults are the numpy
+    references, the linearisation on ``warper``); the threads its kernels run on and the context that binds
+    them (:meth:`running`).
     """
 
     name: str
@@ -59,6 +61,7 @@ class Backend(NamedTuple):
     sample: Callable[[np.ndarray], np.ndarray] = sorted_sample  # the photometric stage's sorted sample of a frame
     gradient: ImageGradient = image_gradient  # the data term's image gradient (operators.image_gradient)
     fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull  # the stream stage's hole fill (densify.push_pull)
+    census_reliability: Reliability = census_reliability  # the reliability figure of the census data term
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -185,4 +188,5 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    numba_backend.thread_count, splat=Deferred(_numba_temporal, "splat_numba"),
                    confidence_at=Deferred(_numba_confidence, "confidence_at_numba"),
                    sample=Deferred(_numba_sort, "sorted_sample_numba"), gradient=numba_backend.image_gradient_numba,
-                   fill=Deferred(_numba_temporal, "push_pull_numba"))
+                   fill=Deferred(_numba_temporal, "push_pull_numba"),
+                   census_reliability=Deferred(_numba_census, "reliability_numba"))

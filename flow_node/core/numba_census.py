@@ -19,9 +19,10 @@ import numba
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .census import OFFSETS, CensusParams
+from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
-from .numba_warp import sample_row
+from .numba_warp import _tap_indices, cubic_weights4, sample_row, tap_sum
+from .photometric import reliability_stride
 from .warping import KERNEL_CODES
 from .workspace import scratch
 
@@ -101,24 +102,25 @@ def _pair_row(f0, d, ss, p, r):  # noqa: ANN001, ANN201
 
 
 @njit(**_JIT)
-def _form_row(pl, pr, pu, pd, dc, s0, s1, s2, s3, s4, d2, robust):  # noqa: ANN001, ANN201
-    """One channel's sums along one row segment (1-D views; vectorises), from P = F0 + F1 at the pixels'
-    left/right/up/down neighbours and D = F1 - F0 at the pixels: with the channel's unscaled gradient
+def _form_row(pl, pr, pu, pd, dc, ql, qr, qu, qd, ec, s0, s1, s2, s3, s4, d2, robust):  # noqa: ANN001, ANN201
+    """Two channels' sums along one row segment (1-D views; vectorises; two per pass: the sums are loaded
+    and stored half as often), from P = F0 + F1 at the pixels' left/right/up/down neighbours and D = F1 - F0
+    at the pixels (p, d: the first channel; q, e: the second): with a channel's unscaled gradient
     ax = P(x + 1) - P(x - 1), ay = P(y + 1) - P(y - 1) (sums of both frames' central differences), the residual
-    D at v0 and the weight wk, s0..s4 += wk (ax ax, ax ay, ay ay, ax D, ay D). :func:`_form_finish` turns the
-    sums over the channels into the form."""
+    D at v0 and the weight wk, s0..s4 += wk (ax ax, ax ay, ay ay, ax D, ay D) of each. :func:`_form_finish`
+    turns the sums over the channels into the form."""
+    one = _F32(1.0)
     for j in range(s0.shape[0]):
-        ax = pr[j] - pl[j]
-        ay = pd[j] - pu[j]
-        r0 = dc[j]
-        wk = _F32(1.0) / math.sqrt(r0 * r0 + d2) if robust else _F32(1.0)
-        wax = wk * ax
-        way = wk * ay
-        s0[j] += wax * ax
-        s1[j] += wax * ay
-        s2[j] += way * ay
-        s3[j] += wax * r0
-        s4[j] += way * r0
+        ax, ay, r0 = pr[j] - pl[j], pd[j] - pu[j], dc[j]
+        bx, by, r1 = qr[j] - ql[j], qd[j] - qu[j], ec[j]
+        wa = one / math.sqrt(r0 * r0 + d2) if robust else one
+        wb = one / math.sqrt(r1 * r1 + d2) if robust else one
+        wax, way, wbx, wby = wa * ax, wa * ay, wb * bx, wb * by
+        s0[j] += wax * ax + wbx * bx
+        s1[j] += wax * ay + wbx * by
+        s2[j] += way * ay + wby * by
+        s3[j] += wax * r0 + wbx * r1
+        s4[j] += way * r0 + wby * r1
 
 
 @njit(**_JIT)
@@ -138,15 +140,6 @@ def _form_finish(out, i, ry, vx, vy, keep):  # noqa: ANN001, ANN201
         o2[j] = t22
         o3[j] = keep[j] * q * o3[j] - t11 * vx[j] - t12 * vy[j]
         o4[j] = keep[j] * ry * o4[j] - t12 * vx[j] - t22 * vy[j]
-
-
-@njit(**_JIT)
-def _form_line(pc, pu, pd, dc, out, i, d2, robust):  # noqa: ANN001, ANN201
-    """One channel's sums (:func:`_form_row`) into row i of out (5, H, W) from the rows (W + 2, border-mirrored
-    by :func:`_pair_row`) of P at the row (c) and the rows above and below (u, d) and the row (W) of D."""
-    w = dc.shape[0]
-    _form_row(pc[:w], pc[2:], pu[1:w + 1], pd[1:w + 1], dc, out[0, i], out[1, i], out[2, i], out[3, i], out[4, i],
-              d2, robust)
 
 
 @njit(**_JIT)
@@ -192,8 +185,12 @@ def _form_rows(out, i, pair, diff, keep, flow, d2, robust):  # noqa: ANN001, ANN
     ry = _F32(0.25) if 0 < i < h - 1 else _F32(0.0)
     for n in range(5):
         out[n, i] = _F32(0.0)
-    for q in range(pair.shape[0]):
-        _form_line(pair[q, sc], pair[q, su], pair[q, sd], diff[q, sc], out, i, d2, robust)
+    w = diff.shape[2]
+    o0, o1, o2, o3, o4 = out[0, i], out[1, i], out[2, i], out[3, i], out[4, i]
+    for q in range(0, pair.shape[0], 2):  # C K channels: K = 8 is even
+        p, e = pair[q], pair[q + 1]  # rows (W + 2), border-mirrored: x - 1 at [:w], x + 1 at [2:]
+        _form_row(p[sc, :w], p[sc, 2:], p[su, 1:w + 1], p[sd, 1:w + 1], diff[q, sc],
+                  e[sc, :w], e[sc, 2:], e[su, 1:w + 1], e[sd, 1:w + 1], diff[q + 1, sc], o0, o1, o2, o3, o4, d2, robust)
     _form_finish(out, i, ry, flow[0, i], flow[1, i], keep[sc])
 
 
@@ -253,3 +250,56 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
                   KERNEL_CODES[kernel], _DY, _DX, _F32(params.gain), _F32(params.eps), robust, _F32(params.delta),
                   _F32(1.0 / n_c), out, *rings, blocks)
     return out
+
+
+@njit(**_JIT)
+def _normalised_residual(d1, d0, eps):  # noqa: ANN001, ANN201
+    """mean_k |d1_k / (RMS(d1) + eps) - d0_k / (RMS(d0) + eps)| of two pixels' K neighbour differences (K)."""
+    k_n = d1.shape[0]
+    s1, s0 = _F32(0.0), _F32(0.0)
+    for k in range(k_n):
+        s1 += d1[k] * d1[k]
+        s0 += d0[k] * d0[k]
+    n1 = _F32(1.0) / (math.sqrt(s1 / k_n) + eps)
+    n0 = _F32(1.0) / (math.sqrt(s0 / k_n) + eps)
+    total = _F32(0.0)
+    for k in range(k_n):
+        total += abs(d1[k] * n1 - d0[k] * n0)
+    return total / k_n
+
+
+@njit(**_JIT)
+def unexplained_kernel(i0, i1, flow, stride, dy, dx, eps, outlier):  # noqa: ANN001, ANN201
+    """census.reliability's counts: over every ``stride``-th pixel of i0 (H, W) whose x + flow (flow (H, W, 2))
+    lies at least one pixel inside, how many there are and how many have a mean signature residual above
+    ``outlier`` -> (inside, unexplained). I1 (1, H, W) is sampled (Keys) at x + flow and its K neighbours
+    (dy, dx): one position's fraction, so one set of tap weights for all of them."""
+    h, w = i0.shape
+    k_n = dy.shape[0]
+    d1, d0 = np.empty(k_n, np.float32), np.empty(k_n, np.float32)
+    inside, bad = 0, 0
+    for i in range(0, h, stride):
+        for j in range(0, w, stride):
+            mx, my = np.float32(j) + flow[i, j, 0], np.float32(i) + flow[i, j, 1]
+            if not (mx >= 1 and mx <= w - 2 and my >= 1 and my <= h - 2):  # (NaN: not inside either)
+                continue
+            xi, yi = np.int64(mx), np.int64(my)  # mx, my >= 1: truncation is the floor
+            wx = cubic_weights4(mx - np.float32(xi), 0)
+            wy = cubic_weights4(my - np.float32(yi), 0)
+            centre = tap_sum(i1, 0, wx, wy, _tap_indices(xi, w), _tap_indices(yi, h))
+            for k in range(k_n):
+                d1[k] = tap_sum(i1, 0, wx, wy, _tap_indices(xi + dx[k], w), _tap_indices(yi + dy[k], h)) - centre
+                d0[k] = i0[min(max(i + dy[k], 0), h - 1), min(max(j + dx[k], 0), w - 1)] - i0[i, j]
+            inside += 1
+            bad += _normalised_residual(d1, d0, eps) > outlier
+    return inside, bad
+
+
+def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, params: CensusParams = CENSUS) -> float:
+    """census.reliability with :func:`unexplained_kernel` (same samples, threshold and stride; the tap weights of
+    a sample's 9 positions from its own fraction, which the reference recomputes from each position)."""
+    h, w = i0.shape
+    inside, bad = unexplained_kernel(np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32)[None],
+                                     np.ascontiguousarray(flow, dtype=_F32), SAMPLE_SPACING * reliability_stride(h, w),
+                                     _DY, _DX, _F32(params.eps), _F32(OUTLIER))
+    return bad / inside if inside else 1.0
