@@ -38,6 +38,7 @@ BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "colour_form"
 # (module, function) timed where the engine calls it through that module's global name
 SPANS: tuple[tuple[Any, str], ...] = (
     (engine, "photometric_stage"), (engine, "initialise"), (engine, "make_pyramid"), (refine, "median_filter"),
+    (engine, "census_reliability"),  # before the census reliability was a backend field (a tree before 83812f1)
     (refine, "warp_source"), (numba_census, "warped_kernel"), (numba_census, "signature_numba"),
     (numba_census, "form_kernel"), (numba_census, "census_kernel"))
 
@@ -80,10 +81,12 @@ def patched(spans: Spans) -> Iterator[None]:
 
 
 def timed_estimator(cfg: FlowConfig, spans: Spans) -> FlowEstimator:
-    """An estimator for ``cfg`` whose backend's :data:`BACKEND_SPANS` fields are timed into ``spans``."""
+    """An estimator for ``cfg`` whose backend's :data:`BACKEND_SPANS` fields and B-spline prefilter are timed into
+    ``spans``."""
     backend = select_backend(cfg.backend, cfg.threads, cfg.parallel_min_pixels).resolved()
     fields = {f: spans.wrap(f, getattr(backend, f)) for f in BACKEND_SPANS if hasattr(backend, f)}
-    return FlowEstimator(cfg, backend=backend._replace(**fields))
+    warper = backend.warper._replace(prefilter=spans.wrap("prefilter", backend.warper.prefilter))
+    return FlowEstimator(cfg, backend=backend._replace(warper=warper, **fields))
 
 
 def run(presets: list[str], rounds: int) -> dict[str, Any]:

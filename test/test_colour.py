@@ -13,7 +13,7 @@ from synth import constant_flow, interior, isoluminant_pair, pair_from_flow, tex
 from flow_node.cli.estimate import read_planes
 from flow_node.core.api import FlowEstimator, to_grey, to_planes
 from flow_node.core.census import CENSUS, census_form, level_signature, warped_frames
-from flow_node.core.colour import channel_signature, normalise_channels
+from flow_node.core.colour import normalise_channels
 from flow_node.core.errors import InputError
 from flow_node.core.metrics import aee
 from flow_node.core.numba_backend import WARPER
@@ -46,7 +46,7 @@ def test_three_equal_channels_give_the_grey_census_form() -> None:
     v0, coefs, _, outside = warp_of(np.concatenate([i1] * 3), 2)
     assert outside[:4, :5].all() and not outside[4:-4, 6:-4].any()
     f0, g0 = level_signature(grey, CENSUS)
-    cf0, cg0 = channel_signature(np.stack([grey] * 3), level_signature, CENSUS)
+    cf0, cg0 = level_signature(np.stack([grey] * 3), CENSUS)
     for robust in (False, True):
         want = census_form(f0, g0, coefs[:1], i1, v0, "bspline", robust, CENSUS)
         got = census_form(cf0, cg0, coefs, np.concatenate([i1] * 3), v0, "bspline", robust, CENSUS)
@@ -56,10 +56,10 @@ def test_three_equal_channels_give_the_grey_census_form() -> None:
 def test_a_channel_with_different_texture_changes_the_form() -> None:
     i0, i1 = channels(1), channels(11)
     v0, coefs, _, _ = warp_of(i1, 3)
-    base = census_form(*channel_signature(i0, level_signature, CENSUS), coefs, i1, v0, "bspline", False, CENSUS)
+    base = census_form(*level_signature(i0, CENSUS), coefs, i1, v0, "bspline", False, CENSUS)
     i0b = i0.copy()
     i0b[2] = channels(21, n=1)[0]
-    other = census_form(*channel_signature(i0b, level_signature, CENSUS), coefs, i1, v0, "bspline", False, CENSUS)
+    other = census_form(*level_signature(i0b, CENSUS), coefs, i1, v0, "bspline", False, CENSUS)
     assert np.abs(other - base).max() > 1e-2
 
 
@@ -67,12 +67,12 @@ def test_a_channel_with_different_texture_changes_the_form() -> None:
 def test_numba_colour_form_matches_numpy(robust: bool) -> None:
     i0, i1 = channels(4), channels(14)
     v0, coefs, warped, outside = warp_of(i1, 5)
-    f0, g0 = channel_signature(i0, level_signature, CENSUS)
+    f0, g0 = level_signature(i0, CENSUS)
     want = census_form(f0, g0, coefs, i1, v0, "bspline", robust, CENSUS)
     _, _, warped_n, outside_n = warp_of(i1, 5, WARPER.sample)
     np.testing.assert_allclose(warped_n, warped, atol=AGREE)
     np.testing.assert_array_equal(outside_n, outside)
-    f0n, g0n = channel_signature(i0, level_signature_numba, CENSUS)
+    f0n, g0n = level_signature_numba(i0, CENSUS)
     assert g0n is None
     np.testing.assert_allclose(f0n, f0, atol=AGREE)
     got = census_form_numba(f0n, None, WARPER.coefficients(i1, "bspline"), i1, v0, "bspline", robust, CENSUS)

@@ -112,10 +112,12 @@ def form_residual(form: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.stack([form[0] * v[0] + form[1] * v[1] + form[3], form[1] * v[0] + form[2] * v[1] + form[4]])
 
 
-def level_signature(i0: np.ndarray, params: CensusParams = CENSUS) -> tuple[np.ndarray, np.ndarray]:
-    """Frame 0's signature (K, H, W) and its gradient (2, K, H, W) on one pyramid level (computed once per
-    level, used by every warp there)."""
-    f0 = signature(i0, params)
+def level_signature(frames: np.ndarray, params: CensusParams = CENSUS) -> tuple[np.ndarray, np.ndarray]:
+    """Frame 0's signatures on one pyramid level (computed once per level, used by every warp there): of an
+    image (H, W) (K, H, W), of a channel stack (C, H, W) (colour.py) the channels' signatures stacked
+    (C K, H, W); and their gradients (2, K or C K, H, W)."""
+    stack = frames if frames.ndim == 3 else frames[None]
+    f0 = np.concatenate([signature(ch, params) for ch in stack]) if len(stack) > 1 else signature(stack[0], params)
     return f0, signature_gradient(f0)
 
 
@@ -138,7 +140,7 @@ def census_form(f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, frames
     """One warp's census data term: the quadratic form (5, H, W) around v0 (2, H, W).
 
     f0 (C K, H, W), g0 (2, C K, H, W): frame 0's signatures of its C channels and their gradients on this level
-    (:func:`level_signature`, stacked channel by channel: colour.channel_signature); ``coefs``, ``frames``
+    (:func:`level_signature`, stacked channel by channel); ``coefs``, ``frames``
     (C, H, W): frame 1's channels and their interpolation coefficients (``kernel``), sampled at x + v0 by
     :func:`warped_frames`; ``robust``: the L1 data term (else L2). C = 1 for grey input; with C channels
     (colour.py) the form is the mean over them (scaled by 1 / C, so that alpha means what it means for grey)."""
@@ -150,7 +152,7 @@ def census_form(f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, frames
     return form if len(warped) == 1 else (form * np.float32(1.0 / len(warped))).astype(np.float32)
 
 
-# level_signature(i0, params) -> (f0, g0) and census_form(f0, g0, coefs, frames, v0, kernel, robust, params) -> q:
+# level_signature(frames, params) -> (f0, g0) and census_form(f0, g0, coefs, frames, v0, kernel, robust, params) -> q:
 # the numpy references above or a backend's kernels (numba_census.py)
 # (the numba kernels take frame 0's gradient inside the form kernel: their level signature's second item is None)
 LevelSignature = Callable[[np.ndarray, CensusParams], tuple[np.ndarray, np.ndarray | None]]

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .census import CENSUS, CensusParams, LevelSignature
 from .photometric import normalise_frame
 
 COLOUR_MODES = ("grey", "channels")  # the FlowConfig field ``colour``: luma only, or every channel (census)
@@ -37,16 +36,3 @@ def normalise_channels(frame: np.ndarray, noise_gain: float = 1.0) -> np.ndarray
     """Each channel of a frame (C, H, W) float32 mapped by its own robust range (photometric.normalise_frame):
     (C, H, W) float32. A per-channel gain (white balance) and offset are undone exactly."""
     return np.stack([normalise_frame(ch, noise_gain) for ch in frame]).astype(np.float32, copy=False)
-
-
-def channel_signature(frames: np.ndarray, level_signature: LevelSignature, params: CensusParams = CENSUS
-                      ) -> tuple[np.ndarray, np.ndarray | None]:
-    """Frame 0's signatures of every channel of ``frames`` (C, H, W), stacked: (C K, H, W), and their
-    gradients (2, C K, H, W) (None when ``level_signature`` -- census.level_signature or a backend's -- gives
-    none: the numba form takes them itself)."""
-    sigs = [level_signature(np.ascontiguousarray(ch), params) for ch in frames]
-    if len(sigs) == 1:  # grey input: no copy
-        return sigs[0]
-    f0 = np.concatenate([s[0] for s in sigs])
-    g0 = None if sigs[0][1] is None else np.concatenate([s[1] for s in sigs], axis=1)
-    return f0, g0

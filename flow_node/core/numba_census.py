@@ -225,10 +225,20 @@ def signature_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | Non
     return out
 
 
-def level_signature_numba(i0: np.ndarray, params: CensusParams) -> tuple[np.ndarray, None]:
-    """Frame 0's signature (K, H, W) on one level (census.level_signature; its gradient is taken inside
-    :func:`census_kernel`, which reads f0's neighbours anyway: None)."""
-    return signature_numba(i0, params), None
+def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.ndarray, None]:
+    """census.level_signature with the kernel: frame 0's signatures (K or C K, H, W) of an image (H, W) or a
+    channel stack (C, H, W) on one level, and None (the gradients are taken inside :func:`census_kernel`,
+    which reads f0's neighbours anyway). Into the calling thread's scratch array (workspace.py; as the grey
+    path's level arrays, refine.grey_problem): valid until this thread's next level signature of that shape,
+    i.e. for the level's warps. A fresh 8-plane array per level paid its page faults: `realtime`'s level
+    signatures on the 8 Middlebury pairs took 41.7 ms, 15.4 ms from scratch (two runs at load 5, whose census
+    kernels took 269 and 175 ms)."""
+    stack = frames if frames.ndim == 3 else frames[None]
+    n, h, w = stack.shape
+    out = scratch("census.f0", (n * _K, h, w))
+    for c in range(n):
+        signature_numba(stack[c], params, out=out[c * _K:(c + 1) * _K])
+    return out, None
 
 
 def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,

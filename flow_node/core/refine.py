@@ -18,7 +18,6 @@ import numpy as np
 from .backends import Backend
 from .bregman import bregman
 from .census import CENSUS, CensusParams
-from .colour import channel_signature
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS, weight_coefficient, weight_data, weight_quadratic
@@ -181,7 +180,7 @@ def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
     quadratic form: census.census_form). The form replaces (a, c) in the solve: they are zeros."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
     params = level_census(cfg, c0.shape[2])
-    f0, g0 = channel_signature(c0, backend.signature, params)
+    f0, g0 = backend.signature(c0, params)
     h, w = c0.shape[1:]
     a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
 
