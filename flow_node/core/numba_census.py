@@ -3,10 +3,12 @@
 :func:`signature_kernel` computes the soft census signature of an image (frame 0's, once per level);
 :func:`census_kernel` one warp's quadratic form in one pass over the level (census.census_form): frame 1's
 channels sampled at x + v0 (a value-only warp, numba_warp.sample_row), their signatures and the form, row by
-row, the warped rows and their signatures kept in per-thread rings of three rows (L1/L2-resident) instead of
-level-sized arrays. Grey and colour input are the same kernel (C = 1 or 3 channels of K signatures each).
-Rows run as whole-row loops (1-D views, so they vectorise). Same float32 arithmetic as the reference up to
-the order of the sums (to ~1e-6 relative).
+row, the warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings of three rows
+(cache-resident) instead of level-sized arrays; :func:`unexplained_kernel` the counts behind
+census.reliability. Grey and colour input are the same kernel (C = 1 or 3 channels of K signatures each).
+Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same quantities as
+the reference, the form's sums rearranged (:func:`_form_finish`): equal to float32 rounding (test_census,
+1e-5 of the form's largest value).
 
 Importing this module raises ImportError when numba is not installed (backends.py then uses numpy).
 """
@@ -149,11 +151,12 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
     hold rows of frame 1 warped and its weight, pair (C K, 3, W + 2) and diff (C K, 3, W) rows of P = F0 + F1
     (border-mirrored: :func:`_pair_row`) and D = F1 - F0 (F1 the warped frame's signatures), row r in slot
     (r + 3) % 3; temp (K, 1, W) and ss (W) one channel's neighbour differences and their factor
-    (:func:`_differences`). Row r of the rings stands for
-    the image row clamped to 0 .. H - 1 (so the signature of the first and last rows sees edge values, as
-    census.signature), and output row i needs signature rows i - 1 .. i + 1, those warped rows i - 2 .. i + 2:
-    each block warps its rows and two on either side, each once. (The rings' rows -1 and H are read for the
-    first and last rows' y-gradient, whose weight is 0.)"""
+    (:func:`_differences`). Row r of the rings stands for the image row clamped to 0 .. H - 1 (so the
+    signature of the first and last rows sees edge values, as census.signature), and output row i needs
+    signature rows i - 1 .. i + 1, those warped rows i - 2 .. i + 2: each block warps its rows and two on
+    either side, each once. (The rings' rows -1 and H are read for the first and last rows' y-gradient, whose
+    weight is 0.) Each step's work is its own function (:func:`_pair_rows`, :func:`_form_rows`): written
+    inline here the same code ran ~25 % slower."""
     h = f0.shape[1]
     for r in range(r0 - 2, r1 + 2):  # warp row r (ring), then the signatures of row r - 1, then output row r - 2
         s = (r + 3) % 3
@@ -202,8 +205,7 @@ def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, de
     pixel's weight ``weight`` (1 / C) inside, 0 where x + v0 leaves the image. The rows in ``blocks``
     contiguous blocks, in parallel when more than one (:func:`_census_rows`; per-thread rings warped
     (T, C, 3, W), keep (T, 3, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, K, 1, W), ss (T, W)
-    and the warp's row scratch taps (T, 9, W),
-    base (T, 2, W) int32)."""
+    and the warp's row scratch taps (T, 9, W), base (T, 2, W) int32)."""
     h = f0.shape[1]
     d2 = delta * delta
     if blocks > 1:
