@@ -10,13 +10,15 @@ from synth import constant_flow, interior, pair_from_flow, rotation_flow, textur
 
 from flow_node.core import census
 from flow_node.core.api import FlowEstimator
-from flow_node.core.census import CensusParams, census_form, level_signature, quadratic_form, signature
+from flow_node.core.census import CensusParams, census_form, level_signature, signature, signature_form, warped_frames
 from flow_node.core.config import FlowConfig
 from flow_node.core.metrics import aee
 from flow_node.core.models import MODEL_SPECS, prox_data_quadratic, quadratic_data
-from flow_node.core.numba_backend import WARPER, solve_numba
+from flow_node.core.numba_backend import WARPER, solve_numba, thread_count
 from flow_node.core.numba_census import census_form_numba, level_signature_numba
+from flow_node.core.numba_census import reliability_numba as census_reliability_numba
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
+from flow_node.core.warping import NUMPY_WARPER
 
 H, W = 36, 48
 AGREE = 1e-5
@@ -26,17 +28,15 @@ def rng_image(seed: int, h: int = H, w: int = W) -> np.ndarray:
     return texture(h, w, seed=seed, cell=2).image
 
 
-def random_linearisation(seed: int) -> tuple[np.ndarray, ...]:
-    """A frame, a grey-value linearisation (a, c) with an 'outside' corner (a = c = 0) and a flow v0."""
+def random_warp(seed: int, h: int = H, w: int = W, kernel: str = "bspline") -> tuple[np.ndarray, ...]:
+    """Two frames, frame 1 as one channel (1, H, W) with its interpolation coefficients, and a flow v0 that
+    takes a corner of the frame outside (x + v0 beyond the left border there)."""
     rng = np.random.default_rng(seed)
-    i0 = rng_image(seed)
-    i1 = rng_image(seed + 100)
-    a = (0.2 * rng.standard_normal((2, H, W))).astype(np.float32)
-    c = (0.1 * rng.standard_normal((H, W))).astype(np.float32)
-    a[:, :4, :5] = 0.0
-    c[:4, :5] = 0.0
-    v0 = rng.standard_normal((2, H, W)).astype(np.float32)
-    return i0, i1, a, c, v0
+    i0 = rng_image(seed, h, w)
+    i1 = rng_image(seed + 100, h, w)[None]
+    v0 = rng.standard_normal((2, h, w)).astype(np.float32)
+    v0[0, :4, :5] = -20.0
+    return i0, i1, NUMPY_WARPER.coefficients(i1, kernel), v0
 
 
 def test_signature_is_invariant_to_gain_offset_and_smooth_gain_fields() -> None:
@@ -65,11 +65,13 @@ def test_signature_under_a_tone_curve_changes_far_less_than_grey_values() -> Non
 def form_and_channels(seed: int, robust: bool) -> tuple[np.ndarray, ...]:
     """The form of a random linearisation and the channels written out: q, the residual at v0 r0 = F(W) - F(I0)
     (K, H, W), the channel gradients ax, ay (K, H, W), the outside mask and v0."""
-    i0, i1, a, c, v0 = random_linearisation(seed)
+    i0, i1, coefs, v0 = random_warp(seed)
     f0, g0 = level_signature(i0)
-    warped, outside = census.warped_frame(i0, i1, a, c, v0)
-    q = quadratic_form(f0, g0, warped, outside, v0, robust=robust)
-    f1 = signature(warped)
+    warped, outside = warped_frames(coefs, i1, v0, "bspline")
+    q = signature_form(f0, g0, signature(warped[0]), outside, v0, robust=robust)
+    np.testing.assert_array_equal(census_form(f0, g0, coefs, i1, v0, "bspline", robust), q)
+    assert outside[:4, :5].all() and not outside[4:-4, 6:-4].any()
+    f1 = signature(warped[0])
     g1 = census.signature_gradient(f1)
     return q, f1 - f0, 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1]), outside, v0
 
@@ -109,24 +111,54 @@ def test_prox_of_the_quadratic_data_term_is_optimal() -> None:
     np.testing.assert_allclose(v - vt + tau * census.form_residual(q, v), 0.0, atol=2e-4)
 
 
-@pytest.mark.parametrize("params", [census.CENSUS, CensusParams(eps=0.03)], ids=["eps0.01", "eps0.03"])
-def test_numba_signature_and_form_match_numpy(params: CensusParams) -> None:
-    i0, i1, a, c, v0 = random_linearisation(7)
+def test_warped_frames_sample_inside_and_keep_frame_1_outside() -> None:
+    i0, i1, coefs, v0 = random_warp(9)
+    warped, outside = warped_frames(coefs, i1, v0, "bspline")
+    ys, xs = np.mgrid[0:H, 0:W]
+    want = NUMPY_WARPER.sample(coefs, (xs + v0[0]).astype(np.float32), (ys + v0[1]).astype(np.float32), "bspline")
+    np.testing.assert_array_equal(warped[:, ~outside], want[:, ~outside])
+    np.testing.assert_array_equal(warped[:, outside], i1[:, outside])
+    with pytest.raises(ValueError, match="gradients"):
+        census_form(level_signature_numba(i0, census.CENSUS)[0], None, coefs, i1, v0, "bspline", False)
+
+
+@pytest.mark.parametrize(("params", "kernel"), [(census.CENSUS, "bspline"), (CensusParams(eps=0.03), "bspline"),
+                                                (census.CENSUS, "keys")], ids=["eps0.01", "eps0.03", "keys"])
+def test_numba_signature_and_form_match_numpy(params: CensusParams, kernel: str) -> None:
+    i0, i1, coefs, v0 = random_warp(7, kernel=kernel)
     f0, g0 = level_signature(i0, params)
     f0_fast, _ = level_signature_numba(i0, params)
     np.testing.assert_allclose(f0_fast, f0, atol=AGREE)
     for robust in (False, True):
-        ref = census_form(i0, i1, f0, g0, a, c, v0, robust, params)
-        fast = census_form_numba(i0, i1, f0_fast, None, a, c, v0, robust, params)
-        assert np.abs(ref).max() > 0.1
+        ref = census_form(f0, g0, coefs, i1, v0, kernel, robust, params)
+        fast = census_form_numba(f0_fast, None, coefs, i1, v0, kernel, robust, params)
+        assert np.abs(ref).max() > 0.01
+        np.testing.assert_allclose(fast, ref, atol=AGREE * max(1.0, float(np.abs(ref).max())))
+        assert np.all(fast[:, :4, :5] == 0.0)  # no data term where x + v0 leaves the image
+
+
+@pytest.mark.parametrize("shape", [(150, 160), (151, 3), (1, 200), (200, 1)], ids=["blocks", "narrow", "row", "column"])
+def test_numba_form_in_row_blocks_and_on_thin_levels_matches_numpy(shape: tuple[int, int]) -> None:
+    """The kernel's rows in one block per thread (a level of 20,000 pixels or more with two threads: each
+    block warps two rows beyond its own) and on levels one or a few pixels wide or tall (the rings' mirrored
+    borders) give the reference's form."""
+    i0, i1, coefs, v0 = random_warp(17, *shape)
+    f0, g0 = level_signature(i0)
+    ref = census_form(f0, g0, coefs, i1, v0, "bspline", True)
+    for threads in (1, 2):
+        fast = np.full((5, *shape), np.nan, np.float32)  # every row must be written
+        with thread_count(threads):
+            census_form_numba(level_signature_numba(i0, census.CENSUS)[0], None, coefs, i1, v0, "bspline", True,
+                              census.CENSUS, out=fast)
         np.testing.assert_allclose(fast, ref, atol=AGREE * max(1.0, float(np.abs(ref).max())))
 
 
 @pytest.mark.parametrize("model", ["l1_tv", "l2_tv", "l1_tv_tv"])
 def test_numba_solver_with_a_quadratic_data_term_matches_numpy(model: str) -> None:
-    i0, i1, a, c, v0 = random_linearisation(8)
+    i0, i1, coefs, v0 = random_warp(8)
     f0, g0 = level_signature(i0)
-    q = census_form(i0, i1, f0, g0, a, c, v0, MODEL_SPECS[model].data == "l1")
+    q = census_form(f0, g0, coefs, i1, v0, "bspline", MODEL_SPECS[model].data == "l1")
+    a, c = np.zeros((2, H, W), np.float32), np.zeros((H, W), np.float32)
     spec = MODEL_SPECS[model]
     params = SolveParams(spec, 0.05, 0.3, "isotropic", 30, 0.0)
     ref, fast = (PDState.zeros(spec, (H, W)) for _ in range(2))
@@ -179,3 +211,8 @@ def test_census_reliability_flags_a_wrong_flow_and_passes_a_right_one_under_gamm
     wrong = census.reliability(i0, curved, np.zeros_like(gt), WARPER.sample)
     assert right < 0.1 and wrong > 0.5
     assert census.reliability(i0, curved, gt) == pytest.approx(right, abs=1e-6)  # numpy sampling, same figure
+    # the numba kernel: the same figure, also for a flow whose targets reach the border (mirrored taps)
+    jitter = gt + 3.0 * np.random.default_rng(13).standard_normal(gt.shape).astype(np.float32)
+    for flow in (gt, np.zeros_like(gt), jitter):
+        assert census_reliability_numba(i0, curved, flow) == pytest.approx(census.reliability(i0, curved, flow),
+                                                                            abs=1e-6)

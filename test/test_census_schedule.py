@@ -13,6 +13,7 @@ from flow_node.core.census import CENSUS, CensusParams, census_form, level_signa
 from flow_node.core.config import FlowConfig
 from flow_node.core.pyramid import build_pyramid, make_pyramid, pyramid_shapes
 from flow_node.core.refine import census_problem, level_census
+from flow_node.core.warping import NUMPY_WARPER
 
 CENSUS_RT = FlowConfig.preset("realtime").replace(photometric="census")
 
@@ -49,11 +50,12 @@ def test_census_problem_uses_the_level_eps(backend: str) -> None:
     v0 = np.full((2, h, w), 0.3, np.float32)
     cfg = CENSUS_RT.replace(census_coarse_eps=0.3, census_coarse_width=w + 1)
     be = select_backend(backend)
-    got = census_problem(i0, i1, cfg, be, True)(v0)
-    base = census_problem(i0, i1, CENSUS_RT.replace(census_coarse_width=0), be, True)(v0)
+    got = census_problem(i0[None], i1[None], cfg, be, True)(v0)
+    base = census_problem(i0[None], i1[None], CENSUS_RT.replace(census_coarse_width=0), be, True)(v0)
     params = CensusParams(eps=0.3)
     f0, g0 = level_signature(i0, params)
-    want = census_form(i0, i1, f0, g0, got.a, got.c, v0, True, params)
+    coefs = NUMPY_WARPER.coefficients(i1[None], cfg.warp_kernel)
+    want = census_form(f0, g0, coefs, i1[None], v0, cfg.warp_kernel, True, params)
     np.testing.assert_allclose(got.q, want, atol=1e-5 * max(1.0, float(np.abs(want).max())))
     assert np.abs(got.q - base.q).max() > 1e-3  # the level EPS changed the form
 

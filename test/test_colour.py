@@ -1,5 +1,6 @@
-"""Colour input for the census data term (core/colour.py; numba: numba_census.colour_form_numba): the colour
-form against the grey one, the numba kernels against the numpy oracle, and the engine, the stream and the
+"""Colour input for the census data term (core/colour.py; the form: census.census_form, numba:
+numba_census.census_form_numba, with C channels): the colour form against the grey one, the numba kernels
+against the numpy oracle, and the engine, the stream and the
 CLI with ``colour = channels`` -- invariant to white balance, and seeing edges that luma does not."""
 
 from __future__ import annotations
@@ -11,13 +12,12 @@ from synth import constant_flow, interior, isoluminant_pair, pair_from_flow, tex
 
 from flow_node.cli.estimate import read_planes
 from flow_node.core.api import FlowEstimator, to_grey, to_planes
-from flow_node.core.census import CENSUS, census_form, level_signature
-from flow_node.core.colour import channel_signature, colour_form, normalise_channels, warped_channels
+from flow_node.core.census import CENSUS, census_form, level_signature, warped_frames
+from flow_node.core.colour import normalise_channels
 from flow_node.core.errors import InputError
 from flow_node.core.metrics import aee
 from flow_node.core.numba_backend import WARPER
-from flow_node.core.numba_census import colour_form_numba, level_signature_numba
-from flow_node.core.operators import linearise, warp_source
+from flow_node.core.numba_census import census_form_numba, level_signature_numba
 from flow_node.core.pyramid import build_pyramid, channel_pyramid, pyramid_shapes
 from flow_node.core.warping import NUMPY_WARPER, Sample
 from flow_node.pipeline.stream import FlowStream, StreamSettings
@@ -33,59 +33,51 @@ def channels(seed: int, n: int = 3, h: int = H, w: int = W) -> np.ndarray:
 
 
 def warp_of(c1: np.ndarray, seed: int, sample: Sample = NUMPY_WARPER.sample) -> tuple[np.ndarray, ...]:
-    """A flow v0 that takes a corner of the frame outside, and c1 (C, H, W) warped by it (warped_channels)."""
+    """A flow v0 that takes a corner of the frame outside, c1's (C, H, W) interpolation coefficients and c1
+    warped by v0 with its outside mask (census.warped_frames)."""
     v0 = (0.5 * np.random.default_rng(seed).standard_normal((2, H, W))).astype(np.float32)
     v0[0, :4, :5] = -20.0
     coefs = NUMPY_WARPER.coefficients(c1, "bspline")
-    return (v0, *warped_channels(coefs, c1, v0, "bspline", sample))
+    return (v0, coefs, *warped_frames(coefs, c1, v0, "bspline", sample))
 
 
 def test_three_equal_channels_give_the_grey_census_form() -> None:
-    grey, i1 = channels(1, n=1)[0], channels(7, n=1)[0]
-    v0, warped, outside = warp_of(np.stack([i1] * 3), 2)
-    a, c = linearise(grey, warp_source(i1, "central", "bspline"), None, v0, "central", "bspline")
+    grey, i1 = channels(1, n=1)[0], channels(7, n=1)
+    v0, coefs, _, outside = warp_of(np.concatenate([i1] * 3), 2)
     assert outside[:4, :5].all() and not outside[4:-4, 6:-4].any()
     f0, g0 = level_signature(grey, CENSUS)
-    cf0, cg0 = channel_signature(np.stack([grey] * 3), level_signature, CENSUS)
+    cf0, cg0 = level_signature(np.stack([grey] * 3), CENSUS)
     for robust in (False, True):
-        want = census_form(grey, i1, f0, g0, a, c, v0, robust, CENSUS)
-        got = colour_form(cf0, cg0, warped, outside, v0, robust, CENSUS)
+        want = census_form(f0, g0, coefs[:1], i1, v0, "bspline", robust, CENSUS)
+        got = census_form(cf0, cg0, coefs, np.concatenate([i1] * 3), v0, "bspline", robust, CENSUS)
         np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-5)
 
 
 def test_a_channel_with_different_texture_changes_the_form() -> None:
     i0, i1 = channels(1), channels(11)
-    v0, warped, outside = warp_of(i1, 3)
-    base = colour_form(*channel_signature(i0, level_signature, CENSUS), warped, outside, v0, False, CENSUS)
+    v0, coefs, _, _ = warp_of(i1, 3)
+    base = census_form(*level_signature(i0, CENSUS), coefs, i1, v0, "bspline", False, CENSUS)
     i0b = i0.copy()
     i0b[2] = channels(21, n=1)[0]
-    other = colour_form(*channel_signature(i0b, level_signature, CENSUS), warped, outside, v0, False, CENSUS)
+    other = census_form(*level_signature(i0b, CENSUS), coefs, i1, v0, "bspline", False, CENSUS)
     assert np.abs(other - base).max() > 1e-2
 
 
 @pytest.mark.parametrize("robust", [False, True])
 def test_numba_colour_form_matches_numpy(robust: bool) -> None:
     i0, i1 = channels(4), channels(14)
-    v0, warped, outside = warp_of(i1, 5)
-    f0, g0 = channel_signature(i0, level_signature, CENSUS)
-    want = colour_form(f0, g0, warped, outside, v0, robust, CENSUS)
-    _, warped_n, outside_n = warp_of(i1, 5, WARPER.sample)
+    v0, coefs, warped, outside = warp_of(i1, 5)
+    f0, g0 = level_signature(i0, CENSUS)
+    want = census_form(f0, g0, coefs, i1, v0, "bspline", robust, CENSUS)
+    _, _, warped_n, outside_n = warp_of(i1, 5, WARPER.sample)
     np.testing.assert_allclose(warped_n, warped, atol=AGREE)
     np.testing.assert_array_equal(outside_n, outside)
-    f0n, g0n = channel_signature(i0, level_signature_numba, CENSUS)
+    f0n, g0n = level_signature_numba(i0, CENSUS)
     assert g0n is None
     np.testing.assert_allclose(f0n, f0, atol=AGREE)
-    got = colour_form_numba(f0n, None, warped_n, outside_n, v0, robust, CENSUS)
+    got = census_form_numba(f0n, None, WARPER.coefficients(i1, "bspline"), i1, v0, "bspline", robust, CENSUS)
     np.testing.assert_allclose(got, want, atol=AGREE, rtol=AGREE)
     assert np.all(got[:, :4, :5] == 0.0) and np.all(got[2, 4:-4, 6:-4] > 0.0)  # no data term only outside
-
-
-def test_colour_form_needs_frame_0s_gradients() -> None:
-    i0 = channels(4)
-    v0, warped, outside = warp_of(i0, 5)
-    with pytest.raises(ValueError, match="gradients"):
-        colour_form(channel_signature(i0, level_signature_numba, CENSUS)[0], None, warped, outside, v0, False,
-                    CENSUS)
 
 
 def test_normalise_channels_undoes_a_gain_per_channel() -> None:

@@ -1,4 +1,5 @@
-"""The iteration kernels load only inside the arrays they are given, whatever the model's flags (issue 29).
+"""The iteration kernels (and the census form's) load only inside the arrays they are given, whatever the model's
+flags (issue 29).
 
 LLVM turns a flag's branch in a pixel loop (quadratic data term, mass, extended model) into AVX-512 masked
 loads; a masked-off lane whose address is on a page that is not mapped, or not touched yet, costs a
@@ -19,8 +20,10 @@ import numpy as np
 import pytest
 
 from flow_node.core import numba_backend
+from flow_node.core.census import CENSUS
 from flow_node.core.models import MODEL_SPECS
 from flow_node.core.numba_backend import solve_numba, zero_rows
+from flow_node.core.numba_census import census_form_numba, level_signature_numba
 from flow_node.core.solver import PDState, Problem, SolveParams
 
 H, W = 240, 320  # serial kernels (under PARALLEL_MIN_PIXELS): one thread, steadier timing
@@ -98,3 +101,33 @@ def test_zero_rows_are_written_zeros_of_the_documented_shapes() -> None:
     v = np.zeros((2, 9, 37), np.float32)
     _, w_bar, _, zero_b = numba_backend.work_buffers(v, None, again)
     assert w_bar is again["w_bar"] and zero_b is again["b"]
+
+
+def test_the_census_form_before_an_inaccessible_page_is_as_fast_and_the_same() -> None:
+    """The census kernel (numba_census.census_kernel: the warp's taps and the form's flags) reads only inside
+    frame 0's signatures, frame 1's coefficients and channels and the flow."""
+    rng = np.random.default_rng(5)
+    i0, i1 = (rng.random((H, W), dtype=np.float32) for _ in range(2))
+    v0 = (2.0 * rng.standard_normal((2, H, W))).astype(np.float32)
+    v0[0, :8, :8] = -50.0  # a corner outside the image
+    args = [level_signature_numba(i0, CENSUS)[0], None, numba_backend.WARPER.coefficients(i1[None], "bspline"),
+            i1[None], v0]
+    guard = Guarded()
+    edge = [a if a is None else guard.like(a) for a in args]
+
+    def form(arrays: list[np.ndarray | None]) -> tuple[float, np.ndarray]:
+        start = time.perf_counter()
+        out = census_form_numba(*arrays, "bspline", True, CENSUS)
+        return time.perf_counter() - start, out
+
+    with numba_backend.thread_count(1):
+        form(args)  # loads the kernel
+        ordinary, guarded = [], []
+        for _ in range(5):  # interleaved
+            t, q_ordinary = form(args)
+            ordinary.append(t)
+            t, q_guarded = form(edge)
+            guarded.append(t)
+    assert np.array_equal(q_guarded, q_ordinary)
+    ratio = statistics.median(guarded) / statistics.median(ordinary)
+    assert ratio < 2.0, f"the census form on guarded arrays took {ratio:.1f}x the time: a kernel loads past an array"

@@ -13,7 +13,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .census import CensusForm, LevelSignature, census_form, level_signature
-from .colour import ColourForm, colour_form
+from .census import reliability as census_reliability
 from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .densify import push_pull, splat_forward
 from .errors import ConfigError
@@ -35,12 +35,13 @@ def _single_threaded(threads: int) -> AbstractContextManager[object]:
 class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
     reliability figure, the fusion and its forward-backward check, the census data term's level
-    signature and per-warp form (``colour_form``: its colour version, colour.py), the per-pixel confidence of
+    signature and per-warp form (grey or colour channels alike), the per-pixel confidence of
     a flow, the stream stage's forward splat (temporal.predict), the photometric stage's sorted sample of a
     frame (photometric.sorted_sample; the same array in every backend), the data term's image gradient
-    (operators.image_gradient) and the stream stage's hole fill (densify.push_pull) (same semantics in every
-    backend; the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels
-    run on and the context that binds them (:meth:`running`).
+    (operators.image_gradient), the stream stage's hole fill (densify.push_pull) and the census data term's
+    reliability figure (census.reliability) (same semantics in every backend; the defaults are the numpy
+    references, the linearisation on ``warper``); the threads its kernels run on and the context that binds
+    them (:meth:`running`).
     """
 
     name: str
@@ -55,12 +56,12 @@ class Backend(NamedTuple):
     confidence: Confidence = confidence
     threads: int = 1
     on_threads: Callable[[int], AbstractContextManager[object]] = _single_threaded
-    colour_form: ColourForm = colour_form
     splat: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]] = splat_forward
     confidence_at: ConfidenceAt = confidence_at  # the confidence at pixel points only (the fits' samples)
     sample: Callable[[np.ndarray], np.ndarray] = sorted_sample  # the photometric stage's sorted sample of a frame
     gradient: ImageGradient = image_gradient  # the data term's image gradient (operators.image_gradient)
     fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull  # the stream stage's hole fill (densify.push_pull)
+    census_reliability: Reliability = census_reliability  # the reliability figure of the census data term
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -184,8 +185,8 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
                    Deferred(_numba_census, "level_signature_numba"), Deferred(_numba_census, "census_form_numba"),
                    Deferred(_numba_confidence, "confidence_numba"), used,
-                   numba_backend.thread_count, Deferred(_numba_census, "colour_form_numba"),
-                   splat=Deferred(_numba_temporal, "splat_numba"),
+                   numba_backend.thread_count, splat=Deferred(_numba_temporal, "splat_numba"),
                    confidence_at=Deferred(_numba_confidence, "confidence_at_numba"),
                    sample=Deferred(_numba_sort, "sorted_sample_numba"), gradient=numba_backend.image_gradient_numba,
-                   fill=Deferred(_numba_temporal, "push_pull_numba"))
+                   fill=Deferred(_numba_temporal, "push_pull_numba"),
+                   census_reliability=Deferred(_numba_census, "reliability_numba"))

@@ -14,7 +14,8 @@ for a curve). EPS (in units of the frame's robust range) keeps flat, noise-only 
 amplified.
 
 Each channel is linearised like the grey value (paper, "Large Displacements"): with W = I1(x + v0) the
-warped frame 1 and a_k the channel's gradient (the mean of frame 0's and of the warped one's, as the
+warped frame 1 (sampled directly, :func:`warped_frames`: the data term needs its values, not the grey-value
+linearisation) and a_k the channel's gradient (the mean of frame 0's and of the warped one's, as the
 ``interpolated`` scheme does for grey values), rho_k(v) = a_k . v + c_k. The model's data term is then
 
     l2: 1/2 sum_k rho_k^2          l1: sum_k |rho_k|  (solved by majorise-minimise, see below)
@@ -35,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .operators import warp_maps
 from .photometric import reliability_stride
 from .warping import Sample, sample_coefficients
 
@@ -86,31 +88,14 @@ def signature_gradient(f: np.ndarray) -> np.ndarray:
     return g
 
 
-def warped_frame(i0: np.ndarray, i1: np.ndarray, a: np.ndarray, c: np.ndarray, v0: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """Frame 1 sampled at x + v0, recovered from the grey-value linearisation (a, c) around v0 (for every
-    gradient scheme c = I1(x + v0) - I0 - a . v0), and the mask of pixels whose x + v0 leaves the image
-    (there a = c = 0 and no data term). There W is I1 itself: the inside neighbours' signatures then compare
-    values of frame 1 only, which share its tone curve (with I0 there, a tone change between the frames
-    would bias every pixel next to the outside band). (H, W) float32 and bool."""
-    outside = (a[0] == 0) & (a[1] == 0) & (c == 0)
-    warped = c + a[0] * v0[0] + a[1] * v0[1] + i0
-    return np.where(outside, i1, warped).astype(np.float32), outside
-
-
-def quadratic_form(f0: np.ndarray, g0: np.ndarray, warped: np.ndarray, outside: np.ndarray, v0: np.ndarray,
+def signature_form(f0: np.ndarray, g0: np.ndarray, f1: np.ndarray, outside: np.ndarray, v0: np.ndarray,
                    robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
     """The census data term around v0 collapsed to (T11, T12, T22, g1, g2), (5, H, W) float32 (module doc).
 
-    f0 (K, H, W), g0 (2, K, H, W): frame 0's signature and its gradient on this level; ``warped`` (H, W) and
-    ``outside`` from :func:`warped_frame`; v0 (2, H, W) px; ``robust``: the L1 data term's weights (else 1)."""
-    return signature_form(f0, g0, signature(warped, params), outside, v0, robust, params)
-
-
-def signature_form(f0: np.ndarray, g0: np.ndarray, f1: np.ndarray, outside: np.ndarray, v0: np.ndarray,
-                   robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
-    """:func:`quadratic_form` from the warped frame's signature f1 (K, H, W) (any K: colour.py stacks the
-    signatures of several channels)."""
+    f0 (K, H, W), g0 (2, K, H, W): frame 0's signature and its gradient on this level; f1 (K, H, W): the
+    warped frame's signature (any K: colour.py stacks the signatures of several channels); ``outside``
+    (H, W) bool: no data term there (:func:`warped_frames`); v0 (2, H, W) px; ``robust``: the L1 data term's
+    weights (else 1)."""
     g1 = signature_gradient(f1)
     ax, ay = 0.5 * (g0[0] + g1[0]), 0.5 * (g0[1] + g1[1])
     r0 = f1 - f0
@@ -127,28 +112,52 @@ def form_residual(form: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.stack([form[0] * v[0] + form[1] * v[1] + form[3], form[1] * v[0] + form[2] * v[1] + form[4]])
 
 
-def level_signature(i0: np.ndarray, params: CensusParams = CENSUS) -> tuple[np.ndarray, np.ndarray]:
-    """Frame 0's signature (K, H, W) and its gradient (2, K, H, W) on one pyramid level (computed once per
-    level, used by every warp there)."""
-    f0 = signature(i0, params)
+def level_signature(frames: np.ndarray, params: CensusParams = CENSUS) -> tuple[np.ndarray, np.ndarray]:
+    """Frame 0's signatures on one pyramid level (computed once per level, used by every warp there): of an
+    image (H, W) (K, H, W), of a channel stack (C, H, W) (colour.py) the channels' signatures stacked
+    (C K, H, W); and their gradients (2, K or C K, H, W)."""
+    stack = frames if frames.ndim == 3 else frames[None]
+    f0 = np.concatenate([signature(ch, params) for ch in stack]) if len(stack) > 1 else signature(stack[0], params)
     return f0, signature_gradient(f0)
 
 
-def census_form(i0: np.ndarray, i1: np.ndarray, f0: np.ndarray, g0: np.ndarray, a: np.ndarray, c: np.ndarray,
-                v0: np.ndarray, robust: bool, params: CensusParams = CENSUS) -> np.ndarray:
-    """One warp's census data term: the quadratic form (5, H, W) around v0 (2, H, W), from the level's frames
-    (H, W), frame 0's :func:`level_signature` and the grey-value linearisation (a, c) around v0 (which carries
-    the warped frame 1, :func:`warped_frame`). ``robust``: the L1 data term (else L2)."""
-    warped, outside = warped_frame(i0, i1, a, c, v0)
-    return quadratic_form(f0, g0, warped, outside, v0, robust, params)
+def warped_frames(coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,
+                  sample: Sample = sample_coefficients) -> tuple[np.ndarray, np.ndarray]:
+    """Frame 1's channels sampled at x + v0 (2, H, W) (a value-only warp): (C, H, W) float32, from their
+    interpolation coefficients ``coefs`` (C, H, W) (warping.Warper.coefficients, once per level) with a
+    backend's ``sample``; and the mask (H, W) bool of pixels whose x + v0 leaves the image
+    (operators.warp_maps). There the channels of ``frames`` (C, H, W) themselves stand in: the inside
+    neighbours' signatures then compare values of frame 1 only, which share its tone curve (with frame 0
+    there, a tone change between the frames would bias every pixel next to the outside band)."""
+    map_x, map_y, inside = warp_maps(v0)
+    warped = sample(coefs, map_x, map_y, kernel)
+    return np.where(inside, warped, frames).astype(np.float32, copy=False), ~inside
 
 
-# level_signature(i0, params) -> (f0, g0) and census_form(i0, i1, f0, g0, a, c, v0, robust, params) -> q:
+def census_form(f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray,
+                kernel: str, robust: bool, params: CensusParams = CENSUS, sample: Sample = sample_coefficients
+                ) -> np.ndarray:
+    """One warp's census data term: the quadratic form (5, H, W) around v0 (2, H, W).
+
+    f0 (C K, H, W), g0 (2, C K, H, W): frame 0's signatures of its C channels and their gradients on this level
+    (:func:`level_signature`, stacked channel by channel); ``coefs``, ``frames``
+    (C, H, W): frame 1's channels and their interpolation coefficients (``kernel``), sampled at x + v0 by
+    :func:`warped_frames`; ``robust``: the L1 data term (else L2). C = 1 for grey input; with C channels
+    (colour.py) the form is the mean over them (scaled by 1 / C, so that alpha means what it means for grey)."""
+    if g0 is None:
+        raise ValueError("census_form needs frame 0's signature gradients (census.level_signature)")
+    warped, outside = warped_frames(coefs, frames, v0, kernel, sample)
+    f1 = np.concatenate([signature(w, params) for w in warped])
+    form = signature_form(f0, g0, f1, outside, v0, robust, params)
+    return form if len(warped) == 1 else (form * np.float32(1.0 / len(warped))).astype(np.float32)
+
+
+# level_signature(frames, params) -> (f0, g0) and census_form(f0, g0, coefs, frames, v0, kernel, robust, params) -> q:
 # the numpy references above or a backend's kernels (numba_census.py)
 # (the numba kernels take frame 0's gradient inside the form kernel: their level signature's second item is None)
 LevelSignature = Callable[[np.ndarray, CensusParams], tuple[np.ndarray, np.ndarray | None]]
-CensusForm = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, np.ndarray,
-                       bool, CensusParams], np.ndarray]
+CensusForm = Callable[[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, np.ndarray, str, bool, CensusParams],
+                      np.ndarray]
 
 
 # reliability samples every SAMPLE_SPACING-th pixel of photometric.reliability's grid (~5,000 at any size

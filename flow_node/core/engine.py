@@ -29,12 +29,10 @@ initialisation the refinement drifted away from wrongly is recovered there).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
 
 import numpy as np
 
 from .backends import Backend
-from .census import reliability as census_reliability
 from .colour import normalise_channels
 from .config import FlowConfig
 from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
@@ -72,8 +70,8 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
                       ) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
     """The photometric stage (photometric.stage with the pyramid's noise gain) and its own judge: what the
     solver sees of the pair (H, W) float32, and the :class:`Judged` pair. A census data term is judged on
-    signatures (census.reliability, with the backend's sampler), a grey-value one by the backend's
-    reliability kernel, so the caller never branches on the mode. ``sample0``: frame 0's sorted sample when
+    signatures, a grey-value one on grey values (the backend's census.reliability or photometric.reliability),
+    so the caller never branches on the mode. ``sample0``: frame 0's sorted sample when
     known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1); ``known0``: frame 0
     normalised by a previous pair, with that pair's :func:`map_key`, taken when this pair's key is the same
     (the normalised frame is then the same bit for bit: temporal.Seen)."""
@@ -83,7 +81,7 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     key = map_key(pmap, i0.shape, cfg)
     n0 = known0[1] if known0 is not None and key is not None and key == known0[0] else None
     solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples, pmap, n0)
-    judge = partial(census_reliability, sample=backend.warper.sample) if signatures else backend.reliability
+    judge = backend.census_reliability if signatures else backend.reliability
     return solver_pair, Judged(frames, judge, samples, key)
 
 

@@ -1,11 +1,14 @@
 """numba kernels of the census data term (census.py, the numpy reference and test oracle).
 
-:func:`signature_kernel` computes the soft census signature of an image; :func:`warped_kernel` recovers the
-warped frame 1 from the grey-value linearisation (census.warped_frame); :func:`form_kernel` builds one
-warp's quadratic form from frame 0's signature and the warped frame's (both gradients taken inside it);
-:func:`colour_form_numba` the same over the stacked signatures of colour channels (colour.py).
-Rows run in parallel (prange), each row's loops over whole rows (1-D views, so they vectorise). Same
-float32 arithmetic as the reference up to the order of the sums (to ~1e-6 relative).
+:func:`signature_kernel` computes the soft census signature of an image (frame 0's, once per level);
+:func:`census_kernel` one warp's quadratic form in one pass over the level (census.census_form): frame 1's
+channels sampled at x + v0 (a value-only warp, numba_warp.sample_row), their signatures and the form, row by
+row, the warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings of three rows
+(cache-resident) instead of level-sized arrays; :func:`unexplained_kernel` the counts behind
+census.reliability. Grey and colour input are the same kernel (C = 1 or 3 channels of K signatures each).
+Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same quantities as
+the reference, the form's sums rearranged (:func:`_form_finish`): equal to float32 rounding (test_census,
+1e-5 of the form's largest value).
 
 Importing this module raises ImportError when numba is not installed (backends.py then uses numpy).
 """
@@ -14,16 +17,22 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
-from numba import njit, prange
+from numba import get_thread_id, njit, prange
 
-from .census import OFFSETS, CensusParams
+from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams
+from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
+from .numba_warp import _tap_indices, cubic_weights4, sample_row, tap_sum
+from .photometric import reliability_stride
+from .warping import KERNEL_CODES
 from .workspace import scratch
 
 _JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
 _F32 = np.float32
 _DY = np.array([d[0] for d in OFFSETS], np.int64)
 _DX = np.array([d[1] for d in OFFSETS], np.int64)
+_K = len(OFFSETS)
 
 
 @njit(**_JIT)
@@ -35,137 +44,274 @@ def _diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN201
         ss[j] += d * d
 
 
-@njit(parallel=True, **_JIT)
-def signature_kernel(img, dy, dx, gain, eps, out):  # noqa: ANN001, ANN201
-    """census.signature of img (H, W) into out (K, H, W); neighbours clamped to the image (edge values).
-    Row by row and channel by channel over whole rows (1-D views: the loops vectorise)."""
-    h, w = img.shape
+@njit(**_JIT)
+def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noqa: ANN001, ANN201
+    """The K neighbour differences of one image row ``centre`` (W), whose neighbour rows are ``up`` and ``down``
+    (the row itself at the image's top and bottom: edge values), into the rows out[first + k, i] (k < K) of out
+    (., ., W), column neighbours clamped to the row; and into ss (W) the factor that makes them the signature,
+    GAIN / (RMS + EPS) (census.signature). Channel by channel over whole rows (1-D views of C-contiguous
+    arrays, so that the loops vectorise)."""
+    w = centre.shape[0]
     k_n = dy.shape[0]
-    for i in prange(h):
-        ss = np.zeros(w, np.float32)
-        centre = img[i]
-        for k in range(k_n):
-            src = img[min(max(i + dy[k], 0), h - 1)]
-            dst = out[k, i]
-            d = dx[k]
-            if d == 0:
-                _diff_row(src, centre, dst, ss)
-            elif d > 0:  # the last column's neighbour is itself (clamped)
-                _diff_row(src[d:], centre[:w - d], dst[:w - d], ss[:w - d])
-                _diff_row(src[w - 1:], centre[w - d:], dst[w - d:], ss[w - d:])
-            else:
-                _diff_row(src[:w + d], centre[-d:], dst[-d:], ss[-d:])
-                _diff_row(src[:1], centre[:-d], dst[:-d], ss[:-d])
-        for j in range(w):
-            ss[j] = gain / (math.sqrt(ss[j] / k_n) + eps)
-        for k in range(k_n):
-            dst = out[k, i]
-            for j in range(w):
-                dst[j] *= ss[j]
-
-
-@njit(parallel=True, **_JIT)
-def warped_kernel(i0, i1, a, c, v0, warped, keep):  # noqa: ANN001, ANN201
-    """census.warped_frame into warped (H, W) float32 and keep (H, W) float32 (0 outside, else 1)."""
-    h, w = i0.shape
-    for i in prange(h):
-        for j in range(w):
-            out = a[0, i, j] == 0 and a[1, i, j] == 0 and c[i, j] == 0
-            keep[i, j] = _F32(0.0) if out else _F32(1.0)
-            warped[i, j] = i1[i, j] if out else c[i, j] + a[0, i, j] * v0[0, i, j] + a[1, i, j] * v0[1, i, j] + i0[i, j]
+    ss[:] = 0.0
+    for k in range(k_n):
+        src = up if dy[k] < 0 else (down if dy[k] > 0 else centre)
+        dst = out[first + k, i]
+        d = dx[k]
+        if d == 0:
+            _diff_row(src, centre, dst, ss)
+        elif d > 0:  # the last column's neighbour is itself (clamped)
+            _diff_row(src[d:], centre[:w - d], dst[:w - d], ss[:w - d])
+            _diff_row(src[w - 1:], centre[w - d:], dst[w - d:], ss[w - d:])
+        else:
+            _diff_row(src[:w + d], centre[-d:], dst[-d:], ss[-d:])
+            _diff_row(src[:1], centre[:-d], dst[:-d], ss[:-d])
+    for j in range(w):
+        ss[j] = gain / (math.sqrt(ss[j] / k_n) + eps)
 
 
 @njit(**_JIT)
-def _form_row(f0c, f0l, f0r, f0u, f0d, f1c, f1l, f1r, f1u, f1d, vx, vy, keep, o0, o1, o2, o3, o4,  # noqa: ANN001, ANN201
-              rx, ry, d2, robust):
-    """One channel's contribution to the quadratic form along one row segment (1-D views of the signatures
-    at the pixels (c) and their left/right/up/down neighbours; vectorises): the channel's gradient (rx, ry:
-    1/4 for the mean of two central differences, 0 on the border), residual, weight and the five sums."""
-    for j in range(o0.shape[0]):
-        ax = rx * (f0r[j] - f0l[j] + f1r[j] - f1l[j])
-        ay = ry * (f0d[j] - f0u[j] + f1d[j] - f1u[j])
-        r0 = f1c[j] - f0c[j]
-        cc = r0 - ax * vx[j] - ay * vy[j]
-        wk = keep[j] / math.sqrt(r0 * r0 + d2) if robust else keep[j]
-        wax = wk * ax
-        way = wk * ay
-        o0[j] += wax * ax
-        o1[j] += wax * ay
-        o2[j] += way * ay
-        o3[j] += wax * cc
-        o4[j] += way * cc
+def _scale_row(d, ss):  # noqa: ANN001, ANN201
+    """d *= ss over one row (1-D views): the signature from :func:`_differences`."""
+    for j in range(d.shape[0]):
+        d[j] *= ss[j]
 
 
 @njit(parallel=True, **_JIT)
-def form_kernel(f0, f1, keep, v0, robust, delta, out):  # noqa: ANN001, ANN201
-    """census.quadratic_form from frame 0's signature f0 (K, H, W) and the warped frame's f1 (K, H, W) (both
-    gradients taken here: central differences, zero on the border), keep (H, W) (0 = no data term) and v0
-    (2, H, W), into out (5, H, W). Row by row and channel by channel: the interior columns, then the two
-    border columns (x-gradient 0) as a stride-(W-1) view."""
-    k_n, h, w = f0.shape
-    d2 = delta * delta
-    quarter = _F32(0.25)
-    zero = _F32(0.0)
-    e = max(w - 1, 1)  # the border columns 0 and w - 1 (one column when w == 1)
+def signature_kernel(img, dy, dx, gain, eps, out):  # noqa: ANN001, ANN201
+    """census.signature of img (H, W) into out (K, H, W); neighbours clamped to the image (edge values). Rows
+    in parallel."""
+    h, w = img.shape
     for i in prange(h):
-        iu, idn = max(i - 1, 0), min(i + 1, h - 1)
-        ry = quarter if 0 < i < h - 1 else zero
-        out[:, i] = zero
-        o0, o1, o2, o3, o4 = out[0, i], out[1, i], out[2, i], out[3, i], out[4, i]
-        vx, vy, kp = v0[0, i], v0[1, i], keep[i]
+        ss = np.empty(w, np.float32)
+        _differences(img[max(i - 1, 0)], img[i], img[min(i + 1, h - 1)], dy, dx, gain, eps, out, 0, i, ss)
+        for k in range(dy.shape[0]):
+            _scale_row(out[k, i], ss)
+
+
+@njit(**_JIT)
+def _pair_row(f0, d, ss, p, r):  # noqa: ANN001, ANN201
+    """With F1 = d ss (the warped frame's signature, :func:`_differences`) over one row (1-D views, W):
+    p[1:W + 1] = F0 + F1 and r = F1 - F0; p's ends mirror its columns 1 and W - 2 (p[0] = P(1),
+    p[W + 1] = P(W - 2); both P(0) when W == 1), so that P(x + 1) - P(x - 1) is 0 on the border columns."""
+    w = r.shape[0]
+    for j in range(w):
+        a, b = f0[j], d[j] * ss[j]
+        p[j + 1] = a + b
+        r[j] = b - a
+    p[0] = p[min(2, w)]
+    p[w + 1] = p[max(w - 1, 1)]
+
+
+@njit(**_JIT)
+def _form_row(pl, pr, pu, pd, dc, ql, qr, qu, qd, ec, s0, s1, s2, s3, s4, d2, robust):  # noqa: ANN001, ANN201
+    """Two channels' sums along one row segment (1-D views; vectorises; two per pass: the sums are loaded
+    and stored half as often), from P = F0 + F1 at the pixels' left/right/up/down neighbours and D = F1 - F0
+    at the pixels (p, d: the first channel; q, e: the second): with a channel's unscaled gradient
+    ax = P(x + 1) - P(x - 1), ay = P(y + 1) - P(y - 1) (sums of both frames' central differences), the residual
+    D at v0 and the weight wk, s0..s4 += wk (ax ax, ax ay, ay ay, ax D, ay D) of each. :func:`_form_finish`
+    turns the sums over the channels into the form."""
+    one = _F32(1.0)
+    for j in range(s0.shape[0]):
+        ax, ay, r0 = pr[j] - pl[j], pd[j] - pu[j], dc[j]
+        bx, by, r1 = qr[j] - ql[j], qd[j] - qu[j], ec[j]
+        wa = one / math.sqrt(r0 * r0 + d2) if robust else one
+        wb = one / math.sqrt(r1 * r1 + d2) if robust else one
+        wax, way, wbx, wby = wa * ax, wa * ay, wb * bx, wb * by
+        s0[j] += wax * ax + wbx * bx
+        s1[j] += wax * ay + wbx * by
+        s2[j] += way * ay + wby * by
+        s3[j] += wax * r0 + wbx * r1
+        s4[j] += way * r0 + wby * r1
+
+
+@njit(**_JIT)
+def _form_finish(out, i, ry, vx, vy, keep):  # noqa: ANN001, ANN201
+    """Row i of out (5, H, W) from the channels' sums of :func:`_form_row` in place: the gradients' scales
+    (x: 1/4, the mean of two central differences; y: ``ry``, 1/4 or 0 on the first and last rows) and the
+    pixel's weight ``keep`` (W), and the linearisation point: with rho_k(v) = a_k . (v - v0) + r0_k,
+    g = sum_k w_k a_k r0_k - T v0 (census.signature_form's sum of w_k c_k a_k, c_k = r0_k - a_k . v0)."""
+    o0, o1, o2, o3, o4 = out[0, i], out[1, i], out[2, i], out[3, i], out[4, i]
+    q = _F32(0.25)
+    for j in range(o0.shape[0]):
+        t11 = keep[j] * q * q * o0[j]
+        t12 = keep[j] * q * ry * o1[j]
+        t22 = keep[j] * ry * ry * o2[j]
+        o0[j] = t11
+        o1[j] = t12
+        o2[j] = t22
+        o3[j] = keep[j] * q * o3[j] - t11 * vx[j] - t12 * vy[j]
+        o4[j] = keep[j] * ry * o4[j] - t12 * vx[j] - t22 * vy[j]
+
+
+@njit(**_JIT)
+def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, r0, r1,  # noqa: ANN001, ANN201
+                 warped, keep, pair, diff, temp, ss, taps, base):
+    """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, 3, W) and keep (3, W)
+    hold rows of frame 1 warped and its weight, pair (C K, 3, W + 2) and diff (C K, 3, W) rows of P = F0 + F1
+    (border-mirrored: :func:`_pair_row`) and D = F1 - F0 (F1 the warped frame's signatures), row r in slot
+    (r + 3) % 3; temp (K, 1, W) and ss (W) one channel's neighbour differences and their factor
+    (:func:`_differences`). Row r of the rings stands for the image row clamped to 0 .. H - 1 (so the
+    signature of the first and last rows sees edge values, as census.signature), and output row i needs
+    signature rows i - 1 .. i + 1, those warped rows i - 2 .. i + 2: each block warps its rows and two on
+    either side, each once. (The rings' rows -1 and H are read for the first and last rows' y-gradient, whose
+    weight is 0.) Each step's work is its own function (:func:`_pair_rows`, :func:`_form_rows`): written
+    inline here the same code ran ~25 % slower."""
+    h = f0.shape[1]
+    for r in range(r0 - 2, r1 + 2):  # warp row r (ring), then the signatures of row r - 1, then output row r - 2
+        s = (r + 3) % 3
+        sample_row(coefs, frames, flow, min(max(r, 0), h - 1), kernel, weight, warped, s, keep[s], taps, base)
+        if r >= r0:  # the signatures of row r - 1 (warped rows r - 2, r - 1, r) into diff, then P and D
+            _pair_rows(f0, min(max(r - 1, 0), h - 1), warped, (r + 1) % 3, (r + 2) % 3, s, dy, dx, gain, eps,
+                       pair, diff, temp, ss)
+        if r - 2 >= r0:  # output row i: signature rows i - 1, i, i + 1 are in the ring
+            _form_rows(out, r - 2, pair, diff, keep, flow, d2, robust)
+
+
+@njit(**_JIT)
+def _pair_rows(f0, rr, warped, sm, s0, sp, dy, dx, gain, eps, pair, diff, temp, ss):  # noqa: ANN001, ANN201
+    """P and D of one row (image row rr) into ring slot s0 of pair and diff, from the warped rows in slots sm,
+    s0, sp (above, at, below) and frame 0's signatures f0 (C K, H, W) (:func:`_census_rows`)."""
+    k_n = dy.shape[0]
+    for c in range(warped.shape[0]):
+        _differences(warped[c, sm], warped[c, s0], warped[c, sp], dy, dx, gain, eps, temp, 0, 0, ss)
         for k in range(k_n):
-            a0, a1, u0, u1, d0, d1 = f0[k, i], f1[k, i], f0[k, iu], f1[k, iu], f0[k, idn], f1[k, idn]
-            m = slice(1, w - 1)
-            _form_row(a0[m], a0[:w - 2], a0[2:], u0[m], d0[m], a1[m], a1[:w - 2], a1[2:], u1[m], d1[m],
-                      vx[m], vy[m], kp[m], o0[m], o1[m], o2[m], o3[m], o4[m], quarter, ry, d2, robust)
-            b0, b1 = a0[::e], a1[::e]
-            _form_row(b0, b0, b0, u0[::e], d0[::e], b1, b1, b1, u1[::e], d1[::e], vx[::e], vy[::e], kp[::e],
-                      o0[::e], o1[::e], o2[::e], o3[::e], o4[::e], zero, ry, d2, robust)
+            q = c * k_n + k
+            _pair_row(f0[q, rr], temp[k, 0], ss, pair[q, s0], diff[q, s0])
+
+
+@njit(**_JIT)
+def _form_rows(out, i, pair, diff, keep, flow, d2, robust):  # noqa: ANN001, ANN201
+    """Row i of the form out (5, H, W) from the rings' rows i - 1, i, i + 1 (:func:`_census_rows`)."""
+    h = out.shape[1]
+    su, sc, sd = (i + 2) % 3, (i + 3) % 3, (i + 4) % 3
+    ry = _F32(0.25) if 0 < i < h - 1 else _F32(0.0)
+    for n in range(5):
+        out[n, i] = _F32(0.0)
+    w = diff.shape[2]
+    o0, o1, o2, o3, o4 = out[0, i], out[1, i], out[2, i], out[3, i], out[4, i]
+    for q in range(0, pair.shape[0], 2):  # C K channels: K = 8 is even
+        p, e = pair[q], pair[q + 1]  # rows (W + 2), border-mirrored: x - 1 at [:w], x + 1 at [2:]
+        _form_row(p[sc, :w], p[sc, 2:], p[su, 1:w + 1], p[sd, 1:w + 1], diff[q, sc],
+                  e[sc, :w], e[sc, 2:], e[su, 1:w + 1], e[sd, 1:w + 1], diff[q + 1, sc], o0, o1, o2, o3, o4, d2, robust)
+    _form_finish(out, i, ry, flow[0, i], flow[1, i], keep[sc])
+
+
+@njit(parallel=True, **_JIT)
+def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, weight, out,  # noqa: ANN001, ANN201
+                  warped, keep, pair, diff, temp, ss, taps, base, blocks):
+    """census.census_form in one pass: out (5, H, W) from frame 0's signatures f0 (C K, H, W), frame 1's
+    interpolation coefficients ``coefs`` and channels ``frames`` (C, H, W) and the flow v0 (2, H, W); each
+    pixel's weight ``weight`` (1 / C) inside, 0 where x + v0 leaves the image. The rows in ``blocks``
+    contiguous blocks, in parallel when more than one (:func:`_census_rows`; per-thread rings warped
+    (T, C, 3, W), keep (T, 3, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, K, 1, W), ss (T, W)
+    and the warp's row scratch taps (T, 9, W), base (T, 2, W) int32)."""
+    h = f0.shape[1]
+    d2 = delta * delta
+    if blocks > 1:
+        for b in prange(blocks):
+            t = get_thread_id()
+            _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out,
+                         b * h // blocks, (b + 1) * h // blocks, warped[t], keep[t], pair[t], diff[t], temp[t], ss[t],
+                         taps[t], base[t])
+    else:
+        _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, 0, h,
+                     warped[0], keep[0], pair[0], diff[0], temp[0], ss[0], taps[0], base[0])
 
 
 def signature_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
     """census.signature with the kernel: (H, W) -> (K, H, W) float32 (into ``out`` when given)."""
     src = np.ascontiguousarray(img, dtype=_F32)
-    out = np.empty((len(OFFSETS),) + src.shape, _F32) if out is None else out
+    out = np.empty((_K,) + src.shape, _F32) if out is None else out
     signature_kernel(src, _DY, _DX, _F32(params.gain), _F32(params.eps), out)
     return out
 
 
-def level_signature_numba(i0: np.ndarray, params: CensusParams) -> tuple[np.ndarray, None]:
-    """Frame 0's signature (K, H, W) on one level (census.level_signature; its gradient is taken inside
-    :func:`form_kernel`, which reads f0's neighbours anyway: None)."""
-    return signature_numba(i0, params), None
+def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.ndarray, None]:
+    """census.level_signature with the kernel: frame 0's signatures (K or C K, H, W) of an image (H, W) or a
+    channel stack (C, H, W) on one level, and None (the gradients are taken inside :func:`census_kernel`,
+    which reads f0's neighbours anyway). Into the calling thread's scratch array (workspace.py; as the grey
+    path's level arrays, refine.grey_problem): valid until this thread's next level signature of that shape,
+    i.e. for the level's warps. A fresh 8-plane array per level paid its page faults: `realtime`'s level
+    signatures on the 8 Middlebury pairs took 41.7 ms, 15.4 ms from scratch (two runs at load 5, whose census
+    kernels took 269 and 175 ms)."""
+    stack = frames if frames.ndim == 3 else frames[None]
+    n, h, w = stack.shape
+    out = scratch("census.f0", (n * _K, h, w))
+    for c in range(n):
+        signature_numba(stack[c], params, out=out[c * _K:(c + 1) * _K])
+    return out, None
 
 
-def census_form_numba(i0: np.ndarray, i1: np.ndarray, f0: np.ndarray, g0: None, a: np.ndarray, c: np.ndarray,
-                      v0: np.ndarray, robust: bool, params: CensusParams) -> np.ndarray:
-    """census.census_form with the kernels: the quadratic form (5, H, W) of one warp. The warped frame, its
-    mask and its signature are the calling thread's scratch arrays (workspace.py: every warp of every level
-    needs them, and they are dead once the form is built); the form itself is fresh (a Bregman step reuses
-    the last warp's)."""
+def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,
+                      robust: bool, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
+    """census.census_form with :func:`census_kernel`: the quadratic form (5, H, W) of one warp. The rings are the
+    calling thread's scratch arrays (workspace.py); the rows run in one block per thread on levels of
+    LINEARISE_PARALLEL_MIN_PIXELS or more (else in one); the form itself is fresh (a Bregman step reuses the
+    last warp's), or ``out`` (5, H, W) float32 C-contiguous when given."""
+    n_c, h, w = frames.shape
+    t = threads()
+    blocks = min(t, h) if t > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS else 1
+    n, q = numba.config.NUMBA_NUM_THREADS, n_c * _K  # per-thread rings: get_thread_id's range
+    rings = (scratch("census.warped", (n, n_c, 3, w)), scratch("census.keep", (n, 3, w)),
+             scratch("census.pair", (n, q, 3, w + 2)), scratch("census.diff", (n, q, 3, w)),
+             scratch("census.temp", (n, _K, 1, w)), scratch("census.ss", (n, w)), *row_scratch(w))
+    out = np.empty((5, h, w), _F32) if out is None else out
+    census_kernel(np.ascontiguousarray(f0, dtype=_F32), np.ascontiguousarray(coefs, dtype=_F32),
+                  np.ascontiguousarray(frames, dtype=_F32), np.ascontiguousarray(v0, dtype=_F32),
+                  KERNEL_CODES[kernel], _DY, _DX, _F32(params.gain), _F32(params.eps), robust, _F32(params.delta),
+                  _F32(1.0 / n_c), out, *rings, blocks)
+    return out
+
+
+@njit(**_JIT)
+def _normalised_residual(d1, d0, eps):  # noqa: ANN001, ANN201
+    """mean_k |d1_k / (RMS(d1) + eps) - d0_k / (RMS(d0) + eps)| of two pixels' K neighbour differences (K)."""
+    k_n = d1.shape[0]
+    s1, s0 = _F32(0.0), _F32(0.0)
+    for k in range(k_n):
+        s1 += d1[k] * d1[k]
+        s0 += d0[k] * d0[k]
+    n1 = _F32(1.0) / (math.sqrt(s1 / k_n) + eps)
+    n0 = _F32(1.0) / (math.sqrt(s0 / k_n) + eps)
+    total = _F32(0.0)
+    for k in range(k_n):
+        total += abs(d1[k] * n1 - d0[k] * n0)
+    return total / k_n
+
+
+@njit(**_JIT)
+def unexplained_kernel(i0, i1, flow, stride, dy, dx, eps, outlier):  # noqa: ANN001, ANN201
+    """census.reliability's counts: over every ``stride``-th pixel of i0 (H, W) whose x + flow (flow (H, W, 2))
+    lies at least one pixel inside, how many there are and how many have a mean signature residual above
+    ``outlier`` -> (inside, unexplained). I1 (1, H, W) is sampled (Keys) at x + flow and its K neighbours
+    (dy, dx): one position's fraction, so one set of tap weights for all of them."""
     h, w = i0.shape
-    warped, keep = scratch("census.warped", (h, w)), scratch("census.keep", (h, w))
-    v0 = np.ascontiguousarray(v0, dtype=_F32)
-    warped_kernel(np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32), a, c, v0, warped, keep)
-    f1 = signature_numba(warped, params, out=scratch("census.f1", (len(OFFSETS), h, w)))
-    out = np.empty((5, h, w), _F32)
-    form_kernel(f0, f1, keep, v0, robust, _F32(params.delta), out)
-    return out
+    k_n = dy.shape[0]
+    d1, d0 = np.empty(k_n, np.float32), np.empty(k_n, np.float32)
+    inside, bad = 0, 0
+    for i in range(0, h, stride):
+        for j in range(0, w, stride):
+            mx, my = np.float32(j) + flow[i, j, 0], np.float32(i) + flow[i, j, 1]
+            if not (mx >= 1 and mx <= w - 2 and my >= 1 and my <= h - 2):  # (NaN: not inside either)
+                continue
+            xi, yi = np.int64(mx), np.int64(my)  # mx, my >= 1: truncation is the floor
+            wx = cubic_weights4(mx - np.float32(xi), 0)
+            wy = cubic_weights4(my - np.float32(yi), 0)
+            centre = tap_sum(i1, 0, wx, wy, _tap_indices(xi, w), _tap_indices(yi, h))
+            for k in range(k_n):
+                d1[k] = tap_sum(i1, 0, wx, wy, _tap_indices(xi + dx[k], w), _tap_indices(yi + dy[k], h)) - centre
+                d0[k] = i0[min(max(i + dy[k], 0), h - 1), min(max(j + dx[k], 0), w - 1)] - i0[i, j]
+            inside += 1
+            bad += _normalised_residual(d1, d0, eps) > outlier
+    return inside, bad
 
 
-
-def colour_form_numba(f0: np.ndarray, g0: None, warped: np.ndarray, outside: np.ndarray, v0: np.ndarray,
-                      robust: bool, params: CensusParams) -> np.ndarray:
-    """colour.colour_form with the kernels: the signature of each warped channel (C, H, W) into one stacked
-    scratch array, the form kernel's per-pixel weight (1 / C inside, 0 ``outside``: the reference's mask and
-    1 / C), then one form over all C x K channels (5, H, W)."""
-    n, h, w = warped.shape
-    k_n = len(OFFSETS)
-    f1 = scratch("colour.f1", (n * k_n, h, w))
-    for k in range(n):
-        signature_numba(warped[k], params, out=f1[k * k_n:(k + 1) * k_n])
-    weight = np.where(outside, _F32(0.0), _F32(1.0 / n)).astype(_F32)
-    out = np.empty((5, h, w), _F32)
-    form_kernel(np.ascontiguousarray(f0, dtype=_F32), f1, weight, np.ascontiguousarray(v0, dtype=_F32), robust,
-                _F32(params.delta), out)
-    return out
+def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, params: CensusParams = CENSUS) -> float:
+    """census.reliability with :func:`unexplained_kernel` (same samples, threshold and stride; the tap weights of
+    a sample's 9 positions from its own fraction, which the reference recomputes from each position)."""
+    h, w = i0.shape
+    inside, bad = unexplained_kernel(np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32)[None],
+                                     np.ascontiguousarray(flow, dtype=_F32), SAMPLE_SPACING * reliability_stride(h, w),
+                                     _DY, _DX, _F32(params.eps), _F32(OUTLIER))
+    return bad / inside if inside else 1.0

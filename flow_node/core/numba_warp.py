@@ -108,16 +108,14 @@ def warp_kernel(img, map_x, map_y, kernel, out, parallel):  # noqa: ANN001, ANN2
 
 
 @njit(**_JIT)
-def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, base):  # noqa: ANN001, ANN201
-    """Row i of :func:`linearise_kernel`, in two passes over the row: the sample positions, tap weights and
-    inside mask (no gathers, no branches: vectorised) into ``scratch`` (9, W) and ``base`` (2, W) (floor of
-    the position; 0 outside), then the gathers (:func:`tap_sum`) -- of adjacent, unmirrored taps wherever
-    the 4 x 4 block lies inside the image (one test for both axes), of mirrored taps near the border."""
-    h, w = i0.shape
+def row_taps(flow, i, h, w, kernel, scratch, base):  # noqa: ANN001, ANN201
+    """The first pass over row i of a warp by ``flow`` (2, H, W) in an (h, w) image: each pixel's tap weights
+    (x: scratch[0:4], y: scratch[4:8]) and inside mask (scratch[8]: 1 where x + flow stays inside the image,
+    else 0) into ``scratch`` (9, W), the floor of its position into ``base`` (2, W) (0 outside). No gathers,
+    no branches: vectorised. Then :func:`row_block` and :func:`tap_sum` per pixel."""
     right, bottom = np.float32(w - 1), np.float32(h - 1)
     zero = np.float32(0.0)
-    ig = min(np.int64(i), g0.shape[1] - 1)  # g0 is a (2, 1, W) zero row when not ``interpolated``
-    for j in range(w):
+    for j in range(flow.shape[2]):
         mx, my = np.float32(j) + flow[0, i, j], np.float32(i) + flow[1, i, j]
         inside = mx >= 0 and mx <= right and my >= 0 and my <= bottom
         mx = mx if inside else zero  # outside (or NaN): a harmless position, masked below
@@ -129,19 +127,36 @@ def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, ba
         scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j] = wy0, wy1, wy2, wy3
         scratch[8, j] = _ONE if inside else zero
         base[0, j], base[1, j] = xi, yi
+
+
+@njit(inline="always", **_JIT)
+def row_block(scratch, base, j, h, w):  # noqa: ANN001, ANN201
+    """Pixel j's taps from :func:`row_taps`' row scratch: (wx, wy, cols, rows) for :func:`tap_sum` -- adjacent,
+    unmirrored taps wherever the 4 x 4 block lies inside the image (one test for both axes), mirrored ones near
+    the border."""
+    wx = (scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j])
+    wy = (scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j])
+    xi, yi = np.int64(base[0, j]), np.int64(base[1, j])
+    if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:  # interior: one branch for both axes
+        return wx, wy, (xi - 1, xi, xi + 1, xi + 2), (yi - 1, yi, yi + 1, yi + 2)
+    return wx, wy, _tap_indices(xi, w), _tap_indices(yi, h)
+
+
+@njit(**_JIT)
+def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, base):  # noqa: ANN001, ANN201
+    """Row i of :func:`linearise_kernel`, in two passes over the row: :func:`row_taps`, then the gathers
+    (:func:`tap_sum`) of the pixels inside."""
+    h, w = i0.shape
+    zero = np.float32(0.0)
+    ig = min(np.int64(i), g0.shape[1] - 1)  # g0 is a (2, 1, W) zero row when not ``interpolated``
+    row_taps(flow, i, h, w, kernel, scratch, base)
     for j in range(w):
         if scratch[8, j] == zero:  # target outside: no data term
             a[0, i, j] = 0
             a[1, i, j] = 0
             c[i, j] = 0
             continue
-        wx = (scratch[0, j], scratch[1, j], scratch[2, j], scratch[3, j])
-        wy = (scratch[4, j], scratch[5, j], scratch[6, j], scratch[7, j])
-        xi, yi = np.int64(base[0, j]), np.int64(base[1, j])
-        if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:  # interior: one branch for both axes
-            cols, rows = (xi - 1, xi, xi + 1, xi + 2), (yi - 1, yi, yi + 1, yi + 2)
-        else:
-            cols, rows = _tap_indices(xi, w), _tap_indices(yi, h)
+        wx, wy, cols, rows = row_block(scratch, base, j, h, w)
         i1w = tap_sum(src, 0, wx, wy, cols, rows)
         a0 = tap_sum(src, 1, wx, wy, cols, rows)
         a1 = tap_sum(src, 2, wx, wy, cols, rows)
@@ -151,6 +166,28 @@ def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, ba
         a[0, i, j] = a0
         a[1, i, j] = a1
         c[i, j] = i1w - i0[i, j] - a0 * flow[0, i, j] - a1 * flow[1, i, j]
+
+
+@njit(**_JIT)
+def sample_row(coefs, frames, flow, i, kernel, weight, out, slot, keep, scratch, base):  # noqa: ANN001, ANN201
+    """Row i of every channel of frame 1 sampled at x + flow (census.warped_frames): out[:, slot] of out
+    (C, ., W) from the interpolation coefficients ``coefs`` (C, H, W), where x + flow leaves the image the
+    channels of ``frames`` (C, H, W) themselves; keep (W) = ``weight`` inside, 0 outside. ``scratch`` (9, W),
+    ``base`` (2, W): row scratch of :func:`row_taps`. Channel by channel over the row (1-D views: 1.7x faster
+    than the channels inside the pixel loop)."""
+    h, w = coefs.shape[1], coefs.shape[2]
+    zero = np.float32(0.0)
+    row_taps(flow, i, h, w, kernel, scratch, base)
+    for ch in range(coefs.shape[0]):
+        dst, src = out[ch, slot], frames[ch, i]
+        for j in range(w):
+            if scratch[8, j] == zero:
+                dst[j] = src[j]
+            else:
+                wx, wy, cols, rows = row_block(scratch, base, j, h, w)
+                dst[j] = tap_sum(coefs, ch, wx, wy, cols, rows)
+    for j in range(w):
+        keep[j] = weight * scratch[8, j]
 
 
 @njit(parallel=True, **_JIT)

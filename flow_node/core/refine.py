@@ -18,7 +18,6 @@ import numpy as np
 from .backends import Backend
 from .bregman import bregman
 from .census import CENSUS, CensusParams
-from .colour import channel_signature, warped_channels
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS, weight_coefficient, weight_data, weight_quadratic
@@ -86,13 +85,15 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     place. The data term (``cfg.photometric``): grey values (the backend's fused
     warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked; the level's warp source and
     frame 0's gradient are scratch arrays reused from call to call, workspace.py) or census signatures
-    (:func:`census_problem`; with the pyramid's colour channels :func:`colour_problem`). Returns (iterations,
-    Bregman iterations)."""
+    (:func:`census_problem`, on the pyramid's colour channels when it has them, else on the grey frames).
+    Returns (iterations, Bregman iterations)."""
     warps, per_warp = level_schedule(cfg, on_finest)
     params = level_params(cfg, level, per_warp)
     robust = params.spec.data == "l1"
-    if pyr.c0 is not None and pyr.c1 is not None and compares_signatures(cfg.photometric):
-        linearised = colour_problem(pyr.c0[level], pyr.c1[level], cfg, backend, robust)
+    if compares_signatures(cfg.photometric):
+        colour = pyr.c0 is not None and pyr.c1 is not None
+        frames = (pyr.c0[level], pyr.c1[level]) if colour else (pyr.i0[level][None], pyr.i1[level][None])
+        linearised = census_problem(*frames, cfg, backend, robust)
     else:
         linearised = problem_source(cfg)(pyr.i0[level], pyr.i1[level], cfg, backend, robust)
     if pyr.valid(level) is not None:
@@ -161,10 +162,8 @@ def mass_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
 
 
 def problem_source(cfg: FlowConfig) -> Callable[..., Linearisation]:
-    """The per-warp problem of ``cfg``'s data term: census signatures, mass preservation or brightness
-    constancy on grey values (the constraint is checked against the photometric mode in config.py)."""
-    if compares_signatures(cfg.photometric):
-        return census_problem
+    """The per-warp problem of ``cfg``'s grey-value data term: mass preservation or brightness constancy (the
+    constraint is checked against the photometric mode in config.py; census signatures: :func:`census_problem`)."""
     return mass_problem if cfg.constraint == "mass" else grey_problem
 
 
@@ -174,35 +173,19 @@ def level_census(cfg: FlowConfig, width: int) -> CensusParams:
     return replace(CENSUS, eps=cfg.census_coarse_eps) if width < cfg.census_coarse_width else CENSUS
 
 
-def census_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
-    """The census data term (census.py): frame 0's signature once per level; per warp the grey-value
-    linearisation (which carries frame 1 sampled at x + v0: the backend's fused warp is the cheapest way to
-    that sample), the warped frame's signature and the quadratic form around v0."""
-    grey = grey_problem(i0, i1, cfg, backend, robust)
-    params = level_census(cfg, i0.shape[1])
-    f0, g0 = backend.signature(i0, params)
-
-    def around(v0: np.ndarray) -> Problem:
-        lin = grey(v0)
-        return Problem(lin.a, lin.c, q=backend.census_form(i0, i1, f0, g0, lin.a, lin.c, v0, robust, params))
-
-    return around
-
-
-def colour_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool
-                   ) -> Linearisation:
-    """The census data term on colour channels c0, c1 (C, h, w) (colour.py): frame 0's stacked signatures and
-    frame 1's interpolation coefficients once per level; per warp frame 1's channels sampled at x + v0 and the
-    colour form around v0. The form replaces (a, c) in the solve: they are zeros."""
+def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
+    """The census data term (census.py) on the frames' channels c0, c1 (C, h, w): the grey frames (C = 1) or
+    colour channels (colour.py). Once per level frame 0's (stacked) signatures and frame 1's interpolation
+    coefficients; per warp the backend's form around v0 (frame 1 sampled at x + v0, its signatures, the
+    quadratic form: census.census_form). The form replaces (a, c) in the solve: they are zeros."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
     params = level_census(cfg, c0.shape[2])
-    f0, g0 = channel_signature(c0, backend.signature, params)
+    f0, g0 = backend.signature(c0, params)
     h, w = c0.shape[1:]
     a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
 
     def around(v0: np.ndarray) -> Problem:
-        warped, outside = warped_channels(coefs, c1, v0, cfg.warp_kernel, backend.warper.sample)
-        return Problem(a, c, q=backend.colour_form(f0, g0, warped, outside, v0, robust, params))
+        return Problem(a, c, q=backend.census_form(f0, g0, coefs, c1, v0, cfg.warp_kernel, robust, params))
 
     return around
 

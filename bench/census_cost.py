@@ -1,0 +1,163 @@
+"""Where a census call's time goes (issue 25): the census data term against the grey-value term, per stage.
+
+    python -m bench.census_cost                                  # realtime, fastest, quality; 3 rounds
+    python -m bench.census_cost --presets realtime --rounds 5 --out bench/results/census_cost/realtime
+
+Each preset runs with ``photometric`` ``normalise`` (grey values, the default) and ``census`` on the 8
+Middlebury pairs, one thread, warm (one call per pair first); each round runs every pair with both data terms in
+turn (the order alternating per pair and round), and the table gives the median over rounds of each stage's
+time summed over the 8 pairs (ms). A stage's time is *exclusive*: a timed function's time minus that of the
+timed functions it calls (e.g. the census form without the kernels listed beside it). The spans wrap the
+backend's fields and a few module functions (:data:`SPANS`); "other" is the call's time outside every span
+(Python glue, resizes, layout). The wrappers cost ~1 us per call: the totals are a few ms above an untimed call.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from flow_node.core import engine, numba_census, refine
+from flow_node.core.api import FlowEstimator
+from flow_node.core.backends import select_backend
+from flow_node.core.config import FlowConfig
+
+from .common import md_table, run_record, write_result
+from .suite.data import middlebury
+
+PRESETS = ("realtime", "fastest", "quality")
+TERMS = ("normalise", "census")
+# backend fields timed (the backend's own functions, whatever module they live in)
+BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "colour_form", "fuse", "consistent", "gradient",
+                 "sample", "reliability", "census_reliability")
+# (module, function) timed where the engine calls it through that module's global name
+SPANS: tuple[tuple[Any, str], ...] = (
+    (engine, "photometric_stage"), (engine, "initialise"), (engine, "make_pyramid"), (refine, "median_filter"),
+    (engine, "census_reliability"),  # before the census reliability was a backend field (a tree before 83812f1)
+    (refine, "warp_source"), (numba_census, "warped_kernel"), (numba_census, "signature_numba"),
+    (numba_census, "form_kernel"), (numba_census, "census_kernel"))
+
+
+class Spans:
+    """Exclusive time per span name: a stack of the spans running, each one's time minus its children's."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._stack: list[list[Any]] = []  # per open span: [its name, its children's time so far]
+
+    def wrap(self, name: str, fn: Callable[..., Any]) -> Callable[..., Any]:
+        """``fn`` timed as span ``name`` (``parent/name`` inside another span)."""
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            key = f"{self._stack[-1][0]}/{name}" if self._stack else name
+            self._stack.append([name, 0.0])
+            start = time.perf_counter()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                total = time.perf_counter() - start
+                children = self._stack.pop()[1]
+                self.seconds[key] = self.seconds.get(key, 0.0) + total - children
+                if self._stack:
+                    self._stack[-1][1] += total
+        return timed
+
+
+@contextmanager
+def patched(spans: Spans) -> Iterator[None]:
+    """The module functions of :data:`SPANS` wrapped for the block (those a module lacks are skipped)."""
+    saved = [(m, n, getattr(m, n)) for m, n in SPANS if hasattr(m, n)]
+    for m, n, fn in saved:
+        setattr(m, n, spans.wrap(n, fn))
+    try:
+        yield
+    finally:
+        for m, n, fn in saved:
+            setattr(m, n, fn)
+
+
+def timed_estimator(cfg: FlowConfig, spans: Spans) -> FlowEstimator:
+    """An estimator for ``cfg`` whose backend's :data:`BACKEND_SPANS` fields and B-spline prefilter are timed into
+    ``spans``."""
+    backend = select_backend(cfg.backend, cfg.threads, cfg.parallel_min_pixels).resolved()
+    fields = {f: spans.wrap(f, getattr(backend, f)) for f in BACKEND_SPANS if hasattr(backend, f)}
+    warper = backend.warper._replace(prefilter=spans.wrap("prefilter", backend.warper.prefilter))
+    return FlowEstimator(cfg, backend=backend._replace(warper=warper, **fields))
+
+
+def run(presets: list[str], rounds: int) -> dict[str, Any]:
+    """Per preset and data term, per round: {stage: seconds summed over the pairs, 'total': wall seconds}."""
+    samples = middlebury(False)
+    out: dict[str, Any] = {}
+    for preset in presets:
+        spans = {t: Spans() for t in TERMS}
+        ests = {t: timed_estimator(FlowConfig.preset(preset).replace(threads=1, photometric=t), spans[t])
+                for t in TERMS}
+        rows: dict[str, list[dict[str, float]]] = {t: [] for t in TERMS}
+        with patched(spans["normalise"]):  # warm-up: compile or load every kernel, touch the scratch arrays
+            for s in samples:
+                for t in TERMS:
+                    ests[t].estimate(s.f0, s.f1)
+        for r in range(rounds):
+            totals = dict.fromkeys(TERMS, 0.0)
+            for t in TERMS:
+                spans[t].seconds.clear()
+            for k, s in enumerate(samples):
+                for t in (TERMS if (k + r) % 2 == 0 else TERMS[::-1]):
+                    with patched(spans[t]):
+                        start = time.perf_counter()
+                        ests[t].estimate(s.f0, s.f1)
+                        totals[t] += time.perf_counter() - start
+            for t in TERMS:
+                rows[t].append({**spans[t].seconds, "total": totals[t]})
+        out[preset] = rows
+    return out
+
+
+def median_row(rounds: list[dict[str, float]]) -> dict[str, float]:
+    """Per stage the median over rounds (a stage missing from a round counts 0), with 'other' = total minus the
+    stages, per round."""
+    names = sorted({k for r in rounds for k in r})
+    other = [r["total"] - sum(v for k, v in r.items() if k != "total") for r in rounds]
+    row = {k: statistics.median(r.get(k, 0.0) for r in rounds) for k in names}
+    row["other"] = statistics.median(other)
+    return row
+
+
+def markdown(result: dict[str, Any], record: dict[str, Any]) -> str:
+    lines = [f"# Census vs grey values, per stage (`{record['command']}`)", "",
+             f"{record['started']}, load {record['load_average_start']}; ms summed over the 8 Middlebury pairs, "
+             "one thread, median over rounds; exclusive times (bench/census_cost.py).", ""]
+    for preset, rows in result.items():
+        med = {t: median_row(rows[t]) for t in TERMS}
+        stages = sorted({k for t in TERMS for k in med[t]} - {"total", "other"},
+                        key=lambda k: -max(med[t].get(k, 0.0) for t in TERMS)) + ["other", "total"]
+        ratio = statistics.median(c["total"] / g["total"] for g, c in zip(rows["normalise"], rows["census"],
+                                                                           strict=True))
+        fastest = min(r["total"] for r in rows["census"]) / min(r["total"] for r in rows["normalise"])
+        lines += [f"## {preset}: census / grey {ratio:.2f}x (median of the rounds' ratios; of their fastest rounds "
+                  f"{fastest:.2f}x)", ""]
+        lines += md_table(["stage", "grey ms", "census ms", "census share"],
+                          [[k, f"{1e3 * med['normalise'].get(k, 0.0):.1f}", f"{1e3 * med['census'].get(k, 0.0):.1f}",
+                            f"{med['census'].get(k, 0.0) / med['census']['total']:.0%}"] for k in stages], right=True)
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--presets", default=",".join(PRESETS))
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--out", type=Path, default=None, help="result stem (.json and .md); default: print only")
+    args = ap.parse_args(argv)
+    record = run_record("bench.census_cost", argv)
+    result = run(args.presets.split(","), args.rounds)
+    write_result(args.out, {**record, "rounds": result}, markdown(result, record))
+
+
+if __name__ == "__main__":
+    main()
