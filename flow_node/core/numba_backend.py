@@ -170,7 +170,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
-    k = int((nk.iterate_bc if bc else nk.iterate)(
+    kernel = getattr(nk, nk.ITERATE_NAMES[nk.data_code(problem.q is not None, mass, bc)])  # looked up per call
+    k = int(kernel(
         state.v, state.y,
         state.w if state.w is not None else _DUMMY4,
         state.z if state.z is not None else _DUMMY5,
