@@ -1,11 +1,12 @@
 """numba kernels of the primal-dual iteration: one fused dual pass and one fused primal pass per iteration.
 
 The same arithmetic as solver.solve_numpy (the oracle), in the same order, for every model: the model is
-a few integer flags (see :data:`REG_CODES`), so one compiled specialisation serves all five models and
-both TV norms. Each pass streams every array once (grad/div and the prox operators are fused into the
-pixel loop); the iteration loop runs inside compiled code, so there is no per-iteration Python call and
-no allocation. Per-pixel helpers take and return scalars only (no arrays: LLVM inlines them and no
-reference counting happens in the pixel loop); the extra variables of the extended models (w, z) are
+a few integer flags (see :data:`REG_CODES`); the dual pass is compiled per regulariser and the primal pass
+per data term (:func:`_make_passes`), one iteration kernel per data term (:data:`ITERATE_NAMES`). Each
+pass streams every array once (grad/div and the prox operators are fused into the pixel loop); the
+iteration loop runs inside compiled code, so there is no per-iteration Python call and no allocation.
+Per-pixel helpers take and return scalars only (no arrays: LLVM inlines them and no reference counting
+happens in the pixel loop); the extra variables of the extended models (w, z) are
 updated in their own row loops, so the model flags branch outside the loops that matter.
 
 Array layout (models.py): v (2, H, W), y (2, 2, H, W) [dir, comp], w (2, 2, H, W), z (2, 2, 2, H, W)
