@@ -352,3 +352,23 @@ def test_fallback_when_numba_is_missing(monkeypatch: pytest.MonkeyPatch) -> None
     with pytest.raises(ConfigError, match="numba"):
         select_backend("numba")
     assert FlowEstimator(FlowConfig(backend="auto")).backend == "numpy"
+
+
+def test_solver_runs_the_kernel_of_its_data_term(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The iteration kernels are compiled per data term (numba_kernels.ITERATE_NAMES; the pixel loop carries
+    that term's code only): solve_numba picks the plain one for rho = a . v + c and the quadratic one for a
+    census form, and nothing else."""
+    assert [numba_backend.nk.data_code(q, m, bc) for q, m, bc in
+            ((False, False, False), (True, False, False), (False, True, False), (False, True, True))] == [0, 1, 2, 3]
+    seen: list[str] = []
+    for name in numba_backend.nk.ITERATE_NAMES:
+        kernel = getattr(numba_backend.nk, name)
+        monkeypatch.setattr(numba_backend.nk, name,
+                            lambda *args, _k=kernel, _n=name: seen.append(_n) or _k(*args))
+    prob, st0 = random_case("l1_tv", False, seed=4)
+    params = SolveParams(MODEL_SPECS["l1_tv"], 0.05, 0.3, "isotropic", 5, 0.0)
+    solve_numba(prob, copy_state(st0), params)
+    q = np.zeros((5, H, W), np.float32)
+    q[0] = q[2] = 1.0  # an identity form: T = I, g = 0
+    solve_numba(Problem(prob.a, prob.c, q=q), copy_state(st0), params)
+    assert seen == ["iterate", "iterate_quad"]

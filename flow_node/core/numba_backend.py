@@ -19,8 +19,10 @@ Importing this module raises ImportError when numba is not installed; backends.p
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Iterator
 from contextlib import AbstractContextManager, contextmanager
+from functools import lru_cache
 
 import cv2
 import numba
@@ -124,15 +126,42 @@ def zero_rows(width: int, volume: bool = False) -> dict[str, np.ndarray]:
     :data:`ZERO_ROWS`; ``volume``: the volume kernels', :data:`VOLUME_ZERO_ROWS`). The kernels clamp their
     row index into these (numba_kernels.py: a flag's branch in a pixel loop becomes masked loads, and a
     masked lane on an untouched page costs a microcode assist per vector step). Views of one of the calling
-    thread's scratch arrays, zeroed on every call (~11 W floats; volumes 39 X)."""
-    shapes = {name: shape(width) for name, shape in (VOLUME_ZERO_ROWS if volume else ZERO_ROWS).items()}
-    sizes = {name: math.prod(shape) for name, shape in shapes.items()}  # math.prod: np.prod of a tuple costs ~3 us
-    flat = scratch("numba.volume_rows" if volume else "numba.zero_rows", (sum(sizes.values()),))
+    thread's scratch arrays, zeroed on every call (~11 W floats; volumes 39 X); the views are made once per
+    array (:func:`_row_views`: cutting the array into them cost ~4 of the ~5 us a call took, six calls a
+    stream frame)."""
+    key = "numba.volume_rows" if volume else "numba.zero_rows"
+    flat = scratch(key, (_row_floats(width, volume),))
     flat.fill(0.0)
+    return _row_views(flat, width, volume)
+
+
+@lru_cache(maxsize=64)
+def _row_floats(width: int, volume: bool) -> int:
+    """The floats of :func:`zero_rows`' array for ``width``."""
+    return sum(math.prod(shape(width)) for shape in (VOLUME_ZERO_ROWS if volume else ZERO_ROWS).values())
+
+
+_views = threading.local()  # per thread, as the scratch arrays: {(id(flat), width, volume): (flat, views)}
+
+
+def _row_views(flat: np.ndarray, width: int, volume: bool) -> dict[str, np.ndarray]:
+    """The named views of :func:`zero_rows`' array ``flat`` (shapes :data:`ZERO_ROWS` or
+    :data:`VOLUME_ZERO_ROWS` for ``width``), cut once per array and kept for the calling thread (each entry
+    holds its array, so an id is never reused while its entry lives; a few entries per frame size)."""
+    cache = getattr(_views, "cache", None)
+    if cache is None:
+        cache = _views.cache = {}
+    hit = cache.get((id(flat), width, volume))
+    if hit is not None:
+        return hit[1]
+    if len(cache) >= 64:
+        cache.clear()
     out, start = {}, 0
-    for name, shape in shapes.items():
-        out[name] = flat[start:start + sizes[name]].reshape(shape)
-        start += sizes[name]
+    for name, shape in (VOLUME_ZERO_ROWS if volume else ZERO_ROWS).items():
+        size = math.prod(shape(width))  # math.prod: np.prod of a tuple costs ~3 us
+        out[name] = flat[start:start + size].reshape(shape(width))
+        start += size
+    cache[(id(flat), width, volume)] = (flat, out)
     return out
 
 
@@ -170,7 +199,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
     np.copyto(v_bar, state.v)
     if state.w is not None:
         np.copyto(w_bar, state.w)
-    k = int((nk.iterate_bc if bc else nk.iterate)(
+    kernel = getattr(nk, nk.ITERATE_NAMES[nk.data_code(problem.q is not None, mass, bc)])  # looked up per call
+    k = int(kernel(
         state.v, state.y,
         state.w if state.w is not None else _DUMMY4,
         state.z if state.z is not None else _DUMMY5,

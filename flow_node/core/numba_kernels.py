@@ -1,11 +1,12 @@
 """numba kernels of the primal-dual iteration: one fused dual pass and one fused primal pass per iteration.
 
 The same arithmetic as solver.solve_numpy (the oracle), in the same order, for every model: the model is
-a few integer flags (see :data:`REG_CODES`), so one compiled specialisation serves all five models and
-both TV norms. Each pass streams every array once (grad/div and the prox operators are fused into the
-pixel loop); the iteration loop runs inside compiled code, so there is no per-iteration Python call and
-no allocation. Per-pixel helpers take and return scalars only (no arrays: LLVM inlines them and no
-reference counting happens in the pixel loop); the extra variables of the extended models (w, z) are
+a few integer flags (see :data:`REG_CODES`); the dual pass is compiled per regulariser and the primal pass
+per data term (:func:`_make_passes`), one iteration kernel per data term (:data:`ITERATE_NAMES`). Each
+pass streams every array once (grad/div and the prox operators are fused into the pixel loop); the
+iteration loop runs inside compiled code, so there is no per-iteration Python call and no allocation.
+Per-pixel helpers take and return scalars only (no arrays: LLVM inlines them and no reference counting
+happens in the pixel loop); the extra variables of the extended models (w, z) are
 updated in their own row loops, so the model flags branch outside the loops that matter.
 
 Array layout (models.py): v (2, H, W), y (2, 2, H, W) [dir, comp], w (2, 2, H, W), z (2, 2, 2, H, W)
@@ -201,17 +202,34 @@ def w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg):  # noqa: ANN001, ANN20
                     w[d, cc, i, j] = wt
 
 
-def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
-    """Compile the two passes with prange parallel over rows, or serial (prange runs as range); ``bc``: only
-    the primal pass, with the mass model's brightness term (a compile-time constant, so the passes without it do
-    not carry its code: in the loop it kept the brightness path's pixel loop from being vectorised, +35 % per
-    stream frame at 320x240).
+# The data terms the primal pass is compiled for (compile-time constants of its pixel loop, :func:`_make_passes`):
+# rho = a . v + c pointwise; a quadratic form (census); mass preservation (dualised); mass with the brightness term
+PLAIN, QUAD, MASS, BC = 0, 1, 2, 3
+DATA_NAMES = ("plain", "quad", "mass", "bc")
+
+
+def data_code(quad: bool, mass: bool, bc: bool) -> int:
+    """The data-term variant (:data:`PLAIN` ... :data:`BC`) of a problem with these flags."""
+    return BC if bc else MASS if mass else QUAD if quad else PLAIN
+
+
+def _make_passes(parallel: bool, data: int | None = None, regulariser: int = 0):  # noqa: ANN202
+    """Compile one pass with prange parallel over rows, or serial (prange runs as range): with ``data`` None the
+    dual pass for the ``regulariser`` (a :data:`REG_CODES` value; its data-term work, the mass dual, is a per-row
+    branch); else the primal pass for that data term (:data:`PLAIN` ... :data:`BC`). Either is a compile-time
+    constant, so the pixel loop carries that regulariser's or data term's code only: with them as run-time
+    flags LLVM if-converts the loop and every pixel computes every variant's step, with masked loads of the
+    absent arrays (10 iterations of the plain term with TV at 160x120: 463 -> 362 us, bit for bit the same
+    values; earlier the brightness term in the loop kept it from being vectorised, +35 % per stream frame at
+    320x240).
 
     Distinct function names keep the on-disk cache entries of the variants apart."""
+    bc = data == BC
 
     def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1):  # noqa: ANN001, ANN202
         """One dual step over the whole image, in place on y (and z, and with ``mass`` the data dual p)."""
         h, wd = v_bar.shape[1], v_bar.shape[2]
+        reg = regulariser  # the argument agrees with this variant's constant
         ext = reg >= 2
         l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
         for i in prange(h):
@@ -256,8 +274,10 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
         (with ``mass``): then the prox of lam D on the brightness term ab . v + cb in the metric tv
         (:func:`prox_data_metric`)."""
         h, wd = v.shape[1], v.shape[2]
-        if bc:  # the term exists only with mass: a constant here, so the pixel loop keeps the mass path alone
-            mass = True
+        # the data term is a constant of this variant (the arguments ``quad`` and ``mass`` agree with it), so
+        # the pixel loop keeps its path alone
+        mass = data == MASS or data == BC
+        quad = data == QUAD
         total = 0.0
         last = a.shape[0] - 1  # the quadratic term's planes 2-4 (a is (2, H, W) without it: read plane 1 instead)
         k2, k3, k4 = min(2, last), min(3, last), min(4, last)
@@ -317,24 +337,28 @@ def _make_passes(parallel: bool, bc: bool):  # noqa: ANN202
             total += acc
         return total
 
-    suffix = ("par" if parallel else "ser") + ("_bc" if bc else "")
-    out = []
-    for fn in (primal_pass,) if bc else (dual_pass, primal_pass):  # the dual pass has no brightness term
-        fn.__name__ = fn.__qualname__ = f"{fn.__name__}_{suffix}"
-        out.append(njit(parallel=parallel, **_JIT)(fn))
-    return tuple(out)
+    fn = dual_pass if data is None else primal_pass
+    variant = REG_NAMES[regulariser] if data is None else DATA_NAMES[data]
+    fn.__name__ = fn.__qualname__ = f"{fn.__name__}_{'par' if parallel else 'ser'}_{variant}"
+    return njit(parallel=parallel, **_JIT)(fn)
 
 
-dual_pass_par, primal_pass_par = _make_passes(True, False)
-dual_pass_ser, primal_pass_ser = _make_passes(False, False)
-(primal_pass_par_bc,) = _make_passes(True, True)
-(primal_pass_ser_bc,) = _make_passes(False, True)
+REG_NAMES = tuple(REG_CODES)  # by code
+dual_pass_par_l2, dual_pass_ser_l2 = _make_passes(True, None, 0), _make_passes(False, None, 0)
+dual_pass_par_tv, dual_pass_ser_tv = _make_passes(True, None, 1), _make_passes(False, None, 1)
+dual_pass_par_tv_l2, dual_pass_ser_tv_l2 = _make_passes(True, None, 2), _make_passes(False, None, 2)
+dual_pass_par_tv_tv, dual_pass_ser_tv_tv = _make_passes(True, None, 3), _make_passes(False, None, 3)
+primal_pass_par_plain, primal_pass_ser_plain = _make_passes(True, PLAIN), _make_passes(False, PLAIN)
+primal_pass_par_quad, primal_pass_ser_quad = _make_passes(True, QUAD), _make_passes(False, QUAD)
+primal_pass_par_mass, primal_pass_ser_mass = _make_passes(True, MASS), _make_passes(False, MASS)
+primal_pass_par_bc, primal_pass_ser_bc = _make_passes(True, BC), _make_passes(False, BC)
 
 
-def _make_iterate(bc: bool):  # noqa: ANN202
-    """The iteration driver over the passes without (``bc`` False: :data:`iterate`) or with the mass model's
-    brightness term (:data:`iterate_bc`; a mass problem with ``ab``, ``cb``); one source, two kernels. ``bc`` is
-    a constant of the closure: numba prunes the other branch before typing, so each kernel links only its own
+def _make_iterate(data: int):  # noqa: ANN202
+    """The iteration driver over the primal passes of one data term (``data``, :data:`PLAIN` ... :data:`BC`):
+    :data:`iterate` (rho = a . v + c), :data:`iterate_quad`, :data:`iterate_mass` and :data:`iterate_bc` (mass
+    with the brightness term ``ab``, ``cb``); one source, four kernels (:data:`ITERATE_NAMES` by code). ``data`` is a
+    constant of the closure: numba prunes the other branches before typing, so each kernel links only its own
     primal passes (and the kernels reference the passes as module globals, which numba's cache can key)."""
 
     def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN202
@@ -357,19 +381,26 @@ def _make_iterate(bc: bool):  # noqa: ANN202
         for k in range(1, iterations + 1):
             measure = tolerance > 0.0 and k % check_every == 0
             tail = (measure, ab, cb, lam)
+            # the regulariser's dual pass and the data term's primal pass (branches per pass, not per pixel)
             if parallel:
-                dual_pass_par(*dual)
-                ss = primal_pass_par_bc(*head, *tail) if bc else primal_pass_par(*head, *tail)
+                _ = (dual_pass_par_l2(*dual) if reg == 0 else dual_pass_par_tv(*dual) if reg == 1
+                     else dual_pass_par_tv_l2(*dual) if reg == 2 else dual_pass_par_tv_tv(*dual))
+                ss = (primal_pass_par_plain(*head, *tail) if data == PLAIN else primal_pass_par_quad(*head, *tail)
+                      if data == QUAD else primal_pass_par_mass(*head, *tail) if data == MASS
+                      else primal_pass_par_bc(*head, *tail))
             else:
-                dual_pass_ser(*dual)
-                ss = primal_pass_ser_bc(*head, *tail) if bc else primal_pass_ser(*head, *tail)
+                _ = (dual_pass_ser_l2(*dual) if reg == 0 else dual_pass_ser_tv(*dual) if reg == 1
+                     else dual_pass_ser_tv_l2(*dual) if reg == 2 else dual_pass_ser_tv_tv(*dual))
+                ss = (primal_pass_ser_plain(*head, *tail) if data == PLAIN else primal_pass_ser_quad(*head, *tail)
+                      if data == QUAD else primal_pass_ser_mass(*head, *tail) if data == MASS
+                      else primal_pass_ser_bc(*head, *tail))
             if measure and math.sqrt(ss / n) < tolerance:
                 break
         return k
 
-    iterate.__name__ = iterate.__qualname__ = "iterate_bc" if bc else "iterate"
+    iterate.__name__ = iterate.__qualname__ = "iterate" if data == PLAIN else "iterate_" + DATA_NAMES[data]
     return njit(**_JIT)(iterate)
 
 
-iterate = _make_iterate(False)
-iterate_bc = _make_iterate(True)
+iterate, iterate_quad, iterate_mass, iterate_bc = (_make_iterate(d) for d in (PLAIN, QUAD, MASS, BC))
+ITERATE_NAMES = ("iterate", "iterate_quad", "iterate_mass", "iterate_bc")  # by data code: this module's kernels
