@@ -22,7 +22,7 @@ def flo_parts(flow: np.ndarray) -> tuple[bytes, memoryview]:
         raise InputError(f"flow must be (H, W, 2), got {flow.shape}")
     h, w = flow.shape[:2]
     header = np.array([FLO_MAGIC], "<f4").tobytes() + np.array([w, h], "<i4").tobytes()
-    return header, memoryview(np.ascontiguousarray(flow, dtype="<f4")).cast("B")
+    return header, memoryview(np.ascontiguousarray(flow, dtype="<f4").reshape(-1).view(np.uint8))
 
 
 def flo_bytes(flow: np.ndarray) -> bytes:
