@@ -5,6 +5,7 @@ decides for itself (it can call these too)."""
 from __future__ import annotations
 
 import ctypes
+import gc
 import os
 
 from . import numba_patch
@@ -31,6 +32,17 @@ def defer_kernel_bitcode() -> bool:
     fresh process's first flow reads its 3-8 kernels in ~1/3 of the time. Only on the numba versions it was
     checked against (else numba's own read stays); returns whether it applies. Call before the first flow."""
     return numba_patch.install()
+
+
+def skip_final_collection() -> None:
+    """Let the interpreter's exit skip the garbage collection of every object alive now (``gc.freeze()``):
+    call it once an executable's work is done. At exit Python clears its modules and then collects the
+    cycles left, which with numba loaded (its typing registries, the kernels' libraries) is a traversal of
+    some million objects: 0.1-0.2 s of a fresh ``flow_estimate`` on a 2-core VM, longer than a ``realtime``
+    flow (docs/engine.md, "Compiled kernels"). Nothing else changes: atexit handlers run, objects without
+    cycles are still freed by their reference counts (open files closed and flushed), and objects created
+    later are collected as usual; only the frozen objects' cycles are left to the OS with the process."""
+    gc.freeze()
 
 
 def keep_freed_environ(limit_bytes: int = KEEP_LIMIT) -> dict[str, str]:

@@ -193,6 +193,23 @@ def test_flo_round_trip_and_bad_files(tmp_path: Path) -> None:
         read_flo(tmp_path / "junk.flo")
 
 
+def test_flo_parts_write_the_flow_itself_and_the_same_bytes(tmp_path: Path) -> None:
+    """flowio.flo_parts: the .flo's data part is a view of a float32 C-contiguous flow (flow_estimate writes it
+    without a copy), a converted copy of any other; joined, the bytes of the file write_flo writes."""
+    from flow_node.core.flowio import flo_bytes, flo_parts
+
+    flow = np.random.default_rng(1).standard_normal((5, 6, 2)).astype(np.float32)
+    header, data = flo_parts(flow)
+    assert np.shares_memory(np.frombuffer(data, np.float32), flow)
+    write_flo(tmp_path / "f.flo", flow)
+    assert header + bytes(data) == flo_bytes(flow) == (tmp_path / "f.flo").read_bytes()
+    for other in (flow.astype(np.float64), flow.astype(">f4"), flow[:, ::-1]):
+        header2, data2 = flo_parts(other)
+        assert not np.shares_memory(np.frombuffer(data2, np.uint8), other)
+        assert np.array_equal(np.frombuffer(data2, "<f4").reshape(other.shape), other.astype(np.float32))
+        assert header2 == header
+
+
 def test_colour_coding_uses_the_middlebury_wheel_with_fixed_scale() -> None:
     flow = np.zeros((1, 4, 2), np.float32)
     flow[0, 0] = (1, 0)  # right: red
@@ -223,6 +240,26 @@ def test_cli_writes_flo_and_colour(tmp_path: Path) -> None:
     assert rc == 0
     assert aee(interior(read_flo(out)), interior(gt)) < 0.05
     assert cv2.imread(str(col)).shape == (48, 64, 3)
+
+
+def test_the_executable_skips_the_final_collection_after_writing(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """flow_estimate run as the program (main() reading sys.argv) ends by process.skip_final_collection, after
+    its outputs are written (on success and on a failure); a call with an argument list (tests, an embedding
+    program) does not."""
+    from flow_node.cli import estimate
+
+    p0, p1, _ = _write_pair(tmp_path)
+    out = tmp_path / "out.flo"
+    seen: list[bool] = []
+    monkeypatch.setattr(estimate, "skip_final_collection", lambda: seen.append(out.exists()))
+    argv = [str(p0), str(p1), "--output", str(out), *small_frames.CLI_ARGS]
+    assert estimate.main(argv) == 0 and seen == []
+    out.unlink()
+    monkeypatch.setattr(sys, "argv", ["flow_estimate", *argv])
+    assert estimate.main() == 0 and seen == [True]
+    monkeypatch.setattr(sys, "argv", ["flow_estimate", str(p0), str(tmp_path / "nope.png"), "-o", str(out)])
+    assert estimate.main() == 1 and len(seen) == 2
 
 
 def test_cli_errors_are_one_line_and_nonzero(tmp_path: Path) -> None:

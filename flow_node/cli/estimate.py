@@ -27,10 +27,10 @@ from ..core import FlowError, FlowEstimator, flow_to_color
 from ..core.api import to_grey, to_planes
 from ..core.config import MODELS
 from ..core.errors import ConfigError, FileFormatError, one_line, short_path
-from ..core.flowio import flo_bytes
+from ..core.flowio import flo_parts
 from ..core.volume import VOLUME_CONFIG, estimate_volume, is_volume
 from ..pipeline.codec import decode_bytes
-from ..process import defer_kernel_bitcode, keep_freed_memory, passive_thread_waits
+from ..process import defer_kernel_bitcode, keep_freed_memory, passive_thread_waits, skip_final_collection
 from .common import (
     OneLineParser,
     add_config_options,
@@ -176,23 +176,24 @@ def _encode_color(path: str, bgr: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def flow_bytes(flow: np.ndarray, path: str) -> bytes:
-    """The flow encoded for ``path``: a ``.npy`` array (any flow), else a ``.flo`` (images only)."""
+def flow_parts(flow: np.ndarray, path: str) -> tuple[bytes | memoryview, ...]:
+    """The flow encoded for ``path``, as the parts of the file in order: a ``.npy`` array (any flow), else a
+    ``.flo`` (images only; its data part a view of ``flow``, flowio.flo_parts: not copied)."""
     if Path(path).suffix.lower() == ".npy":
         buf = io.BytesIO()
         np.save(buf, np.ascontiguousarray(flow, dtype=np.float32), allow_pickle=False)
-        return buf.getvalue()
+        return (buf.getvalue(),)
     if flow.ndim != 3 or flow.shape[2] != 2:
         raise FileFormatError(f"cannot write {short_path(path)}: a volume's flow is written as .npy")
-    return flo_bytes(flow)
+    return flo_parts(flow)
 
 
 def write_outputs(flow: np.ndarray, output: str, color: str | None, max_flow: float) -> None:
     """Write the .flo and (if asked) the colour image, all or nothing: both are encoded in memory, written
     to temporary siblings, and renamed onto their targets only once every write succeeded."""
-    files = [(output, flow_bytes(flow, output))]
+    files = [(output, flow_parts(flow, output))]
     if color:
-        files.append((color, _encode_color(color, flow_to_color(flow, max_flow, bgr=True))))
+        files.append((color, (_encode_color(color, flow_to_color(flow, max_flow, bgr=True)),)))
     staged: list[tuple[Path, str, str]] = []
     current = output
     try:
@@ -204,7 +205,8 @@ def write_outputs(flow: np.ndarray, output: str, color: str | None, max_flow: fl
             if tmp is not None:
                 staged.append((tmp, real, current))
             with open(tmp if tmp is not None else current, "wb") as fh:
-                fh.write(data)
+                for part in data:
+                    fh.write(part)
         for tmp, real, name in staged:
             current = name  # for the error message
             os.replace(tmp, real)
@@ -217,13 +219,20 @@ def write_outputs(flow: np.ndarray, output: str, color: str | None, max_flow: fl
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The executable: ``argv`` None reads the command line and ends with the process (its final garbage
+    collection skipped once the outputs are written: process.skip_final_collection); a list is a call from
+    Python (tests, a program embedding the CLI), which leaves the process as it was besides the settings."""
     args = build_parser().parse_args(argv)
     keep_freed_memory()
     passive_thread_waits()
     defer_kernel_bitcode()
     silence_opencv_log()
-    with native_stderr_silenced():
-        return _run(args)
+    try:
+        with native_stderr_silenced():
+            return _run(args)
+    finally:
+        if argv is None:  # the process ends with this call: exit without collecting numba's object graph
+            skip_final_collection()
 
 
 def _run(args: argparse.Namespace) -> int:

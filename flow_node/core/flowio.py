@@ -13,14 +13,21 @@ from .errors import FileFormatError, InputError
 FLO_MAGIC = 202021.25
 
 
-def flo_bytes(flow: np.ndarray) -> bytes:
-    """(H, W, 2) flow as the bytes of a Middlebury .flo: float32 magic, int32 width, height, then u, v
-    interleaved (little-endian float32)."""
+def flo_parts(flow: np.ndarray) -> tuple[bytes, memoryview]:
+    """(H, W, 2) flow as the two parts of a Middlebury .flo, to be written one after the other: the 12-byte
+    header (float32 magic, int32 width, height) and the u, v interleaved little-endian float32 data, a view
+    of ``flow`` itself when it is such an array, C-contiguous (else of a converted copy). Writing the view
+    saves the copy (3.6 MB for a KITTI frame's flow, and the fresh pages it faults in)."""
     if flow.ndim != 3 or flow.shape[2] != 2:
         raise InputError(f"flow must be (H, W, 2), got {flow.shape}")
     h, w = flow.shape[:2]
-    return (np.array([FLO_MAGIC], "<f4").tobytes() + np.array([w, h], "<i4").tobytes()
-            + flow.astype("<f4", copy=False).tobytes())
+    header = np.array([FLO_MAGIC], "<f4").tobytes() + np.array([w, h], "<i4").tobytes()
+    return header, memoryview(np.ascontiguousarray(flow, dtype="<f4").reshape(-1).view(np.uint8))
+
+
+def flo_bytes(flow: np.ndarray) -> bytes:
+    """(H, W, 2) flow as the bytes of a Middlebury .flo (:func:`flo_parts` joined: one copy of the data)."""
+    return b"".join(flo_parts(flow))
 
 
 def write_flo(path: str | Path, flow: np.ndarray) -> None:
