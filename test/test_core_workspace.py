@@ -57,3 +57,16 @@ def test_a_frame_of_a_15_level_preset_fits_in_the_pool() -> None:
     est.estimate(i1, i0)
     after = workspace.pooled()
     assert after.keys() == before.keys() and all(after[k] is before[k] for k in before)
+
+
+def test_scratch_parts_cuts_one_array_into_named_views_once() -> None:
+    parts = (("a", (2, 3)), ("b", (4,)))
+    flat, views = workspace.scratch_parts("test.parts", parts)
+    assert flat.shape == (10,) and flat.dtype == np.float32
+    assert views["a"].shape == (2, 3) and views["b"].shape == (4,)
+    flat[:] = np.arange(10)
+    assert views["a"].ravel().tolist() == list(range(6)) and views["b"].tolist() == [6, 7, 8, 9]
+    again, views2 = workspace.scratch_parts("test.parts", parts)
+    assert again is flat and views2 is views  # the same views, not cut again
+    other, views3 = workspace.scratch_parts("test.parts", (("a", (5,)),))
+    assert other is not flat and views3["a"].base is other

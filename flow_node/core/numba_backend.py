@@ -18,8 +18,6 @@ Importing this module raises ImportError when numba is not installed; backends.p
 
 from __future__ import annotations
 
-import math
-import threading
 from collections.abc import Iterator
 from contextlib import AbstractContextManager, contextmanager
 from functools import lru_cache
@@ -35,7 +33,7 @@ from .operators import image_gradient
 from .photometric import RESIDUAL_OUTLIER, reliability_stride
 from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams, shift_slow_modes
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
-from .workspace import scratch
+from .workspace import scratch, scratch_parts
 
 _F32 = np.float32
 # The defaults of the parallel thresholds (a FlowConfig's parallel_min_pixels > 0 replaces both for its estimator:
@@ -127,42 +125,18 @@ def zero_rows(width: int, volume: bool = False) -> dict[str, np.ndarray]:
     row index into these (numba_kernels.py: a flag's branch in a pixel loop becomes masked loads, and a
     masked lane on an untouched page costs a microcode assist per vector step). Views of one of the calling
     thread's scratch arrays, zeroed on every call (~11 W floats; volumes 39 X); the views are made once per
-    array (:func:`_row_views`: cutting the array into them cost ~4 of the ~5 us a call took, six calls a
+    array (workspace.scratch_parts: cutting the array into them cost ~4 of the ~5 us a call took, six calls a
     stream frame)."""
-    key = "numba.volume_rows" if volume else "numba.zero_rows"
-    flat = scratch(key, (_row_floats(width, volume),))
+    flat, rows = scratch_parts("numba.volume_rows" if volume else "numba.zero_rows", _row_shapes(width, volume))
     flat.fill(0.0)
-    return _row_views(flat, width, volume)
+    return rows
 
 
 @lru_cache(maxsize=64)
-def _row_floats(width: int, volume: bool) -> int:
-    """The floats of :func:`zero_rows`' array for ``width``."""
-    return sum(math.prod(shape(width)) for shape in (VOLUME_ZERO_ROWS if volume else ZERO_ROWS).values())
-
-
-_views = threading.local()  # per thread, as the scratch arrays: {(id(flat), width, volume): (flat, views)}
-
-
-def _row_views(flat: np.ndarray, width: int, volume: bool) -> dict[str, np.ndarray]:
-    """The named views of :func:`zero_rows`' array ``flat`` (shapes :data:`ZERO_ROWS` or
-    :data:`VOLUME_ZERO_ROWS` for ``width``), cut once per array and kept for the calling thread (each entry
-    holds its array, so an id is never reused while its entry lives; a few entries per frame size)."""
-    cache = getattr(_views, "cache", None)
-    if cache is None:
-        cache = _views.cache = {}
-    hit = cache.get((id(flat), width, volume))
-    if hit is not None:
-        return hit[1]
-    if len(cache) >= 64:
-        cache.clear()
-    out, start = {}, 0
-    for name, shape in (VOLUME_ZERO_ROWS if volume else ZERO_ROWS).items():
-        size = math.prod(shape(width))  # math.prod: np.prod of a tuple costs ~3 us
-        out[name] = flat[start:start + size].reshape(shape(width))
-        start += size
-    cache[(id(flat), width, volume)] = (flat, out)
-    return out
+def _row_shapes(width: int, volume: bool) -> tuple[tuple[str, tuple[int, ...]], ...]:
+    """The (name, shape) of each of :func:`zero_rows`' rows for ``width`` (:data:`ZERO_ROWS` or
+    :data:`VOLUME_ZERO_ROWS`)."""
+    return tuple((name, shape(width)) for name, shape in (VOLUME_ZERO_ROWS if volume else ZERO_ROWS).items())
 
 
 def row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:

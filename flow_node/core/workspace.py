@@ -20,6 +20,7 @@ as an ``out=`` that aliases an input.
 
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
@@ -43,6 +44,33 @@ def scratch(name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.n
         buf = np.empty(key[1], key[2])
     pool[key] = buf
     return buf
+
+
+Parts = tuple[tuple[str, tuple[int, ...]], ...]  # (name, shape) of each view, in order
+
+
+def scratch_parts(name: str, parts: Parts) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The calling thread's float32 scratch array ``name`` (1-D, as long as the ``parts`` together) and its
+    named C-contiguous views of the shapes in ``parts`` ((name, shape) pairs, in order). The views are cut once
+    per array and kept beside the pool for this thread, so a caller on a hot path pays one :func:`scratch`
+    request, not a reshape per part; they are those of the array the pool returns now (a dropped and
+    re-allocated array gets new ones)."""
+    views = getattr(_local, "views", None)
+    if views is None:
+        views = _local.views = {}
+    hit = views.get((name, parts))
+    flat = scratch(name, hit[0].shape if hit is not None else (sum(math.prod(shape) for _, shape in parts),))
+    if hit is not None and hit[0] is flat:
+        return flat, hit[1]
+    if len(views) >= MAX_ENTRIES:
+        views.clear()
+    out, start = {}, 0
+    for part, shape in parts:
+        size = math.prod(shape)
+        out[part] = flat[start:start + size].reshape(shape)
+        start += size
+    views[(name, parts)] = (flat, out)
+    return flat, out
 
 
 PoolKey = tuple[str, tuple[int, ...], np.dtype]
