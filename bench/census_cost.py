@@ -33,14 +33,13 @@ from .suite.data import middlebury
 PRESETS = ("realtime", "fastest", "quality")
 TERMS = ("normalise", "census")
 # backend fields timed (the backend's own functions, whatever module they live in)
-BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "colour_form", "fuse", "consistent", "gradient",
-                 "sample", "reliability", "census_reliability")
-# (module, function) timed where the engine calls it through that module's global name
+BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "fuse", "consistent", "gradient", "sample",
+                 "reliability", "census_reliability")
+# (module, function) timed where the engine calls it through that module's global name (the tree before the
+# fused census kernel had more: `git show 9fd09d8:bench/census_cost.py`, which made `before.md`)
 SPANS: tuple[tuple[Any, str], ...] = (
     (engine, "photometric_stage"), (engine, "initialise"), (engine, "make_pyramid"), (refine, "median_filter"),
-    (engine, "census_reliability"),  # before the census reliability was a backend field (a tree before 83812f1)
-    (refine, "warp_source"), (numba_census, "warped_kernel"), (numba_census, "signature_numba"),
-    (numba_census, "form_kernel"), (numba_census, "census_kernel"))
+    (refine, "warp_source"), (numba_census, "signature_numba"), (numba_census, "census_kernel"))
 
 
 class Spans:
@@ -69,8 +68,8 @@ class Spans:
 
 @contextmanager
 def patched(spans: Spans) -> Iterator[None]:
-    """The module functions of :data:`SPANS` wrapped for the block (those a module lacks are skipped)."""
-    saved = [(m, n, getattr(m, n)) for m, n in SPANS if hasattr(m, n)]
+    """The module functions of :data:`SPANS` wrapped for the block."""
+    saved = [(m, n, getattr(m, n)) for m, n in SPANS]
     for m, n, fn in saved:
         setattr(m, n, spans.wrap(n, fn))
     try:
@@ -84,7 +83,7 @@ def timed_estimator(cfg: FlowConfig, spans: Spans) -> FlowEstimator:
     """An estimator for ``cfg`` whose backend's :data:`BACKEND_SPANS` fields and B-spline prefilter are timed into
     ``spans``."""
     backend = select_backend(cfg.backend, cfg.threads, cfg.parallel_min_pixels).resolved()
-    fields = {f: spans.wrap(f, getattr(backend, f)) for f in BACKEND_SPANS if hasattr(backend, f)}
+    fields = {f: spans.wrap(f, getattr(backend, f)) for f in BACKEND_SPANS}
     warper = backend.warper._replace(prefilter=spans.wrap("prefilter", backend.warper.prefilter))
     return FlowEstimator(cfg, backend=backend._replace(warper=warper, **fields))
 
