@@ -31,6 +31,7 @@ from flow_node.core.config import FlowConfig
 from flow_node.pipeline.derived import MOTION_TOPICS, Fits, MotionAnalysis, fits_for
 
 from .common import REPO, run_record, write_json
+from .suite.synthetic import quantise
 
 OUT = REPO / "bench" / "results" / "motion"
 OUTPUTS = ("dominant", "divergence", "ttc", "foe", "moving_mask")
@@ -38,19 +39,16 @@ SHARES = (0.0, 0.1, 0.2, 0.3)  # objects' share of the frame, cycled over the pa
 NEEDS_CONFIDENCE = (*(t for t in MOTION_TOPICS if t != "motion/divergence"), "all")
 
 
-def quantise8(img: np.ndarray, noise: float, seed: int) -> np.ndarray:
-    """Float grey [0, 1] -> uint8 (a camera's 8 bit), after Gaussian noise of ``noise`` grey levels."""
-    if noise > 0.0:
-        img = img + np.random.default_rng([seed, 7]).normal(0.0, noise / 255.0, img.shape)
-    return np.rint(np.clip(img, 0.0, 1.0) * 255.0).astype(np.uint8)
-
-
 def rendered(kind: str, size: tuple[int, int], seed: int, share: float, noise: float = 0.0, **kw: Any
              ) -> tuple[Scene, MotionTruth, np.ndarray, np.ndarray]:
-    """One scene of ``kind`` (motion_scene's keywords ``kw``), its truth and its two uint8 frames."""
+    """One scene of ``kind`` (motion_scene's keywords ``kw``), its truth and its two uint8 frames (a camera's
+    8 bit, after Gaussian noise of ``noise`` grey levels)."""
     scene, truth = motion_scene(kind, size, np.random.default_rng(seed), share, **kw)
-    i0, i1, _ = render_grey_pair(scene)
-    return scene, truth, quantise8(i0, noise, seed), quantise8(i1, noise, seed + 1)
+    frames = render_grey_pair(scene)[:2]
+    if noise > 0.0:
+        frames = tuple(f + np.random.default_rng([seed + k, 7]).normal(0.0, noise / 255.0, f.shape)
+                       for k, f in enumerate(frames))
+    return scene, truth, quantise(frames[0], 8), quantise(frames[1], 8)
 
 
 def estimator(size: tuple[int, int]) -> FlowEstimator:

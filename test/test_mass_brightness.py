@@ -167,8 +167,8 @@ def test_brightness_term_holds_the_rotations_border_band() -> None:
     """fine_320's first report rotation (div v = 0, 8 bit): the pure continuity equation leaves a band of too small
     tangential flow at the border (docs/engine.md, "The border band"); with the default brightness term the mass
     model's AEE drops below half of it and within 1.1x brightness constancy's (measured 0.025 -> 0.008; 0.012)."""
-    from bench.mass_border import band_aee
     from bench.suite import synthetic
+    from bench.suite.metrics import band_aee
     from flow_node.bag.scenes import render_grey_pair
 
     scene, label = synthetic.scene_for(1, synthetic.REPORT_SEED0 + 1, (320, 240))

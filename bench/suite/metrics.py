@@ -12,6 +12,17 @@ from flow_node.core.metrics import aee, angular_error, endpoint_error_map, valid
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST
 
 FRACTIONS = np.arange(20) / 20.0
+BORDER_BANDS = ((0, 2), (2, 5), (5, 10), (10, 20), (20, 40), (40, 10**6))  # [lo, hi) px from the nearest edge
+
+
+def band_aee(err: np.ndarray) -> dict[str, float]:
+    """Mean of an error map (H, W) per band of distance to the nearest image edge (BORDER_BANDS); key 'lo-hi'
+    px (the last 'lo+'). docs/engine.md, "Mass preservation", reads the mass model's border band with it."""
+    h, w = err.shape
+    yy, xx = np.mgrid[:h, :w]
+    d = np.minimum(np.minimum(yy, h - 1 - yy), np.minimum(xx, w - 1 - xx))
+    return {(f"{lo}+" if hi >= 10**6 else f"{lo}-{hi}"): float(err[(d >= lo) & (d < hi)].mean())
+            for lo, hi in BORDER_BANDS}
 
 
 def _curve(err: np.ndarray, order: np.ndarray) -> np.ndarray:

@@ -304,9 +304,9 @@ def norm_bound(spec: ModelSpec, dims: int, incompressible: bool) -> float:
 
 
 # On volumes tau is multiplied by this and sigma divided by it (tau * sigma unchanged): a smaller primal step
-# reached a given AEE in about half the iterations (bench.volume scenes at 48^3, 5 warps x 20 iterations: shift
-# 0.041 -> 0.019 voxels, zoom and shear unchanged at 0.057 and 0.128; 0.25 was as good there but slower on
-# a single level, test_volume's CLI case; 0.125 lost on shear). docs/engine.md, "Volumes".
+# reached a given AEE in about half the iterations (the retired bench.volume's scenes at 48^3, 5 warps x 20
+# iterations: shift 0.041 -> 0.019 voxels, zoom and shear unchanged at 0.057 and 0.128; 0.25 was as good there
+# but slower on a single level, test_volume's CLI case; 0.125 lost on shear). docs/engine.md, "Volumes".
 VOLUME_STEP_BALANCE = 0.5
 
 

@@ -35,8 +35,9 @@ from .solver import PDState, Problem, SolveParams, solve_numpy
 FLOAT_INPUT_LIMIT = 1e6  # as api.FLOAT_INPUT_LIMIT: larger float values are garbage, not intensities
 MIN_SIDE = 2  # voxels per axis
 # What a volume is solved with when no config is given (API and flow_estimate without --preset): the settings
-# bench.volume measures (docs/engine.md, "Volumes"); a stronger alpha than 2-D's and fewer iterations, and a
-# pyramid also on volumes of a few dozen slices (min_size 12 left a 20-slice volume a single level).
+# the retired bench.volume measured (docs/engine.md, "Volumes"); a stronger alpha than 2-D's and fewer
+# iterations, and a pyramid also on volumes of a few dozen slices (min_size 12 left a 20-slice volume a single
+# level).
 VOLUME_CONFIG = FlowConfig(model="l1_tv", alpha=0.06, warps=5, iterations=20, finest_warps=3, finest_iterations=15,
                            min_size=6, gradient_scheme="interpolated", median_filter=0)
 
