@@ -155,9 +155,13 @@ def test_reliability_on_a_large_frame_samples_coarser_but_reads_the_same() -> No
     rng = np.random.default_rng(3)
     for noise in (0.0, 0.4, 1.0, 3.0):
         flow = (flow0 + noise * rng.standard_normal(flow0.shape)).astype(np.float32)
-        with pytest.MonkeyPatch.context() as mp:
-            mp.setattr("flow_node.core.photometric.RELIABILITY_SAMPLES", h * w)  # stride 2 everywhere
-            fine = reliability(p0, p1, flow)
-            fine_numba = reliability_numba(p0, p1, flow)
+        fine = reliability(p0, p1, flow, samples=h * w)  # stride 2 everywhere
+        fine_numba = reliability_numba(p0, p1, flow, samples=h * w)
         coarse, coarse_numba = reliability(p0, p1, flow), reliability_numba(p0, p1, flow)
         assert abs(coarse - fine) < 0.01 and abs(coarse_numba - fine_numba) < 0.01, (noise, fine, coarse)
+        # fewer samples (a stream's result check, FlowConfig.stream_check_samples): a coarser stride, the
+        # numba count equal to the reference's on the same grid
+        sparse = reliability(p0, p1, flow, samples=5000)
+        assert sparse == pytest.approx(reliability_numba(p0, p1, flow, samples=5000), abs=2e-3)
+        assert abs(sparse - fine) < 0.02, (noise, fine, sparse)
+    assert reliability_stride(h, w, 5000) == 8 and reliability_stride(h, w, h * w) == 2

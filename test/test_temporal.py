@@ -9,9 +9,12 @@ import numpy as np
 import pytest
 
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
-from flow_node.core import FlowConfig, FlowEstimator, temporal
+from flow_node.core import FlowConfig, FlowEstimator, refine, temporal
+from flow_node.core.backends import select_backend
 from flow_node.core.densify import forward_propagate, push_pull, splat_forward
+from flow_node.core.engine import photometric_stage
 from flow_node.core.numba_temporal import push_pull_numba, splat_numba
+from flow_node.core.photometric import RELIABILITY_SAMPLES, reliability_stride
 from flow_node.core.solver import PDState
 from flow_node.core.temporal import FULL, PREDICTED, Prior, predict, prior_fails, result_fails
 
@@ -216,3 +219,51 @@ def test_stream_alpha_weights_the_refinement_from_the_prediction_only() -> None:
     assert res[0].stats.stream == res[1].stats.stream == PREDICTED
     np.testing.assert_array_equal(same.flow, res[0].flow)  # stream_alpha == alpha: as 0
     assert np.abs(res[1].flow - res[0].flow).max() > 1e-3
+
+
+def test_stream_inner_median_filters_the_inner_warps_of_a_predicted_pair_only(monkeypatch: pytest.MonkeyPatch
+                                                                              ) -> None:
+    """stream_inner_median: the median size after a stream level's warps but its last (the last keeps
+    median_filter; -1 = median_filter: the flows bit for bit as before). Pairs solved in full never use it."""
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba")  # coarse level 2 warps, finest 3
+    seq = frames(pan(6), 3)
+    sizes: list[int] = []
+    filt = refine.median_filter
+
+    def spy(v: np.ndarray, size: int) -> np.ndarray:
+        sizes.append(size)
+        return filt(v, size)
+
+    monkeypatch.setattr(refine, "median_filter", spy)
+    first = FlowEstimator(cfg).estimate_next(seq[0], seq[1], None)
+    prior = Prior(first.state, first.unexplained)
+    runs = {}
+    for inner in (-1, 5, 3, 0):
+        est = FlowEstimator(cfg.replace(stream_inner_median=inner))
+        sizes.clear()
+        runs[inner] = est.estimate_next(seq[1], seq[2], prior)
+        assert runs[inner].stats.stream == PREDICTED
+        assert sizes == {-1: [5] * 5, 5: [5] * 5, 3: [3, 5, 3, 3, 5], 0: [5, 5]}[inner], inner
+        sizes.clear()
+        np.testing.assert_array_equal(est.estimate_next(seq[0], seq[1], None).flow, first.flow)  # full solve
+        assert sizes == [5] * len(sizes) and sizes
+    np.testing.assert_array_equal(runs[5].flow, runs[-1].flow)
+    assert np.abs(runs[3].flow - runs[-1].flow).max() > 1e-4
+
+
+def test_stream_check_samples_sets_the_result_checks_sampling() -> None:
+    """A predicted pair's unexplained fraction is its judge's on about stream_check_samples pixels (a coarser
+    stride than a full solve's); the flows do not depend on it."""
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba")
+    seq = frames(pan(8, size=(320, 240)), 3)
+    first = FlowEstimator(cfg).estimate_next(seq[0], seq[1], None)
+    prior = Prior(first.state, first.unexplained)
+    res = {n: FlowEstimator(cfg.replace(stream_check_samples=n)).estimate_next(seq[1], seq[2], prior)
+           for n in (RELIABILITY_SAMPLES, 5000)}
+    assert reliability_stride(240, 320) == 2 and reliability_stride(240, 320, 5000) == 4
+    np.testing.assert_array_equal(res[5000].flow, res[RELIABILITY_SAMPLES].flow)
+    _, judged = photometric_stage(seq[1], seq[2], cfg, select_backend("numba"))
+    for n, r in res.items():
+        assert r.stats.stream == PREDICTED and r.unexplained == judged.unexplained(r.flow, n)
+    assert res[5000].unexplained != res[RELIABILITY_SAMPLES].unexplained  # another grid
+    assert abs(res[5000].unexplained - res[RELIABILITY_SAMPLES].unexplained) < 0.02

@@ -15,6 +15,7 @@ from .config import FlowConfig
 from .engine import Judged, estimate_pair, solve_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
 from .layout import interleaved_flow
+from .photometric import RELIABILITY_SAMPLES
 from .refine import SolveStats
 from .solver import PDState
 from .temporal import FULL, Prior, Seen, estimate_predicted, result_fails
@@ -237,7 +238,7 @@ class FlowEstimator:
                 if reason is None:
                     state, stats, judged, seen = attempt
                     flow = interleaved_flow(state.v, stats.shapes[0])
-                    unexplained = unexplained_of(flow, judged)
+                    unexplained = unexplained_of(flow, judged, self._config.stream_check_samples)
                     reason = result_fails(self._config, prior, unexplained)
             if reason is not None or not self._config.stream_levels or prior is None:
                 known = None if prior is None or prior.seen is None else prior.seen.sample
@@ -273,11 +274,11 @@ def check_pair(i0: np.ndarray, i1: np.ndarray, channels: tuple[np.ndarray, np.nd
     return as_masks(mask, i0.shape)
 
 
-def unexplained_of(flow: np.ndarray, judged: Judged) -> float:
-    """The unexplained fraction of a finished ``flow`` (H, W, 2) by the photometric stage's own judge, after
-    :func:`ensure_finite`."""
+def unexplained_of(flow: np.ndarray, judged: Judged, samples: int = RELIABILITY_SAMPLES) -> float:
+    """The unexplained fraction of a finished ``flow`` (H, W, 2) by the photometric stage's own judge (on about
+    ``samples`` pixels: photometric.reliability_stride), after :func:`ensure_finite`."""
     ensure_finite(flow)
-    return judged.unexplained(flow)
+    return judged.unexplained(flow, samples)
 
 
 def _channel_first(flow: np.ndarray | None, name: str, shape: tuple[int, int]) -> np.ndarray | None:

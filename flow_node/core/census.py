@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .operators import warp_maps
-from .photometric import reliability_stride
+from .photometric import RELIABILITY_SAMPLES, reliability_stride
 from .warping import Sample, sample_coefficients
 
 # the 8 neighbours (dy, dx) of the 3 x 3 neighbourhood
@@ -167,7 +167,7 @@ OUTLIER = 0.5  # mean |signature residual| / gain above which a pixel is unexpla
 
 
 def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients,
-                params: CensusParams = CENSUS) -> float:
+                params: CensusParams = CENSUS, *, samples: int = RELIABILITY_SAMPLES) -> float:
     """photometric.reliability for the census data term: the fraction of sampled pixels (SAMPLE_SPACING times
     its stride) whose signature is not explained by the flow, i.e. whose mean |F(I1)(x + flow) - F(I0)(x)| over the K
     channels exceeds OUTLIER (in units of the gain). F(I1) at x + flow is the signature of I1 sampled (Keys)
@@ -175,7 +175,7 @@ def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample
     term is invariant to, so a tone change the flow handles does not read as unexplained. i0, i1 (H, W) as
     the solver saw them; flow (H, W, 2) px."""
     h, w = i0.shape
-    s = SAMPLE_SPACING * reliability_stride(h, w)
+    s = SAMPLE_SPACING * reliability_stride(h, w, samples)  # photometric.reliability's grid for ``samples``
     ys, xs = np.arange(0, h, s), np.arange(0, w, s)
     map_x = xs.astype(np.float32)[None, :] + flow[::s, ::s, 0]
     map_y = ys.astype(np.float32)[:, None] + flow[::s, ::s, 1]

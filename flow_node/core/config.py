@@ -18,7 +18,7 @@ from .colour import COLOUR_MODES
 from .errors import ConfigError, FileFormatError, short_path
 from .initialise import SOURCES as INITIALISATIONS
 from .models import CONSTRAINTS, MODEL_SPECS
-from .photometric import MASS_PHOTOMETRIC, PHOTOMETRIC
+from .photometric import MASS_PHOTOMETRIC, PHOTOMETRIC, RELIABILITY_SAMPLES
 from .presets import PRESETS
 from .settings import FieldInfo
 from .settings import check_field as _check_field
@@ -189,6 +189,9 @@ class FlowConfig:
                                   "level that costs the most per warp", lo=0, hi=100)
     stream_finest_iterations: int = _f(0, "stream mode: primal-dual iterations per warp on the finest solved level "
                                        "(0 = stream_iterations)", lo=0, hi=100000)
+    stream_inner_median: int = _f(-1, "stream mode: median filter size after the warps of a level refined from "
+                                  "the prediction but its last, which keeps median_filter (-1 = median_filter; "
+                                  "0 = none)", choices=(-1, 0, 3, 5))
     stream_alpha: float = _f(0.0, "stream mode: regularisation weight of the refinement from the prediction (0 = "
                              "alpha; a pair solved in full always uses alpha)", lo=0.0, hi=1000.0)
     stream_max_predicted: float = _f(0.5, "stream mode: the pair is solved in full when more than this fraction "
@@ -199,6 +202,9 @@ class FlowConfig:
     stream_margin: float = _f(0.05, "stream mode: a refined prediction explaining the pair worse than the "
                               "previous pair's flow by more than this fraction is replaced by a full solve",
                               lo=0.0, hi=1.0)
+    stream_check_samples: int = _f(RELIABILITY_SAMPLES, "stream mode: about this many pixels are sampled by the "
+                                   "unexplained fraction of a refined prediction (its check; a full solve's: "
+                                   f"{RELIABILITY_SAMPLES})", lo=100, hi=1 << 40)
     stream_max_gap: float = _f(2.5, "stream mode: a pair whose stamp interval differs from the previous pair's "
                                "by more than this factor (a dropped run of frames) is solved in full; within "
                                "it the prediction is scaled by the ratio", lo=1.0, hi=1000.0)

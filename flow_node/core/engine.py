@@ -39,7 +39,16 @@ from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
-from .photometric import PairMap, Reliability, Samples, compares_signatures, frame_samples, pair_map, stage
+from .photometric import (
+    RELIABILITY_SAMPLES,
+    PairMap,
+    Reliability,
+    Samples,
+    compares_signatures,
+    frame_samples,
+    pair_map,
+    stage,
+)
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
 from .refine import SolveStats, finest_level, refine_levels
 from .solver import PDState
@@ -60,9 +69,10 @@ class Judged:
     samples: Samples
     key: MapKey | None = None
 
-    def unexplained(self, flow: np.ndarray) -> float:
-        """The fraction of sampled pixels ``flow`` (H, W, 2) px does not explain (photometric.reliability)."""
-        return self.judge(*self.frames, flow)
+    def unexplained(self, flow: np.ndarray, samples: int = RELIABILITY_SAMPLES) -> float:
+        """The fraction of sampled pixels (about ``samples``) ``flow`` (H, W, 2) px does not explain
+        (photometric.reliability)."""
+        return self.judge(*self.frames, flow, samples=samples)
 
 
 def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,

@@ -24,7 +24,7 @@ from numba import get_thread_id, njit, prange
 from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_warp import _tap_indices, cubic_weights4, sample_row, tap_sum
-from .photometric import reliability_stride
+from .photometric import RELIABILITY_SAMPLES, reliability_stride
 from .warping import KERNEL_CODES
 from .workspace import scratch
 
@@ -307,11 +307,13 @@ def unexplained_kernel(i0, i1, flow, stride, dy, dx, eps, outlier):  # noqa: ANN
     return inside, bad
 
 
-def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, params: CensusParams = CENSUS) -> float:
+def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, params: CensusParams = CENSUS, *,
+                      samples: int = RELIABILITY_SAMPLES) -> float:
     """census.reliability with :func:`unexplained_kernel` (same samples, threshold and stride; the tap weights of
     a sample's 9 positions from its own fraction, which the reference recomputes from each position)."""
     h, w = i0.shape
+    stride = SAMPLE_SPACING * reliability_stride(h, w, samples)
     inside, bad = unexplained_kernel(np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32)[None],
-                                     np.ascontiguousarray(flow, dtype=_F32), SAMPLE_SPACING * reliability_stride(h, w),
-                                     _DY, _DX, _F32(params.eps), _F32(OUTLIER))
+                                     np.ascontiguousarray(flow, dtype=_F32), stride, _DY, _DX, _F32(params.eps),
+                                     _F32(OUTLIER))
     return bad / inside if inside else 1.0

@@ -286,24 +286,27 @@ def solver_images(n0: np.ndarray, n1: np.ndarray, mode: str) -> tuple[np.ndarray
     return n0, n1
 
 
-# reliability(i0, i1, flow) -> unexplained fraction: :func:`reliability` or a backend's fused kernel
-Reliability = Callable[[np.ndarray, np.ndarray, np.ndarray], float]
+# reliability(i0, i1, flow[, samples=]) -> unexplained fraction: :func:`reliability` or a backend's fused kernel
+# (``samples``: about how many pixels it samples, :func:`reliability_stride`)
+Reliability = Callable[..., float]
 
 
-def reliability_stride(h: int, w: int) -> int:
+def reliability_stride(h: int, w: int, samples: int = RELIABILITY_SAMPLES) -> int:
     """Sampling stride of :func:`reliability` on an (h, w) frame: RELIABILITY_STRIDE, or coarser so that about
-    RELIABILITY_SAMPLES pixels are sampled (640x480: 4, 19,200 pixels). The fraction is a mean over the
-    samples; more of them change it by less than its own noise, and at stride 2 it cost ~7 % of a VGA
-    `fastest` call."""
-    return max(RELIABILITY_STRIDE, round(math.sqrt(h * w / RELIABILITY_SAMPLES)))
+    ``samples`` pixels are sampled (RELIABILITY_SAMPLES: 640x480 at stride 4, 19,200 pixels). The fraction is a
+    mean over the samples; more of them change it by less than its own noise, and at stride 2 it cost ~7 % of a
+    VGA `fastest` call (a stream's refined prediction is checked on fewer: FlowConfig.stream_check_samples)."""
+    return max(RELIABILITY_STRIDE, round(math.sqrt(h * w / samples)))
 
 
-def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients) -> float:
+def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients, *,
+                samples: int = RELIABILITY_SAMPLES) -> float:
     """Fraction of pixels the flow does not explain: |I1(x + flow) - I0(x)| > RESIDUAL_OUTLIER on every
-    :func:`reliability_stride`-th pixel whose target stays inside the frame (i0, i1 preprocessed (H, W); flow
-    (H, W, 2) px). 0 = every sampled pixel explained, 1 = none. Uses the Keys kernel (no prefilter)."""
+    :func:`reliability_stride`-th pixel (about ``samples`` of them) whose target stays inside the frame (i0, i1
+    preprocessed (H, W); flow (H, W, 2) px). 0 = every sampled pixel explained, 1 = none. Uses the Keys kernel
+    (no prefilter)."""
     h, w = i0.shape
-    s = reliability_stride(h, w)
+    s = reliability_stride(h, w, samples)
     map_x = np.arange(0, w, s, dtype=np.float32)[None, :] + flow[::s, ::s, 0]
     map_y = np.arange(0, h, s, dtype=np.float32)[:, None] + flow[::s, ::s, 1]
     inside = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)

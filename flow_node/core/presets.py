@@ -56,11 +56,13 @@ PRESETS: dict[str, dict[str, Any]] = {
     # predicts the next, only the finest two solved levels (stream_lite: one, 8 warps: DIS medium's AEE on the
     # tune split) run, from the carried state (tuned on the suite's stream regime, tune split:
     # bench/results/suite/stream/; docs/engine.md "The stream mode"; stream_fast's coarser level 2 x 10 and its
-    # finest 3 x 10 since issue 26's round 4)
+    # finest 3 x 10 since issue 26's round 4; round 6: finest 3 x 8, a 3x3 median after a level's warps but its
+    # last, the result check on ~5,000 pixels)
     "stream_fast": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                         finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                         initialisation="dis_ultrafast", init_finest_level=2, stream_levels=2, stream_warps=2,
-                        stream_iterations=10, stream_finest_warps=3, stream_finest_iterations=10),
+                        stream_iterations=10, stream_finest_warps=3, stream_finest_iterations=8,
+                        stream_inner_median=3, stream_check_samples=5000),
     "stream_lite": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                         finest_level=2, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                         initialisation="dis_ultrafast", init_finest_level=2, stream_levels=1, stream_warps=8,

@@ -78,9 +78,10 @@ def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
 
 
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState, on_finest: bool,
-                bregman_steps: int = 0) -> tuple[int, int]:
+                bregman_steps: int = 0, inner_median: int = -1) -> tuple[int, int]:
     """As many warps as :func:`level_schedule` gives (``on_finest``: ``level`` is the finest solved one):
-    linearise around the current flow, run the backend's solver and median-filter the flow; then
+    linearise around the current flow, run the backend's solver and median-filter the flow (``cfg.median_filter``;
+    after the warps but the last ``inner_median`` where >= 0: the stream stage's, temporal.py); then
     ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives on ``level`` and is updated in
     place. The data term (``cfg.photometric``): grey values (the backend's fused
     warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked; the level's warp source and
@@ -105,8 +106,9 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
             state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
         iterations += backend.solve(problem, state, params)
-        if cfg.median_filter:
-            state.v = median_filter(state.v, cfg.median_filter)
+        size = cfg.median_filter if inner_median < 0 or warp == warps - 1 else inner_median
+        if size:
+            state.v = median_filter(state.v, size)
     extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 
@@ -214,17 +216,18 @@ def masked_problem(linearised: Linearisation, valid0: np.ndarray, valid1: np.nda
 
 
 def refine_levels(pyr: Pyramid, cfg: FlowConfig, backend: Backend, state: PDState, first: int, last: int,
-                  stats: SolveStats, finest: int) -> PDState:
+                  stats: SolveStats, finest: int, inner_median: int = -1) -> PDState:
     """Solve levels ``first`` down to ``last`` (first >= last), carrying primal and dual variables to each
     finer level (flow vectors rescaled). ``state`` may live on any level; it is resampled to ``first``.
     ``finest`` is the finest level the solve goes down to (:func:`finest_level`): that level gets the
     ``cfg.finest_warps`` / ``cfg.finest_iterations`` schedule and, when ``last`` reaches it, the Bregman steps
-    (``cfg.bregman_iterations``). Iterations are added to ``stats``; returns the state on ``last``."""
+    (``cfg.bregman_iterations``); ``inner_median``: :func:`solve_level`'s. Iterations are added to ``stats``;
+    returns the state on ``last``."""
     for lvl in range(first, last - 1, -1):
         if state.v.shape[1:] != pyr.shapes[lvl]:
             state = resize_state(state, pyr.shapes[lvl])
         steps = cfg.bregman_iterations if lvl == finest else 0
-        its, extra = solve_level(pyr, lvl, cfg, backend, state, lvl == finest, steps)
+        its, extra = solve_level(pyr, lvl, cfg, backend, state, lvl == finest, steps, inner_median)
         stats.iterations[lvl] += its
         stats.bregman_iterations += extra
     return state

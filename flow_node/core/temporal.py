@@ -134,11 +134,12 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
 def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: PDState,
                       stats: SolveStats) -> PDState:
     """Refine the ``predicted`` state (:func:`predict`, on the start level of :func:`stream_span`) down to
-    the finest solved level with :func:`stream_schedule`'s warps (``cfg`` is that schedule). Returns the state
+    the finest solved level with :func:`stream_schedule`'s warps (``cfg`` is that schedule; the median filter
+    after a level's warps but its last is ``cfg.stream_inner_median``'s where set). Returns the state
     on the finest solved level; iterations go to ``stats``."""
     start, finest = stream_span(pyr, cfg)
     stats.start_level = start
-    return refine_levels(pyr, cfg, backend, predicted, start, finest, stats, finest)
+    return refine_levels(pyr, cfg, backend, predicted, start, finest, stats, finest, cfg.stream_inner_median)
 
 
 def judged_on(judged: Judged, shape: tuple[int, int], known0: np.ndarray | None = None
