@@ -61,12 +61,27 @@ def median_filter(v: np.ndarray, size: int) -> np.ndarray:
     return out
 
 
+def warp_medians(cfg: FlowConfig) -> tuple[int, int]:
+    """The median filter's sizes after a level's warps (0: none): (after each warp but the last, after the last).
+    ``cfg.median_filter`` for both, but with the census data term ``cfg.census_median_filter`` before the last warp
+    where set (not -1): the last warp's median shapes the flow the level hands on, the earlier ones only the next
+    warp's linearisation point (docs/engine.md, "The census data term")."""
+    census = compares_signatures(cfg.photometric) and cfg.census_median_filter >= 0
+    return (cfg.census_median_filter if census else cfg.median_filter), cfg.median_filter
+
+
 def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
     """(warps, primal-dual iterations per warp) of a level: ``cfg.finest_warps`` / ``cfg.finest_iterations``
-    on the ``finest`` solved level where set (non-zero), else ``cfg.warps`` / ``cfg.iterations``."""
+    on the ``finest`` solved level where set (non-zero), else ``cfg.warps`` / ``cfg.iterations``; with the census
+    data term ``cfg.census_iterations`` / ``cfg.census_finest_iterations`` first where set (docs/engine.md, "The
+    census data term": its time round)."""
+    iterations, finest_iterations = cfg.iterations, cfg.finest_iterations
+    if compares_signatures(cfg.photometric):
+        iterations = cfg.census_iterations or iterations
+        finest_iterations = cfg.census_finest_iterations or finest_iterations
     if not finest:
-        return cfg.warps, cfg.iterations
-    return cfg.finest_warps or cfg.warps, cfg.finest_iterations or cfg.iterations
+        return cfg.warps, iterations
+    return cfg.finest_warps or cfg.warps, finest_iterations or iterations
 
 
 def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
@@ -100,13 +115,15 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
     valid = pyr.valid(level)
+    sizes = warp_medians(cfg)
     for warp in range(warps):
         if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
             state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
         iterations += backend.solve(problem, state, params)
-        if cfg.median_filter:
-            state.v = median_filter(state.v, cfg.median_filter)
+        size = sizes[warp == warps - 1]
+        if size:
+            state.v = median_filter(state.v, size)
     extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 
