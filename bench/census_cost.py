@@ -2,14 +2,18 @@
 
     python -m bench.census_cost                                  # realtime, fastest, quality; 3 rounds
     python -m bench.census_cost --presets realtime --rounds 5 --out bench/results/census_cost/realtime
+    python -m bench.census_cost --term main=census_median_filter=-1   # also census with the fields changed
+
 
 Each preset runs with ``photometric`` ``normalise`` (grey values, the default) and ``census`` on the 8
-Middlebury pairs, one thread, warm (one call per pair first); each round runs every pair with both data terms in
-turn (the order alternating per pair and round), and the table gives the median over rounds of each stage's
+Middlebury pairs, one thread, warm (one call per pair first); each round runs every pair with each data term in
+turn (the order reversed every other pair and round), and the table gives the median over rounds of each stage's
 time summed over the 8 pairs (ms). A stage's time is *exclusive*: a timed function's time minus that of the
 timed functions it calls (e.g. the census form without the kernels listed beside it). The spans wrap the
 backend's fields and a few module functions (:data:`SPANS`); "other" is the call's time outside every span
 (Python glue, resizes, layout). The wrappers cost ~1 us per call: the totals are a few ms above an untimed call.
+``--term NAME=key=value,...`` adds a census variant (the preset with ``photometric=census`` and those fields),
+timed in the same rounds: an A/B of a census change against the preset's census and grey values in one run.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ from .common import md_table, run_record, write_result
 from .suite.data import middlebury
 
 PRESETS = ("realtime", "fastest", "quality")
-TERMS = ("normalise", "census")
+TERMS = ("normalise", "census")  # the grey-value baseline first: every ratio is against it
 # backend fields timed (the backend's own functions, whatever module they live in)
 BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "fuse", "consistent", "gradient", "sample",
                  "reliability", "census_reliability")
@@ -88,30 +92,45 @@ def timed_estimator(cfg: FlowConfig, spans: Spans) -> FlowEstimator:
     return FlowEstimator(cfg, backend=backend._replace(warper=warper, **fields))
 
 
-def run(presets: list[str], rounds: int) -> dict[str, Any]:
-    """Per preset and data term, per round: {stage: seconds summed over the pairs, 'total': wall seconds}."""
+def parse_terms(specs: list[str]) -> dict[str, dict[str, str]]:
+    """The data terms timed: name -> the preset's fields changed (:data:`TERMS`' photometric mode, then each
+    ``NAME=key=value,...`` of ``--term`` as census with those fields)."""
+    terms: dict[str, dict[str, str]] = {t: {"photometric": t} for t in TERMS}
+    for spec in specs:
+        name, _, fields = spec.partition("=")
+        if not name or name in terms or "=" not in fields:
+            raise SystemExit(f"--term wants NAME=key=value[,key=value...] with a new NAME, got {spec!r}")
+        terms[name] = {"photometric": "census", **dict(f.split("=", 1) for f in fields.split(","))}
+    return terms
+
+
+def run(presets: list[str], rounds: int, terms: dict[str, dict[str, str]] | None = None) -> dict[str, Any]:
+    """Per preset and data term (:func:`parse_terms`; default :data:`TERMS`), per round: {stage: seconds summed over
+    the pairs, 'total': wall seconds}."""
+    terms = parse_terms([]) if terms is None else terms
+    names = tuple(terms)
     samples = middlebury(False)
     out: dict[str, Any] = {}
     for preset in presets:
-        spans = {t: Spans() for t in TERMS}
-        ests = {t: timed_estimator(FlowConfig.preset(preset).replace(threads=1, photometric=t), spans[t])
-                for t in TERMS}
-        rows: dict[str, list[dict[str, float]]] = {t: [] for t in TERMS}
+        spans = {t: Spans() for t in names}
+        ests = {t: timed_estimator(FlowConfig.preset(preset).replace(threads=1).with_overrides(
+            f"{k}={v}" for k, v in terms[t].items()), spans[t]) for t in names}
+        rows: dict[str, list[dict[str, float]]] = {t: [] for t in names}
         with patched(spans["normalise"]):  # warm-up: compile or load every kernel, touch the scratch arrays
             for s in samples:
-                for t in TERMS:
+                for t in names:
                     ests[t].estimate(s.f0, s.f1)
         for r in range(rounds):
-            totals = dict.fromkeys(TERMS, 0.0)
-            for t in TERMS:
+            totals = dict.fromkeys(names, 0.0)
+            for t in names:
                 spans[t].seconds.clear()
             for k, s in enumerate(samples):
-                for t in (TERMS if (k + r) % 2 == 0 else TERMS[::-1]):
+                for t in (names if (k + r) % 2 == 0 else names[::-1]):
                     with patched(spans[t]):
                         start = time.perf_counter()
                         ests[t].estimate(s.f0, s.f1)
                         totals[t] += time.perf_counter() - start
-            for t in TERMS:
+            for t in names:
                 rows[t].append({**spans[t].seconds, "total": totals[t]})
         out[preset] = rows
     return out
@@ -127,22 +146,30 @@ def median_row(rounds: list[dict[str, float]]) -> dict[str, float]:
     return row
 
 
+def ratio(rows: dict[str, list[dict[str, float]]], term: str) -> tuple[float, float]:
+    """``term``'s time over the grey values' (normalise): the median of the rounds' ratios, and that of their fastest
+    rounds."""
+    grey, other = rows["normalise"], rows[term]
+    return (statistics.median(c["total"] / g["total"] for g, c in zip(grey, other, strict=True)),
+            min(r["total"] for r in other) / min(r["total"] for r in grey))
+
+
 def markdown(result: dict[str, Any], record: dict[str, Any]) -> str:
     lines = [f"# Census vs grey values, per stage (`{record['command']}`)", "",
              f"{record['started']}, load {record['load_average_start']}; ms summed over the 8 Middlebury pairs, "
              "one thread, median over rounds; exclusive times (bench/census_cost.py).", ""]
     for preset, rows in result.items():
-        med = {t: median_row(rows[t]) for t in TERMS}
-        stages = sorted({k for t in TERMS for k in med[t]} - {"total", "other"},
-                        key=lambda k: -max(med[t].get(k, 0.0) for t in TERMS)) + ["other", "total"]
-        ratio = statistics.median(c["total"] / g["total"] for g, c in zip(rows["normalise"], rows["census"],
-                                                                           strict=True))
-        fastest = min(r["total"] for r in rows["census"]) / min(r["total"] for r in rows["normalise"])
-        lines += [f"## {preset}: census / grey {ratio:.2f}x (median of the rounds' ratios; of their fastest rounds "
-                  f"{fastest:.2f}x)", ""]
-        lines += md_table(["stage", "grey ms", "census ms", "census share"],
-                          [[k, f"{1e3 * med['normalise'].get(k, 0.0):.1f}", f"{1e3 * med['census'].get(k, 0.0):.1f}",
-                            f"{med['census'].get(k, 0.0) / med['census']['total']:.0%}"] for k in stages], right=True)
+        names = list(rows)
+        terms = [t for t in names if t != "normalise"]
+        med = {t: median_row(rows[t]) for t in names}
+        stages = sorted({k for t in names for k in med[t]} - {"total", "other"},
+                        key=lambda k: -max(med[t].get(k, 0.0) for t in names)) + ["other", "total"]
+        ratios = "; ".join(f"{t} / grey {m:.2f}x (fastest rounds {f:.2f}x)" for t in terms for m, f in [ratio(rows, t)])
+        lines += [f"## {preset}: {ratios} (median of the rounds' ratios)", ""]
+        lines += md_table(["stage", "grey ms"] + [f"{t} ms" for t in terms] + [f"{terms[0]} share"],
+                          [[k, f"{1e3 * med['normalise'].get(k, 0.0):.1f}"]
+                           + [f"{1e3 * med[t].get(k, 0.0):.1f}" for t in terms]
+                           + [f"{med[terms[0]].get(k, 0.0) / med[terms[0]]['total']:.0%}"] for k in stages], right=True)
         lines.append("")
     return "\n".join(lines)
 
@@ -152,9 +179,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--presets", default=",".join(PRESETS))
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--out", type=Path, default=None, help="result stem (.json and .md); default: print only")
+    ap.add_argument("--term", action="append", default=[], metavar="NAME=key=value[,key=value...]",
+                    help="also time census with these fields (repeatable)")
     args = ap.parse_args(argv)
     record = run_record("bench.census_cost", argv)
-    result = run(args.presets.split(","), args.rounds)
+    result = run(args.presets.split(","), args.rounds, parse_terms(args.term))
     write_result(args.out, {**record, "rounds": result}, markdown(result, record))
 
 

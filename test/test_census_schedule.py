@@ -8,11 +8,14 @@ import numpy as np
 import pytest
 from synth import texture
 
+from flow_node.core import refine
+from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
 from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
 from flow_node.core.config import FlowConfig
 from flow_node.core.pyramid import build_pyramid, make_pyramid, pyramid_shapes
-from flow_node.core.refine import census_problem, level_census
+from flow_node.core.refine import census_problem, level_census, level_schedule, warp_medians
+from flow_node.core.temporal import stream_schedule
 from flow_node.core.warping import NUMPY_WARPER
 
 CENSUS_RT = FlowConfig.preset("realtime").replace(photometric="census")
@@ -74,3 +77,50 @@ def test_the_schedule_only_changes_the_census_mode() -> None:
     for got, ref in zip(pyr.i0, want, strict=True):
         np.testing.assert_array_equal(got, ref)
     assert level_census(census, pyr.shapes[-1][1]).eps == census.census_coarse_eps > CENSUS.eps
+
+
+def test_warp_medians_change_the_census_mode_only() -> None:
+    census = CENSUS_RT.replace(census_median_filter=3)
+    assert warp_medians(census) == (3, 5)  # every warp but a level's last, the last
+    assert warp_medians(census.replace(census_median_filter=-1)) == (5, 5)  # -1: median_filter
+    assert warp_medians(census.replace(census_median_filter=0, median_filter=3)) == (0, 3)
+    assert warp_medians(census.replace(photometric="normalise")) == (5, 5)  # grey values: median_filter only
+    assert warp_medians(census, 0) == (0, 5)  # the stream stage's inner median wins where set
+    assert warp_medians(census.replace(photometric="normalise"), 3) == (3, 5)
+
+
+@pytest.mark.parametrize("photometric", ["census", "normalise"])
+def test_the_refinement_filters_with_the_warp_medians(photometric: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each solved level's warps are median-filtered with warp_medians' sizes: census_median_filter before the
+    last warp of a level (census only), median_filter after it."""
+    sizes: list[int] = []
+    real = refine.median_filter
+
+    def spy(v: np.ndarray, size: int) -> np.ndarray:
+        sizes.append(size)
+        return real(v, size)
+
+    monkeypatch.setattr(refine, "median_filter", spy)
+    tex = texture(96, 128, seed=7).image
+    cfg = CENSUS_RT.replace(photometric=photometric, census_median_filter=3, threads=1)
+    FlowEstimator(cfg).estimate(tex, np.roll(tex, 1, axis=1))
+    runs = "".join(map(str, sizes)).replace("5", "5 ").split()  # one run per level, ending with its last warp's
+    assert len(runs) >= 2
+    if photometric == "normalise":
+        assert set(sizes) == {5}
+        return
+    for run in runs:
+        assert run in ("3" * (cfg.warps - 1) + "5", "3" * (cfg.finest_warps - 1) + "5"), sizes
+
+
+def test_census_iterations_change_the_census_mode_only() -> None:
+    cfg = CENSUS_RT.replace(iterations=6, finest_iterations=16, census_iterations=5, census_finest_iterations=14)
+    assert level_schedule(cfg, False) == (cfg.warps, 5)
+    assert level_schedule(cfg, True) == (cfg.finest_warps, 14)
+    assert level_schedule(cfg.replace(photometric="normalise"), True) == (cfg.finest_warps, 16)
+    assert level_schedule(cfg.replace(photometric="normalise"), False) == (cfg.warps, 6)
+    # unset: the grey schedule's; census_iterations alone also sets the finest level's without finest_iterations
+    assert level_schedule(cfg.replace(census_iterations=0, census_finest_iterations=0), True) == (cfg.finest_warps, 16)
+    assert level_schedule(cfg.replace(finest_iterations=0, census_finest_iterations=0), True) == (cfg.finest_warps, 5)
+    stream = stream_schedule(cfg)  # the stream mode's refinement keeps its own counts
+    assert level_schedule(stream, False)[1] == cfg.stream_iterations

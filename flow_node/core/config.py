@@ -111,6 +111,16 @@ class FlowConfig:
                                   lo=0.0, hi=1.0, lo_open=True)
     census_coarse_width: int = _f(0, "photometric census: levels narrower than this (px) use census_coarse_eps "
                                   "(0 = none; quality and realtime set 50)", lo=0, hi=100000)
+    census_median_filter: int = _f(-1, "photometric census: median filter size after each warp of a level but its "
+                                   "last (-1 = median_filter; the last warp's is median_filter's). The earlier "
+                                   "medians only move the next warp's linearisation point, and a 3 x 3 median costs "
+                                   "~1/7 of a 5 x 5: fastest sets 3 (issue 25's time round, chosen on the suite's "
+                                   "tune split, docs/engine.md)", choices=(-1, 0, 3, 5))
+    census_iterations: int = _f(0, "photometric census: primal-dual iterations per warp (0 = iterations; quality sets "
+                                "8: issue 25's time round, docs/engine.md)", lo=0, hi=100000)
+    census_finest_iterations: int = _f(0, "photometric census: primal-dual iterations per warp on the finest solved "
+                                       "level (0 = finest_iterations, else census_iterations or iterations; no preset "
+                                       "sets it: issue 25's time round, docs/engine.md)", lo=0, hi=100000)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
                          "densities that thin out or pile up, e.g. fluids, cells, PET; needs photometric density "

@@ -61,12 +61,29 @@ def median_filter(v: np.ndarray, size: int) -> np.ndarray:
     return out
 
 
+def warp_medians(cfg: FlowConfig, inner: int = -1) -> tuple[int, int]:
+    """The median filter's sizes after a level's warps (0: none): (after each warp but the last, after the last).
+    ``cfg.median_filter`` for both, but before the last warp ``inner`` where set (>= 0: the stream stage's
+    ``cfg.stream_inner_median``, temporal.py), else with the census data term ``cfg.census_median_filter`` where
+    set (not -1): the last warp's median shapes the flow the level hands on, the earlier ones only the next
+    warp's linearisation point (docs/engine.md, "The census data term", "The stream mode")."""
+    if inner < 0 and compares_signatures(cfg.photometric):
+        inner = cfg.census_median_filter
+    return (cfg.median_filter if inner < 0 else inner), cfg.median_filter
+
+
 def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
     """(warps, primal-dual iterations per warp) of a level: ``cfg.finest_warps`` / ``cfg.finest_iterations``
-    on the ``finest`` solved level where set (non-zero), else ``cfg.warps`` / ``cfg.iterations``."""
+    on the ``finest`` solved level where set (non-zero), else ``cfg.warps`` / ``cfg.iterations``; with the census
+    data term ``cfg.census_iterations`` / ``cfg.census_finest_iterations`` first where set (docs/engine.md, "The
+    census data term": its time round)."""
+    iterations, finest_iterations = cfg.iterations, cfg.finest_iterations
+    if compares_signatures(cfg.photometric):
+        iterations = cfg.census_iterations or iterations
+        finest_iterations = cfg.census_finest_iterations or finest_iterations
     if not finest:
-        return cfg.warps, cfg.iterations
-    return cfg.finest_warps or cfg.warps, cfg.finest_iterations or cfg.iterations
+        return cfg.warps, iterations
+    return cfg.finest_warps or cfg.warps, finest_iterations or iterations
 
 
 def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
@@ -80,8 +97,8 @@ def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState, on_finest: bool,
                 bregman_steps: int = 0, inner_median: int = -1) -> tuple[int, int]:
     """As many warps as :func:`level_schedule` gives (``on_finest``: ``level`` is the finest solved one):
-    linearise around the current flow, run the backend's solver and median-filter the flow (``cfg.median_filter``;
-    after the warps but the last ``inner_median`` where >= 0: the stream stage's, temporal.py); then
+    linearise around the current flow, run the backend's solver and median-filter the flow (:func:`warp_medians`,
+    ``inner_median`` the stream stage's); then
     ``bregman_steps`` Bregman steps on the last linearisation. ``state`` lives on ``level`` and is updated in
     place. The data term (``cfg.photometric``): grey values (the backend's fused
     warp of frame 1 and its gradient with ``cfg.warp_kernel``, outside pixels masked; the level's warp source and
@@ -101,12 +118,13 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
     iterations = 0
     valid = pyr.valid(level)
+    sizes = warp_medians(cfg, inner_median)
     for warp in range(warps):
         if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
             state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
         iterations += backend.solve(problem, state, params)
-        size = cfg.median_filter if inner_median < 0 or warp == warps - 1 else inner_median
+        size = sizes[warp == warps - 1]
         if size:
             state.v = median_filter(state.v, size)
     extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
