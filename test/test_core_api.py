@@ -262,41 +262,6 @@ def test_the_executable_skips_the_final_collection_after_writing(tmp_path: Path,
     assert estimate.main() == 1 and len(seen) == 2
 
 
-def test_the_executable_reads_its_inputs_while_numba_starts(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """flow_estimate decodes its two inputs on a thread while the main thread applies the numba patch
-    (process.defer_kernel_bitcode, which imports numba's code generator): the patch runs while a read is
-    in progress, and the flow is the one of a plain call."""
-    import threading
-
-    from flow_node.cli import estimate
-
-    p0, p1, _ = _write_pair(tmp_path)
-    reading, patched = threading.Event(), threading.Event()
-    read_input = estimate.read_input
-
-    def slow_read(path: str, colour: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        reading.set()
-        assert patched.wait(10), "the patch did not run while the inputs were read"
-        return read_input(path, colour)
-
-    def patch() -> bool:
-        assert reading.wait(10), "no input was being read while the patch ran"
-        patched.set()
-        return False
-
-    monkeypatch.setattr(estimate, "read_input", slow_read)
-    monkeypatch.setattr(estimate, "defer_kernel_bitcode", patch)
-    out, plain = tmp_path / "out.flo", tmp_path / "plain.flo"
-    assert estimate.main([str(p0), str(p1), "--output", str(out), *small_frames.CLI_ARGS]) == 0
-    monkeypatch.setattr(estimate, "read_input", read_input)
-    assert estimate.main([str(p0), str(p1), "--output", str(plain), *small_frames.CLI_ARGS]) == 0
-    assert out.read_bytes() == plain.read_bytes()
-    monkeypatch.setattr(estimate, "read_input", slow_read)
-    patched.clear()
-    reading.clear()
-    assert estimate.main([str(p0), str(tmp_path / "nope.png"), "--output", str(out)]) == 1
-
-
 def test_cli_errors_are_one_line_and_nonzero(tmp_path: Path) -> None:
     p0, _, _ = _write_pair(tmp_path)
     small = tmp_path / "small.png"

@@ -253,8 +253,7 @@ def test_every_executable_applies_the_process_settings_before_its_work(setting: 
     touch any input: keep_freed_memory (the fault test above shows what it buys: without it every frame's
     arrays fault in fresh pages) and passive_thread_waits (idle numba threads sleep; libgomp reads it when
     the first parallel kernel runs, so it must come before any flow) and defer_kernel_bitcode (numba's cached
-    kernels read without their bitcode parsed: before the first flow reads them; flow_estimate decodes its
-    inputs on a thread meanwhile, test_core_api)."""
+    kernels read without their bitcode parsed: before the first flow reads them)."""
     import importlib
 
     mod = importlib.import_module(module)

@@ -17,11 +17,8 @@ import io
 import os
 import stat
 import sys
-import threading
-from collections.abc import Callable
 from contextlib import suppress
 from pathlib import Path
-from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -42,8 +39,6 @@ from .common import (
     native_stderr_silenced,
     silence_opencv_log,
 )
-
-T = TypeVar("T")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -230,6 +225,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     keep_freed_memory()
     passive_thread_waits()
+    defer_kernel_bitcode()
     silence_opencv_log()
     try:
         with native_stderr_silenced():
@@ -239,40 +235,11 @@ def main(argv: list[str] | None = None) -> int:
             skip_final_collection()
 
 
-def in_background(call: Callable[[], T]) -> Callable[[], T]:
-    """Start ``call()`` on a daemon thread now; the returned function waits for it and returns its result or
-    raises what it raised."""
-    outcome: list[tuple[bool, object]] = []
-
-    def target() -> None:
-        try:
-            outcome.append((True, call()))
-        except BaseException as exc:  # noqa: BLE001 -- handed to the caller, which raises it
-            outcome.append((False, exc))
-
-    thread = threading.Thread(target=target, name="flow_estimate-inputs", daemon=True)
-    thread.start()
-
-    def result() -> T:
-        thread.join()
-        ok, value = outcome[0]
-        if not ok:
-            raise value  # type: ignore[misc]
-        return value  # type: ignore[return-value]
-
-    return result
-
-
 def _run(args: argparse.Namespace) -> int:
     try:
         cfg = config_from_args(args)
         colour = cfg.colour == "channels"
-        # The inputs decode on a thread (OpenCV's decoders release the GIL) while this one applies the numba
-        # patch, whose import of numba's code generator takes 0.1-0.2 s: a fresh process's reads (15-40 ms
-        # for two PNGs) leave its wall time (docs/engine.md, "Compiled kernels").
-        inputs = in_background(lambda: (read_input(args.frame0, colour), read_input(args.frame1, colour)))
-        defer_kernel_bitcode()
-        (i0, c0), (i1, c1) = inputs()
+        (i0, c0), (i1, c1) = read_input(args.frame0, colour), read_input(args.frame1, colour)
         if i0.ndim == 3 or i1.ndim == 3:
             if args.color or args.mask:
                 raise FileFormatError("--color and --mask are for images (a volume's flow has no colour coding; "
