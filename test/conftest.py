@@ -3,6 +3,9 @@
 import os
 import random
 
+import numpy as np
+import pytest
+
 from flow_node.process import passive_thread_waits
 
 # Set before rclpy is imported anywhere: localhost-only discovery and a per-run domain id, so parallel
@@ -11,3 +14,19 @@ os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("ROS_DOMAIN_ID", str(random.SystemRandom().randint(1, 100)))
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 passive_thread_waits()  # idle numba threads sleep, as in the executables: the test process is one
+
+
+@pytest.fixture
+def median_sizes(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The sizes refine.median_filter is called with from now on, in order (the filter itself still runs)."""
+    from flow_node.core import refine
+
+    sizes: list[int] = []
+    real = refine.median_filter
+
+    def spy(v: np.ndarray, size: int) -> np.ndarray:
+        sizes.append(size)
+        return real(v, size)
+
+    monkeypatch.setattr(refine, "median_filter", spy)
+    return sizes

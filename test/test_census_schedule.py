@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from synth import texture
 
-from flow_node.core import refine
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
 from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
@@ -90,17 +89,10 @@ def test_warp_medians_change_the_census_mode_only() -> None:
 
 
 @pytest.mark.parametrize("photometric", ["census", "normalise"])
-def test_the_refinement_filters_with_the_warp_medians(photometric: str, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_refinement_filters_with_the_warp_medians(photometric: str, median_sizes: list[int]) -> None:
     """Each solved level's warps are median-filtered with warp_medians' sizes: census_median_filter before the
     last warp of a level (census only), median_filter after it."""
-    sizes: list[int] = []
-    real = refine.median_filter
-
-    def spy(v: np.ndarray, size: int) -> np.ndarray:
-        sizes.append(size)
-        return real(v, size)
-
-    monkeypatch.setattr(refine, "median_filter", spy)
+    sizes = median_sizes
     tex = texture(96, 128, seed=7).image
     cfg = CENSUS_RT.replace(photometric=photometric, census_median_filter=3, threads=1)
     FlowEstimator(cfg).estimate(tex, np.roll(tex, 1, axis=1))

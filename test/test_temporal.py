@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
-from flow_node.core import FlowConfig, FlowEstimator, refine, temporal
+from flow_node.core import FlowConfig, FlowEstimator, temporal
 from flow_node.core.backends import select_backend
 from flow_node.core.densify import forward_propagate, push_pull, splat_forward
 from flow_node.core.engine import photometric_stage
@@ -221,20 +221,12 @@ def test_stream_alpha_weights_the_refinement_from_the_prediction_only() -> None:
     assert np.abs(res[1].flow - res[0].flow).max() > 1e-3
 
 
-def test_stream_inner_median_filters_the_inner_warps_of_a_predicted_pair_only(monkeypatch: pytest.MonkeyPatch
-                                                                              ) -> None:
+def test_stream_inner_median_filters_the_inner_warps_of_a_predicted_pair_only(median_sizes: list[int]) -> None:
     """stream_inner_median: the median size after a stream level's warps but its last (the last keeps
     median_filter; -1 = median_filter: the flows bit for bit as before). Pairs solved in full never use it."""
     cfg = FlowConfig.preset("stream_fast").replace(backend="numba")  # coarse level 2 warps, finest 3
     seq = frames(pan(6), 3)
-    sizes: list[int] = []
-    filt = refine.median_filter
-
-    def spy(v: np.ndarray, size: int) -> np.ndarray:
-        sizes.append(size)
-        return filt(v, size)
-
-    monkeypatch.setattr(refine, "median_filter", spy)
+    sizes = median_sizes
     first = FlowEstimator(cfg).estimate_next(seq[0], seq[1], None)
     prior = Prior(first.state, first.unexplained)
     runs = {}
