@@ -23,7 +23,7 @@ from numba import get_thread_id, njit, prange
 
 from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
-from .numba_warp import _tap_indices, cubic_weights4, sample_row, tap_sum
+from .numba_warp import cubic_weights4, sample_row, tap_indices, tap_sum
 from .photometric import RELIABILITY_SAMPLES, reliability_stride
 from .warping import KERNEL_CODES
 from .workspace import scratch
@@ -298,9 +298,9 @@ def unexplained_kernel(i0, i1, flow, stride, dy, dx, eps, outlier):  # noqa: ANN
             xi, yi = np.int64(mx), np.int64(my)  # mx, my >= 1: truncation is the floor
             wx = cubic_weights4(mx - np.float32(xi), 0)
             wy = cubic_weights4(my - np.float32(yi), 0)
-            centre = tap_sum(i1, 0, wx, wy, _tap_indices(xi, w), _tap_indices(yi, h))
+            centre = tap_sum(i1, 0, wx, wy, tap_indices(xi, w), tap_indices(yi, h))
             for k in range(k_n):
-                d1[k] = tap_sum(i1, 0, wx, wy, _tap_indices(xi + dx[k], w), _tap_indices(yi + dy[k], h)) - centre
+                d1[k] = tap_sum(i1, 0, wx, wy, tap_indices(xi + dx[k], w), tap_indices(yi + dy[k], h)) - centre
                 d0[k] = i0[min(max(i + dy[k], 0), h - 1), min(max(j + dx[k], 0), w - 1)] - i0[i, j]
             inside += 1
             bad += _normalised_residual(d1, d0, eps) > outlier

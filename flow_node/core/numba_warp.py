@@ -53,7 +53,7 @@ def _mirror(i, n):  # noqa: ANN001, ANN201
 
 
 @njit(**_JIT)
-def _tap_indices(i0, n):  # noqa: ANN001, ANN201
+def tap_indices(i0, n):  # noqa: ANN001, ANN201
     """The four tap indices i0 - 1 .. i0 + 2, mirrored at the borders (interior: no reflection)."""
     if i0 >= 1 and i0 + 2 < n:
         return i0 - 1, i0, i0 + 1, i0 + 2
@@ -65,7 +65,7 @@ def taps(mx, my, h, w, kernel):  # noqa: ANN001, ANN201
     """Weights and indices of the 4 x 4 taps around (mx, my) in an (h, w) image: (wx, wy, cols, rows)."""
     xi, yi = _floor(mx), _floor(my)
     return (cubic_weights4(mx - np.float32(xi), kernel), cubic_weights4(my - np.float32(yi), kernel),
-            _tap_indices(xi, w), _tap_indices(yi, h))
+            tap_indices(xi, w), tap_indices(yi, h))
 
 
 @njit(**_JIT)
@@ -139,7 +139,7 @@ def row_block(scratch, base, j, h, w):  # noqa: ANN001, ANN201
     xi, yi = np.int64(base[0, j]), np.int64(base[1, j])
     if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:  # interior: one branch for both axes
         return wx, wy, (xi - 1, xi, xi + 1, xi + 2), (yi - 1, yi, yi + 1, yi + 2)
-    return wx, wy, _tap_indices(xi, w), _tap_indices(yi, h)
+    return wx, wy, tap_indices(xi, w), tap_indices(yi, h)
 
 
 @njit(**_JIT)
@@ -310,7 +310,7 @@ def unexplained_kernel(i0, i1, flow, stride, threshold):  # noqa: ANN001, ANN201
             if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:  # interior: one branch for both axes
                 cols, rows = (xi - 1, xi, xi + 1, xi + 2), (yi - 1, yi, yi + 1, yi + 2)
             else:
-                cols, rows = _tap_indices(xi, w), _tap_indices(yi, h)
+                cols, rows = tap_indices(xi, w), tap_indices(yi, h)
             inside += 1
             bad += abs(tap_sum(i1, 0, wx, wy, cols, rows) - i0[i, k * stride]) > threshold
     return inside, bad
