@@ -15,7 +15,6 @@ from .config import FlowConfig
 from .engine import Judged, estimate_pair, solve_pair, warm_fusion
 from .errors import InputError, NonFiniteResult
 from .layout import interleaved_flow
-from .photometric import RELIABILITY_SAMPLES
 from .refine import SolveStats
 from .solver import PDState
 from .temporal import FULL, Prior, Seen, estimate_predicted, result_fails
@@ -274,7 +273,7 @@ def check_pair(i0: np.ndarray, i1: np.ndarray, channels: tuple[np.ndarray, np.nd
     return as_masks(mask, i0.shape)
 
 
-def unexplained_of(flow: np.ndarray, judged: Judged, samples: int = RELIABILITY_SAMPLES) -> float:
+def unexplained_of(flow: np.ndarray, judged: Judged, samples: int | None = None) -> float:
     """The unexplained fraction of a finished ``flow`` (H, W, 2) by the photometric stage's own judge (on about
     ``samples`` pixels: photometric.reliability_stride), after :func:`ensure_finite`."""
     ensure_finite(flow)

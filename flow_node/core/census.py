@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .operators import warp_maps
-from .photometric import RELIABILITY_SAMPLES, reliability_stride
+from .photometric import reliability_stride
 from .warping import Sample, sample_coefficients
 
 # the 8 neighbours (dy, dx) of the 3 x 3 neighbourhood
@@ -167,7 +167,7 @@ OUTLIER = 0.5  # mean |signature residual| / gain above which a pixel is unexpla
 
 
 def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients,
-                params: CensusParams = CENSUS, *, samples: int = RELIABILITY_SAMPLES) -> float:
+                params: CensusParams = CENSUS, *, samples: int | None = None) -> float:
     """photometric.reliability for the census data term: the fraction of sampled pixels (SAMPLE_SPACING times
     its stride) whose signature is not explained by the flow, i.e. whose mean |F(I1)(x + flow) - F(I0)(x)| over the K
     channels exceeds OUTLIER (in units of the gain). F(I1) at x + flow is the signature of I1 sampled (Keys)

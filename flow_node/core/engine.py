@@ -40,7 +40,6 @@ from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .photometric import (
-    RELIABILITY_SAMPLES,
     PairMap,
     Reliability,
     Samples,
@@ -69,7 +68,7 @@ class Judged:
     samples: Samples
     key: MapKey | None = None
 
-    def unexplained(self, flow: np.ndarray, samples: int = RELIABILITY_SAMPLES) -> float:
+    def unexplained(self, flow: np.ndarray, samples: int | None = None) -> float:
         """The fraction of sampled pixels (about ``samples``) ``flow`` (H, W, 2) px does not explain
         (photometric.reliability)."""
         return self.judge(*self.frames, flow, samples=samples)

@@ -24,7 +24,7 @@ from numba import get_thread_id, njit, prange
 from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_warp import cubic_weights4, sample_row, tap_indices, tap_sum
-from .photometric import RELIABILITY_SAMPLES, reliability_stride
+from .photometric import reliability_stride
 from .warping import KERNEL_CODES
 from .workspace import scratch
 
@@ -308,7 +308,7 @@ def unexplained_kernel(i0, i1, flow, stride, dy, dx, eps, outlier):  # noqa: ANN
 
 
 def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, params: CensusParams = CENSUS, *,
-                      samples: int = RELIABILITY_SAMPLES) -> float:
+                      samples: int | None = None) -> float:
     """census.reliability with :func:`unexplained_kernel` (same samples, threshold and stride; the tap weights of
     a sample's 9 positions from its own fraction, which the reference recomputes from each position)."""
     h, w = i0.shape

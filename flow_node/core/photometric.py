@@ -291,16 +291,17 @@ def solver_images(n0: np.ndarray, n1: np.ndarray, mode: str) -> tuple[np.ndarray
 Reliability = Callable[..., float]
 
 
-def reliability_stride(h: int, w: int, samples: int = RELIABILITY_SAMPLES) -> int:
+def reliability_stride(h: int, w: int, samples: int | None = None) -> int:
     """Sampling stride of :func:`reliability` on an (h, w) frame: RELIABILITY_STRIDE, or coarser so that about
-    ``samples`` pixels are sampled (RELIABILITY_SAMPLES: 640x480 at stride 4, 19,200 pixels). The fraction is a
+    ``samples`` pixels are sampled (None: RELIABILITY_SAMPLES, read at the call, the one place every reliability
+    function's default comes from; 640x480 at stride 4, 19,200 pixels). The fraction is a
     mean over the samples; more of them change it by less than its own noise, and at stride 2 it cost ~7 % of a
     VGA `fastest` call (a stream's refined prediction is checked on fewer: FlowConfig.stream_check_samples)."""
-    return max(RELIABILITY_STRIDE, round(math.sqrt(h * w / samples)))
+    return max(RELIABILITY_STRIDE, round(math.sqrt(h * w / (samples or RELIABILITY_SAMPLES))))
 
 
 def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients, *,
-                samples: int = RELIABILITY_SAMPLES) -> float:
+                samples: int | None = None) -> float:
     """Fraction of pixels the flow does not explain: |I1(x + flow) - I0(x)| > RESIDUAL_OUTLIER on every
     :func:`reliability_stride`-th pixel (about ``samples`` of them) whose target stays inside the frame (i0, i1
     preprocessed (H, W); flow (H, W, 2) px). 0 = every sampled pixel explained, 1 = none. Uses the Keys kernel
