@@ -7,12 +7,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from synth import texture
+from synth import isoluminant_pair, texture
 
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
 from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
-from flow_node.core.census_noise import PairNoise, difference_noise_gains, noise_sigma, pair_noise
+from flow_node.core.census_noise import PairNoise, channel_noise, difference_noise_gains, noise_sigma, pair_noise
+from flow_node.core.colour import normalise_channel_pair
 from flow_node.core.config import FlowConfig
 from flow_node.core.photometric import (
     QUANT_SIGMA,
@@ -158,3 +159,16 @@ def test_a_clean_census_pair_keeps_its_flow_at_the_default_k() -> None:
     np.testing.assert_array_equal(*flows)
     noisy = [FlowEstimator(cfg.replace(census_noise_k=kk)).estimate(*low_light_pair(72, 96)).flow for kk in (0.0, k)]
     assert np.abs(noisy[0] - noisy[1]).max() > 1e-3  # where the noise is above EPS / K, K does change the flow
+
+
+def test_colour_channels_measure_their_own_noise() -> None:
+    """With colour channels the floor comes from the channels the signatures are taken on: an 8-bit isoluminant
+    pair's normalised luma is mostly quantisation noise, its R and G channels are clean textures."""
+    c0, c1, _ = isoluminant_pair(3, 96, 128)
+    planes = [np.moveaxis(quantised(c), -1, 0) for c in (c0, c1)]
+    grey = [(0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2]).astype(np.float32) for p in planes]  # the luma of 8-bit RGB
+    (g0, g1), _ = stage(*grey, "census")
+    luma = pair_noise((grey[0], grey[1]), (sorted_sample(grey[0]), sorted_sample(grey[1])), 1.0, (g0, g1))
+    colour = channel_noise((planes[0], planes[1]), normalise_channel_pair(*planes), 1.0)
+    assert luma.sigma > 2.0 * CENSUS.eps  # the luma would damp every signature
+    assert 2.0 * colour.sigma < CENSUS.eps
