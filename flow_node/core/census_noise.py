@@ -30,7 +30,7 @@ import numpy as np
 
 from .photometric import QUANT_SIGMA, Samples, affine_normalised, frame_maps, frame_samples
 
-NOISE_STRIDE = 3  # the estimate's median over every 3rd interior pixel in each direction (1/9 of them)
+NOISE_STRIDE = 4  # the estimate's median over every 4th interior pixel in each direction (1/16 of them)
 MAD_TO_STD = 1.4826  # std of a Gaussian over its median absolute deviation
 KERNEL_NORM = 6.0  # |N|_2 of Immerkaer's kernel: the std of N * (white noise of std 1)
 _PAD = 1  # the kernel's radius
