@@ -42,7 +42,8 @@ BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "fuse", "cons
 # (module, function) timed where the engine calls it through that module's global name (the tree before the
 # fused census kernel had more: `git show 9fd09d8:bench/census_cost.py`, which made `before.md`)
 SPANS: tuple[tuple[Any, str], ...] = (
-    (engine, "photometric_stage"), (engine, "initialise"), (engine, "make_pyramid"), (refine, "median_filter"),
+    (engine, "photometric_stage"), (engine, "pair_noise"), (engine, "initialise"), (engine, "make_pyramid"),
+    (refine, "median_filter"),
     (refine, "warp_source"), (numba_census, "signature_numba"), (numba_census, "census_kernel"))
 
 

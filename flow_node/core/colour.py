@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .photometric import normalise_frame
+from .photometric import normalise_frame, normalise_frames
 
 COLOUR_MODES = ("grey", "channels")  # the FlowConfig field ``colour``: luma only, or every channel (census)
 
@@ -36,3 +36,11 @@ def normalise_channels(frame: np.ndarray, noise_gain: float = 1.0) -> np.ndarray
     """Each channel of a frame (C, H, W) float32 mapped by its own robust range (photometric.normalise_frame):
     (C, H, W) float32. A per-channel gain (white balance) and offset are undone exactly."""
     return np.stack([normalise_frame(ch, noise_gain) for ch in frame]).astype(np.float32, copy=False)
+
+
+def normalise_channel_pair(frame0: np.ndarray, frame1: np.ndarray, noise_gain: float = 1.0
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """Both frames' channels (C, H, W) float32, each by its own robust range, channel c of both frames
+    presmoothed alike (photometric.normalise_frames: when either's quantisation is coarse): (C, H, W) each."""
+    pairs = [normalise_frames((c0, c1), noise_gain) for c0, c1 in zip(frame0, frame1, strict=True)]
+    return tuple(np.stack([p[k] for p in pairs]).astype(np.float32, copy=False) for k in (0, 1))

@@ -79,6 +79,11 @@ class FlowConfig:
                                   lo=0.0, hi=1.0, lo_open=True)
     census_coarse_width: int = _f(0, "photometric census: levels narrower than this (px) use census_coarse_eps "
                                   "(0 = none; quality and realtime set 50)", lo=0, hi=100000)
+    census_noise_k: float = _f(2.0, "photometric census: the signature's EPS is at least this many times the pair's "
+                               "noise std (estimated once per frame at full resolution, the larger of the two, "
+                               "used in both frames, carried down the pyramid by its filters' noise gain; 0 = "
+                               "off). Damps flat areas whose contrast is noise (low light); 2 chosen on the suite's "
+                               "tune split (docs/engine.md, 'The census data term')", lo=0.0, hi=100.0)
     census_median_filter: int = _f(-1, "photometric census: median filter size after each warp of a level but its "
                                    "last (-1 = median_filter; the last warp's is median_filter's). The earlier "
                                    "medians only move the next warp's linearisation point, and a 3 x 3 median costs "

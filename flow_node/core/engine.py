@@ -33,7 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backends import Backend
-from .colour import normalise_channels
+from .census_noise import PairNoise, channel_noise, pair_noise
+from .colour import normalise_channel_pair
 from .config import FlowConfig
 from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
@@ -61,12 +62,15 @@ class Judged:
     (``judge``: census signatures for ``census``, grey values otherwise); ``samples``: the input frames'
     sorted samples the stage took its ranges from (photometric.frame_samples; a stream hands frame 1's to its
     next pair, temporal.Prior); ``key``: the pair's :func:`map_key` (its normalising map and noise gain; None
-    outside ``normalise`` mode), computed once here for the stream stage's reuse (temporal.Seen)."""
+    outside ``normalise`` mode), computed once here for the stream stage's reuse (temporal.Seen); ``noise``: with
+    the census data term and ``census_noise_k`` > 0, the pair's noise for the signature's EPS floor
+    (census_noise.pair_noise, handed to make_pyramid), else None."""
 
     frames: tuple[np.ndarray, np.ndarray]
     judge: Reliability
     samples: Samples
     key: MapKey | None = None
+    noise: PairNoise | None = None
 
     def unexplained(self, flow: np.ndarray, samples: int | None = None) -> float:
         """The fraction of sampled pixels (about ``samples``) ``flow`` (H, W, 2) px does not explain
@@ -89,9 +93,11 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     pmap = None if signatures else pair_map(samples)
     key = map_key(pmap, i0.shape, cfg)
     n0 = known0[1] if known0 is not None and key is not None and key == known0[0] else None
-    solver_pair, frames = stage(i0, i1, cfg.photometric, noise_gain(i0.shape, cfg), samples, pmap, n0)
+    gain = noise_gain(i0.shape, cfg)
+    solver_pair, frames = stage(i0, i1, cfg.photometric, gain, samples, pmap, n0)
     judge = backend.census_reliability if signatures else backend.reliability
-    return solver_pair, Judged(frames, judge, samples, key)
+    noise = pair_noise((i0, i1), samples, gain, solver_pair) if signatures and cfg.census_noise_k > 0 else None
+    return solver_pair, Judged(frames, judge, samples, key, noise)
 
 
 # what a pair's normalised frames depend on besides the frames: its pair_map and the noise gain (map_key)
@@ -108,12 +114,13 @@ def map_key(pmap: PairMap | None, shape: tuple[int, int], cfg: FlowConfig) -> Ma
 def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray] | None, cfg: FlowConfig
                  ) -> tuple[np.ndarray, np.ndarray] | None:
     """The colour part of the photometric stage: both frames' channels (C, H, W) each normalised on its own
-    (colour.normalise_channels, with the pyramid's noise gain) when the census data term compares them; None
+    (colour.normalise_channel_pair, with the pyramid's noise gain; channel c of both presmoothed alike) when
+    the census data term compares them; None
     otherwise (grey-value terms and grey input use the luma only)."""
     if channels is None or not compares_signatures(cfg.photometric):
         return None
     gain = noise_gain(shape, cfg)
-    return normalise_channels(channels[0], gain), normalise_channels(channels[1], gain)
+    return normalise_channel_pair(channels[0], channels[1], gain)
 
 
 def start_level(pyr: Pyramid, cfg: FlowConfig, finest: int | None = None) -> int:
@@ -235,9 +242,12 @@ def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend
     if valid is not None:
         i0, i1 = fill_invalid(i0, valid[0]), fill_invalid(i1, valid[1])
         sample0 = None
-    channels = colour_stage(i0.shape, channels, cfg)
+    raw, channels = channels, colour_stage(i0.shape, channels, cfg)
     (i0, i1), judged = photometric_stage(i0, i1, cfg, backend, sample0)
+    noise = judged.noise
+    if noise is not None and raw is not None and channels is not None:  # the signatures are the channels'
+        noise = channel_noise(raw, channels, noise_gain(i0.shape, cfg))
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
-    pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid)
+    pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid, noise=noise)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     return refine_from(pyr, cfg, backend, candidates, stats), stats, judged

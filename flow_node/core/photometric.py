@@ -149,16 +149,52 @@ def normalise_frame(img: np.ndarray, noise_gain: float = 1.0, ordered: np.ndarra
     return affine_normalised(img, lo, hi, quantisation_step(ordered), noise_gain)
 
 
-def affine_normalised(img: np.ndarray, lo: float, hi: float, step: float, noise_gain: float) -> np.ndarray:
+def affine_normalised(img: np.ndarray, lo: float, hi: float, step: float, noise_gain: float,
+                      presmooth: bool | None = None) -> np.ndarray:
     """img mapped by (img - lo) / (hi - lo), or to [0, STEP_REF / rel] with rel = step * noise_gain / (hi - lo)
-    when rel > STEP_REF, then presmoothed by QUANT_SIGMA (unless noise_gain < 1); see :func:`normalise_pair`."""
+    when rel > STEP_REF, then presmoothed by QUANT_SIGMA (unless noise_gain < 1); see :func:`normalise_pair`.
+    ``presmooth``: whether to presmooth, decided by the caller (:func:`normalise_frames`); None: as above."""
+    rel = relative_step(lo, hi, step, noise_gain)
     span = hi - lo if hi - lo > MIN_SPAN else 1.0
-    rel = step * noise_gain / span
     scale = np.float32(min(1.0, STEP_REF / rel) / span if rel > 0 else 1.0 / span)
     out = (img - np.float32(lo)) * scale
-    if rel > STEP_REF and noise_gain >= 1.0:  # else the pyramid's anti-alias blur (>= 1.4 px) does it
+    if presmooth is None:
+        presmooth = rel > STEP_REF and noise_gain >= 1.0  # else the pyramid's anti-alias blur (>= 1.4 px) does it
+    if presmooth:
         out = cv2.GaussianBlur(out, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)
     return out
+
+
+def relative_step(lo: float, hi: float, step: float, noise_gain: float) -> float:
+    """rel of :func:`affine_normalised`: the quantisation step (after the noise gain) over the range hi - lo."""
+    return step * noise_gain / (hi - lo if hi - lo > MIN_SPAN else 1.0)
+
+
+def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 1.0,
+                     samples: Samples | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Both frames (H, W) float32, each by its own robust range (:func:`normalise_frame`, the ``census`` mode's
+    map), and both presmoothed by QUANT_SIGMA when either's quantisation is coarse (:func:`frame_maps`): the
+    two signatures a census data term compares must come from the same filter (a blur is not a tone curve, so
+    one frame blurred and the other not differ wherever there is texture; issue 25's low light, frame 2
+    darkened 0.4x: docs/engine.md). ``samples``: the frames' :func:`sorted_sample` when known."""
+    maps, smooth = frame_maps(frame_samples(*frames) if samples is None else samples, noise_gain)
+    n0, n1 = (affine_normalised(img, *m, noise_gain, smooth) for img, m in zip(frames, maps, strict=True))
+    return n0, n1
+
+
+# a frame's own map: (lo, hi, step), its robust range and quantisation step
+FrameMap = tuple[float, float, float]
+
+
+def frame_maps(samples: Samples, noise_gain: float = 1.0) -> tuple[tuple[FrameMap, FrameMap], bool]:
+    """Each frame's own map from its sorted sample, and whether :func:`normalise_frames` presmooths both: when
+    either's quantisation step is coarse (rel > STEP_REF) and noise_gain >= 1."""
+    maps = []
+    for ordered in samples:
+        lo, hi = quantiles(ordered, PERCENTILES)
+        maps.append((float(lo), float(hi), quantisation_step(ordered)))
+    smooth = noise_gain >= 1.0 and any(relative_step(*m, noise_gain) > STEP_REF for m in maps)
+    return (maps[0], maps[1]), smooth
 
 
 def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -255,15 +291,15 @@ def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, sa
           ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
     The second is the ``normalise`` result in every mode but ``census``, so the reliability figure has one
-    meaning; ``census`` normalises each frame on its own (:func:`normalise_frame`, no exposure detection:
-    its data term needs none) and returns that pair twice, for census.reliability. ``noise_gain``: see
-    :func:`normalise_pair`. ``samples``: both frames' :func:`sorted_sample` when known (a stream knows its
-    new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise; every mode's ranges
-    come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census`` uses it); ``n0``: i0
-    normalised by that map when known (:func:`normalise_pair`; not used by ``census``)."""
+    meaning; ``census`` normalises each frame on its own (:func:`normalise_frames`, no exposure detection:
+    its data term needs none; both presmoothed alike) and returns that pair twice, for census.reliability.
+    ``noise_gain``: see :func:`normalise_pair`. ``samples``: both frames' :func:`sorted_sample` when known (a
+    stream knows its new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise;
+    every mode's ranges come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census``
+    uses it); ``n0``: i0 normalised by that map when known (:func:`normalise_pair`; not used by ``census``)."""
     s0, s1 = frame_samples(i0, i1) if samples is None else samples
     if compares_signatures(mode):
-        pair = normalise_frame(i0, noise_gain, s0), normalise_frame(i1, noise_gain, s1)
+        pair = normalise_frames((i0, i1), noise_gain, (s0, s1))
         return pair, pair
     n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, pair_map((s0, s1)) if pmap is None else pmap, n0)
     if mode == "density":

@@ -15,6 +15,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from .census_noise import PairNoise, difference_noise_gains, eps_floors, noise_sigma
 from .config import FlowConfig
 from .photometric import compares_signatures
 from .solver import PDState
@@ -49,12 +50,16 @@ def build_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float, 
     harmless), except on the first ``antialias_levels`` steps, where it is ANTIALIAS / scale (see
     :func:`make_pyramid`)."""
     levels = [img]
-    for step, (h, w) in enumerate(shapes[1:]):
-        sigma = (ANTIALIAS if step < antialias_levels else 1.0 / 3.0) / scale
+    for sigma, (h, w) in zip(step_sigmas(len(shapes) - 1, scale, antialias_levels), shapes[1:], strict=True):
         blurred = cv2.GaussianBlur(levels[-1], (0, 0), sigmaX=sigma, sigmaY=sigma,
                                    borderType=cv2.BORDER_REPLICATE)
         levels.append(cv2.resize(blurred, (w, h), interpolation=cv2.INTER_LINEAR))
     return levels
+
+
+def step_sigmas(steps: int, scale: float, antialias_levels: int = 0) -> list[float]:
+    """The blur (px of the finer level) of each of :func:`build_pyramid`'s ``steps`` steps."""
+    return [(ANTIALIAS if step < antialias_levels else 1.0 / 3.0) / scale for step in range(steps)]
 
 
 def resize_field(f: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -94,7 +99,9 @@ def resize_state(state: PDState, shape: tuple[int, int]) -> PDState:
 class Pyramid:
     """Both frames on every level, finest first: ``shapes[l]`` (h, w), ``i0[l]`` and ``i1[l]`` float32; with
     colour input for the data term (colour.py), also their channels ``c0[l]``, ``c1[l]`` (C, h, w) float32; with
-    a validity mask (validity.py) ``valid0[l]`` and ``valid1[l]`` float32 in [0, 1] (None: every pixel valid)."""
+    a validity mask (validity.py) ``valid0[l]`` and ``valid1[l]`` float32 in [0, 1] (None: every pixel valid);
+    with the census data term and ``census_noise_k`` > 0, ``census_eps[l]``: the floor of the signature's EPS on
+    level l from the pair's noise (census_noise.py; None: no floor)."""
 
     shapes: list[tuple[int, int]]
     i0: list[np.ndarray]
@@ -103,6 +110,11 @@ class Pyramid:
     c1: list[np.ndarray] | None = None
     valid0: list[np.ndarray] | None = None
     valid1: list[np.ndarray] | None = None
+    census_eps: tuple[float, ...] | None = None
+
+    def eps_floor(self, level: int) -> float:
+        """The census EPS floor on ``level`` (0 without one)."""
+        return 0.0 if self.census_eps is None else self.census_eps[level]
 
     def valid(self, level: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Both frames' masks on ``level`` (float32 in [0, 1], validity.mask_levels), or None without a mask."""
@@ -147,8 +159,8 @@ def _noise_gain(shape: tuple[int, int], levels: int, scale: float, min_size: int
 
 def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
                  channels: tuple[np.ndarray, np.ndarray] | None = None,
-                 valid: tuple[np.ndarray, np.ndarray] | None = None, levels0: list[np.ndarray] | None = None
-                 ) -> Pyramid:
+                 valid: tuple[np.ndarray, np.ndarray] | None = None, levels0: list[np.ndarray] | None = None,
+                 noise: PairNoise | None = None) -> Pyramid:
     """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
     level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
     finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
@@ -159,7 +171,10 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
     both frames' colour channels (C, H, W), pyramids of each built the same way (Pyramid.c0, c1). ``valid``:
     the frames' validity masks (H, W) bool, carried down with the same blur (validity.mask_levels). ``levels0``:
     i0's pyramid for ``cfg`` when known (a stream's previous pair built it as its frame 1's: temporal.Seen);
-    used when its shapes are these."""
+    used when its shapes are these. With the census data term and ``cfg.census_noise_k`` > 0, the floor of
+    the signature's EPS per level (Pyramid.census_eps) from ``noise``, the pair's noise as the photometric stage
+    measured it (census_noise.pair_noise; None: measured here on i0 and i1, taken as white).
+    """
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
     antialias = antialias_steps(cfg, len(shapes))
     known = levels0 is not None and [level.shape for level in levels0] == shapes
@@ -169,7 +184,12 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
         [channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels]
     masks = [None, None] if valid is None else \
         [mask_levels(m, build_pyramid(m.astype(np.float32), shapes, cfg.scale_factor, antialias)) for m in valid]
-    return Pyramid(shapes, *grey, *colour, *masks)
+    floors = None
+    if compares_signatures(cfg.photometric) and cfg.census_noise_k > 0:
+        noise = PairNoise(max(noise_sigma(i0), noise_sigma(i1))) if noise is None else noise
+        gains = difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, antialias), noise.blur)
+        floors = eps_floors(noise, cfg.census_noise_k, gains)
+    return Pyramid(shapes, *grey, *colour, *masks, census_eps=floors)
 
 
 def antialias_steps(cfg: FlowConfig, levels: int) -> int:

@@ -214,7 +214,7 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         return "exposure step"
     key = judged.key
     same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
-    pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None)
+    pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None, noise=judged.noise)
     start, _ = stream_span(pyr, schedule)
     predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat, backend.fill)
     frames = judged_on(judged, pyr.shapes[start], seen.area if same else None)

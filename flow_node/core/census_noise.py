@@ -1,0 +1,146 @@
+"""The census signature's noise floor (issue 25, low light): EPS raised to the pair's noise level.
+
+The census signature divides a pixel's 3 x 3 differences by their RMS s(x) plus EPS (census.py). Where the
+frame is flat, s(x) is the noise's: with noise above EPS the signature of a flat area is noise at full
+contrast, and two frames' signatures there disagree at random. Raising EPS to K times the noise std damps
+exactly those pixels and leaves textured ones (s(x) >> EPS) normalised as before.
+
+* The noise std is estimated ONCE per frame, at full resolution, on the normalised frame before any
+  presmoothing (white noise there; :func:`pair_noise`): Immerkaer's (1996) estimator,
+  1.4826 median |I * N| / |N|_2 with N = [[1, -2, 1], [-2, 4, -2], [1, -2, 1]] (zero on any linear ramp,
+  |N|_2 = 6), on every :data:`NOISE_STRIDE`-th interior pixel in each direction (:func:`noise_sigma`).
+* Both frames use one EPS, from the larger of their two estimates: the same contrast scale in both
+  signatures (a per-frame EPS leaves a flat area full-contrast in the clean frame and damped in the noisy
+  one, measured worse: bench/results/census_cost/lowlight/summary.md).
+* It is carried down the pyramid analytically, not re-estimated (a coarse level's texture reads as noise):
+  every level is a fixed linear filter of the input (blur and bilinear resampling, separable), so white
+  noise's neighbour differences on a level have a known RMS, computed from that filter
+  (:func:`difference_noise_gains`, the photometric stage's presmoothing included: a white-noise estimator
+  would read a blurred frame's noise as far smaller than it is). The floor on a level is K sigma times that
+  gain.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from .photometric import QUANT_SIGMA, Samples, affine_normalised, frame_maps, frame_samples
+
+NOISE_STRIDE = 4  # the estimate's median over every 4th interior pixel in each direction (1/16 of them)
+MAD_TO_STD = 1.4826  # std of a Gaussian over its median absolute deviation
+KERNEL_NORM = 6.0  # |N|_2 of Immerkaer's kernel: the std of N * (white noise of std 1)
+_PAD = 1  # the kernel's radius
+
+
+def noise_sigma(img: np.ndarray) -> float:
+    """Robust std of the white noise in img (H, W) float32, in img's units (Immerkaer's estimator, module
+    doc), on every NOISE_STRIDE-th interior pixel; 0 for an image smaller than 3 x 3."""
+    h, w = img.shape
+    if h < 3 or w < 3:
+        return 0.0
+    s = NOISE_STRIDE if min(h, w) > 4 * NOISE_STRIDE else 1
+    ny, nx = len(range(_PAD, h - _PAD, s)), len(range(_PAD, w - _PAD, s))
+    weights = ((1, -2, 1), (-2, 4, -2), (1, -2, 1))
+    response = np.zeros((ny, nx), np.float32)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            y0, x0 = _PAD + dy, _PAD + dx
+            view = img[y0:y0 + (ny - 1) * s + 1:s, x0:x0 + (nx - 1) * s + 1:s]
+            response += np.float32(weights[dy + 1][dx + 1]) * view
+    return float(MAD_TO_STD * np.median(np.abs(response)) / KERNEL_NORM)
+
+
+@dataclass(frozen=True)
+class PairNoise:
+    """A pair's noise for the census EPS floor: ``sigma``, the larger of both frames' white-noise std in
+    normalised units (before presmoothing), and ``blur``, the presmoothing Gaussian (px; 0: none) both frames
+    then got (photometric.normalise_frames)."""
+
+    sigma: float
+    blur: float = 0.0
+
+
+def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_gain: float,
+               solver_pair: tuple[np.ndarray, np.ndarray]) -> PairNoise:
+    """The :class:`PairNoise` of the census stage's pair: ``frames`` (H, W) as they came, their sorted
+    ``samples``, the stage's ``noise_gain`` and what it made of them (``solver_pair``). Where the stage did not
+    presmooth, its pair is the normalised one and is measured as it is; where it did, the frames are mapped
+    again without the blur (one affine map each) and measured."""
+    maps, smooth = frame_maps(samples, noise_gain)
+    if smooth:
+        solver_pair = tuple(affine_normalised(f, *m, noise_gain, False) for f, m in zip(frames, maps, strict=True))
+    return PairNoise(max(noise_sigma(solver_pair[0]), noise_sigma(solver_pair[1])), QUANT_SIGMA if smooth else 0.0)
+
+
+def channel_noise(raw: tuple[np.ndarray, np.ndarray], normalised: tuple[np.ndarray, np.ndarray], noise_gain: float
+                  ) -> PairNoise:
+    """The :class:`PairNoise` of colour channels (colour.py): both frames' channels (C, H, W) as they came
+    (``raw``) and as the colour stage normalised them (colour.normalise_channel_pair), measured channel by
+    channel (:func:`pair_noise`); the largest sigma and blur over the channels (one EPS for the stacked
+    signatures). The luma's noise would be wrong here: an isoluminant frame's normalised luma is mostly
+    quantisation noise."""
+    noises = [pair_noise((r0, r1), frame_samples(r0, r1), noise_gain, (n0, n1))
+              for r0, r1, n0, n1 in zip(*raw, *normalised, strict=True)]
+    return PairNoise(max(n.sigma for n in noises), max(n.blur for n in noises))
+
+
+def difference_noise_gains(shapes: list[tuple[int, int]], sigmas: list[float], blur: float = 0.0
+                           ) -> tuple[float, ...]:
+    """Per pyramid level (finest first), the RMS of white noise's neighbour differences (along x and y) on that
+    level over their RMS on the input (1 on level 0 without ``blur``). ``shapes`` (h, w) per level; ``sigmas``:
+    the Gaussian blur (px of the finer level) of each step before its bilinear resampling
+    (pyramid.build_pyramid), one per step; ``blur``: a Gaussian (px) on the input first (the photometric
+    stage's presmoothing; 0: none). Computed exactly from the separable linear map of each axis
+    (:func:`_axis_gains`), cached per argument set."""
+    return _difference_noise_gains(tuple(tuple(s) for s in shapes), tuple(float(s) for s in sigmas), float(blur))
+
+
+@lru_cache(maxsize=64)
+def _difference_noise_gains(shapes: tuple[tuple[int, int], ...], sigmas: tuple[float, ...], blur: float
+                            ) -> tuple[float, ...]:
+    """:func:`difference_noise_gains` on hashable arguments."""
+    vy, dy = _axis_gains(tuple(s[0] for s in shapes), sigmas, blur)
+    vx, dx = _axis_gains(tuple(s[1] for s in shapes), sigmas, blur)
+    # white noise through a separable map: Var(x difference) = dx * vy, Var(y difference) = vx * dy; 2 on level 0
+    return tuple(float(np.sqrt((dx[k] * vy[k] + vx[k] * dy[k]) / 4.0)) for k in range(len(shapes)))
+
+
+def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0
+                ) -> tuple[list[float], list[float]]:
+    """For one axis of lengths n_0 > n_1 > ..., the step blurs ``sigmas`` and a first ``blur`` on n_0: per
+    level, the mean over interior samples of the variance of (white noise of variance 1 through the axis's
+    linear map) and of its neighbour difference. The map is built as a matrix (rows: input impulses) by the
+    very operations of pyramid.build_pyramid along that axis (a Gaussian of OpenCV's kernel size for float
+    input; bilinear resampling); replicated border for the steps, reflected for the first blur (as
+    photometric.affine_normalised)."""
+    m = np.eye(lengths[0], dtype=np.float32)
+    if blur > 0:
+        m = _blurred(m, blur, cv2.BORDER_REFLECT)
+    var, dvar = [], []
+    for level, n in enumerate(lengths):
+        if level:
+            m = _blurred(m, sigmas[level - 1], cv2.BORDER_REPLICATE)
+            m = cv2.resize(m, (n, m.shape[0]), interpolation=cv2.INTER_LINEAR)
+        inner = (m[:, 2:-2] if n > 8 else m).astype(np.float64)
+        var.append(float(np.mean(np.sum(inner ** 2, axis=0))))
+        diff = np.diff(inner, axis=1)
+        dvar.append(float(np.mean(np.sum(diff * diff, axis=0))) if diff.size else 0.0)
+    return var, dvar
+
+
+def _blurred(m: np.ndarray, sigma: float, border: int) -> np.ndarray:
+    """m (rows, n) float32 blurred along its rows by a Gaussian of sigma px (OpenCV's kernel size for float
+    input, as cv2.GaussianBlur with size (0, 0))."""
+    size = int(round(sigma * 4 * 2 + 1)) | 1
+    kernel = cv2.getGaussianKernel(size, sigma, cv2.CV_32F)
+    return cv2.sepFilter2D(m, cv2.CV_32F, kernel, np.ones((1, 1), np.float32), borderType=border)
+
+
+def eps_floors(noise: PairNoise, k: float, gains: tuple[float, ...]) -> tuple[float, ...]:
+    """The census EPS floor per level: k times the pair's noise std times each level's
+    :func:`difference_noise_gains` (for its presmoothing)."""
+    return tuple(k * noise.sigma * g for g in gains)

@@ -1,0 +1,174 @@
+"""The census signature's noise floor and symmetric presmoothing (issue 25, low light; core/census_noise.py,
+photometric.normalise_frames): the noise estimate, its analytic carry down the pyramid, the numpy and numba
+forms with the raised EPS, and that grey-value flows and clean census pairs are unchanged."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from synth import isoluminant_pair, texture
+
+from flow_node.core.api import FlowEstimator
+from flow_node.core.backends import select_backend
+from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
+from flow_node.core.census_noise import PairNoise, channel_noise, difference_noise_gains, noise_sigma, pair_noise
+from flow_node.core.colour import normalise_channel_pair
+from flow_node.core.config import FlowConfig
+from flow_node.core.photometric import (
+    QUANT_SIGMA,
+    STEP_REF,
+    affine_normalised,
+    quantiles,
+    quantisation_step,
+    sorted_sample,
+    stage,
+)
+from flow_node.core.pyramid import antialias_steps, build_pyramid, make_pyramid, pyramid_shapes, step_sigmas
+from flow_node.core.refine import census_problem, level_census
+from flow_node.core.warping import NUMPY_WARPER
+
+CENSUS_RT = FlowConfig.preset("realtime").replace(photometric="census")
+
+
+def quantised(img: np.ndarray) -> np.ndarray:
+    """img in [0, 1] to 8 bit and back, float32."""
+    return (np.clip(np.rint(img * 255.0), 0, 255) / 255.0).astype(np.float32)
+
+
+def low_light_pair(h: int = 96, w: int = 128, gain: float = 0.4, sigma: float = 4.0, seed: int = 2
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """An 8-bit texture pair (a 1 px shift) with frame 2 darkened by ``gain`` plus Gaussian noise of ``sigma``
+    grey levels (of 255), as the suite's low_light family does."""
+    tex = texture(h, w + 1, seed=seed).image
+    rng = np.random.default_rng(seed)
+    f0 = quantised(tex[:, 1:])
+    f1 = quantised(gain * tex[:, :-1] + rng.normal(0.0, sigma / 255.0, (h, w)))
+    return f0, f1
+
+
+def test_noise_sigma_reads_white_noise_and_not_a_smooth_texture() -> None:
+    tex = texture(240, 320, seed=1).image.astype(np.float32)
+    noise = np.random.default_rng(0).normal(0.0, 0.02, tex.shape).astype(np.float32)
+    assert noise_sigma(tex + noise) == pytest.approx(0.02, rel=0.1)
+    assert noise_sigma(quantised(tex)) < 0.002  # 8-bit quantisation of a smooth texture: ~1/255 / sqrt(12) at most
+    assert noise_sigma(np.zeros((2, 9), np.float32)) == 0.0
+
+
+@pytest.mark.parametrize(("cfg", "blur"), [(CENSUS_RT, 0.0), (CENSUS_RT, QUANT_SIGMA),
+                                           (CENSUS_RT.replace(census_antialias=-1, scale_factor=0.8, levels=8), 0.0),
+                                           (FlowConfig.preset("fastest").replace(photometric="census"), 0.0)],
+                         ids=["realtime", "realtime-presmoothed", "every-step-0.8", "fastest"])
+def test_the_carried_noise_matches_the_pyramid_of_white_noise(cfg: FlowConfig, blur: float) -> None:
+    """The analytic gain of white noise's neighbour differences per level (difference_noise_gains) is what the
+    pyramid's own levels of a white-noise image (presmoothed by ``blur`` first) measure, within sampling error."""
+    noise = np.random.default_rng(3).normal(0.0, 1.0, (240, 320)).astype(np.float32)
+    if blur:
+        noise = cv2.GaussianBlur(noise, (0, 0), blur, borderType=cv2.BORDER_REFLECT)
+    shapes = pyramid_shapes(noise.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
+    steps = antialias_steps(cfg, len(shapes))
+    gains = difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, steps), blur)
+    assert gains[0] == pytest.approx(1.0) if not blur else gains[0] < 0.3
+    for level, gain in zip(build_pyramid(noise, shapes, cfg.scale_factor, steps), gains, strict=True):
+        inner = level[2:-2, 2:-2].astype(np.float64)
+        rms = np.sqrt(0.5 * (np.mean(np.diff(inner, axis=1) ** 2) + np.mean(np.diff(inner, axis=0) ** 2)))
+        assert rms / np.sqrt(2.0) == pytest.approx(gain, rel=0.06), level.shape
+    assert gains[-1] < 0.2  # and it falls: the coarse levels' EPS floor is far below the input's
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_census_problem_with_an_eps_floor_matches_the_numpy_form(backend: str) -> None:
+    h, w = 30, 40
+    i0 = texture(h, w, seed=5, cell=2).image
+    i1 = texture(h, w, seed=6, cell=2).image
+    v0 = np.full((2, h, w), 0.3, np.float32)
+    be = select_backend(backend)
+    got = census_problem(i0[None], i1[None], CENSUS_RT, be, True, 0.07)(v0)
+    base = census_problem(i0[None], i1[None], CENSUS_RT, be, True)(v0)
+    params = CensusParams(eps=0.07)
+    f0, g0 = level_signature(i0, params)
+    coefs = NUMPY_WARPER.coefficients(i1[None], CENSUS_RT.warp_kernel)
+    want = census_form(f0, g0, coefs, i1[None], v0, CENSUS_RT.warp_kernel, True, params)
+    np.testing.assert_allclose(got.q, want, atol=1e-5 * max(1.0, float(np.abs(want).max())))
+    assert np.abs(got.q - base.q).max() > 1e-3  # the floor changed the form
+    assert level_census(CENSUS_RT, 400, 0.005) is CENSUS  # a floor below EPS changes nothing
+    assert level_census(CENSUS_RT.replace(census_coarse_eps=0.03, census_coarse_width=50), 40, 0.02).eps == 0.03
+
+
+def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
+    """Frame 2 at gain 0.4 plus noise: its 8-bit step is coarse against its range, so both frames are
+    presmoothed (not frame 2 alone), and the pair's EPS floor, from frame 2's noise, is above EPS on the
+    finest level and used for both frames."""
+    f0, f1 = low_light_pair()
+    s0, s1 = sorted_sample(f0), sorted_sample(f1)
+    rels = [quantisation_step(s) / float(np.subtract(*quantiles(s, (98.0, 2.0)))) for s in (s0, s1)]
+    assert rels[0] < STEP_REF < rels[1]
+    (n0, n1), judged = stage(f0, f1, "census")
+    assert judged[0] is n0 and judged[1] is n1
+    for img, s, n in ((f0, s0, n0), (f1, s1, n1)):
+        lo, hi = quantiles(s, (2.0, 98.0))
+        step = quantisation_step(s)
+        np.testing.assert_array_equal(n, affine_normalised(img, lo, hi, step, 1.0, True))
+        assert np.abs(n - affine_normalised(img, lo, hi, step, 1.0, False)).max() > 1e-3
+    noise = pair_noise((f0, f1), (s0, s1), 1.0, (n0, n1))
+    assert noise.blur == QUANT_SIGMA
+    # measured before the blur: frame 2's noise, 4 / 255 over its own range, contrast-shrunk by STEP_REF / rel
+    span1 = float(np.subtract(*quantiles(s1, (98.0, 2.0))))
+    assert noise.sigma == pytest.approx(4.0 / 255.0 / span1 * STEP_REF / rels[1], rel=0.15)
+    assert noise_sigma(n1) < 0.3 * noise.sigma  # the blurred frame reads as far less noisy than it is
+    cfg = CENSUS_RT.replace(census_noise_k=2.0)
+    pyr = make_pyramid(n0, n1, cfg, noise=noise)
+    assert pyr.census_eps is not None
+    gains = difference_noise_gains(pyr.shapes, step_sigmas(len(pyr.shapes) - 1, 0.5, 3), QUANT_SIGMA)
+    assert pyr.census_eps == pytest.approx([2.0 * noise.sigma * g for g in gains])
+    assert pyr.census_eps[0] > CENSUS.eps
+    assert all(a > b for a, b in zip(pyr.census_eps, pyr.census_eps[1:], strict=False))
+    assert level_census(cfg, pyr.shapes[0][1], pyr.eps_floor(0)).eps == pyr.census_eps[0]
+    # the engine hands the stage's noise to the pyramid: the same floor (both frames use it, refine.census_problem)
+    assert make_pyramid(n0, n1, cfg, noise=PairNoise(noise.sigma, QUANT_SIGMA)).census_eps == pyr.census_eps
+
+
+def test_a_clean_pair_without_coarse_quantisation_is_not_presmoothed() -> None:
+    tex = quantised(texture(64, 80, seed=4).image)
+    (n0, n1), _ = stage(tex, tex, "census")
+    s = sorted_sample(tex)
+    lo, hi = quantiles(s, (2.0, 98.0))
+    np.testing.assert_array_equal(n0, affine_normalised(tex, lo, hi, quantisation_step(s), 1.0, False))
+
+
+@pytest.mark.parametrize("preset", ["realtime", "fastest"])
+def test_grey_value_flows_do_not_see_the_noise_floor(preset: str) -> None:
+    f0, f1 = low_light_pair(64, 80)
+    cfg = FlowConfig.preset(preset).replace(threads=1)
+    assert make_pyramid(f0, f1, cfg.replace(census_noise_k=3.0)).census_eps is None
+    flows = [FlowEstimator(cfg.replace(census_noise_k=k)).estimate(f0, f1).flow for k in (0.0, 3.0)]
+    np.testing.assert_array_equal(*flows)
+
+
+def test_a_clean_census_pair_keeps_its_flow_at_the_default_k() -> None:
+    """An 8-bit textured pair whose noise (quantisation) times the default K is below EPS: the census flow is
+    the one without the floor, bit for bit."""
+    tex = texture(72, 97, seed=8).image
+    f0, f1 = quantised(tex[:, 1:]), quantised(tex[:, :-1])
+    cfg = CENSUS_RT.replace(threads=1)
+    k = FlowConfig().census_noise_k
+    assert k > 0
+    (n0, n1), _ = stage(f0, f1, "census")
+    assert k * max(noise_sigma(n0), noise_sigma(n1)) < CENSUS.eps
+    flows = [FlowEstimator(cfg.replace(census_noise_k=kk)).estimate(f0, f1).flow for kk in (0.0, k)]
+    np.testing.assert_array_equal(*flows)
+    noisy = [FlowEstimator(cfg.replace(census_noise_k=kk)).estimate(*low_light_pair(72, 96)).flow for kk in (0.0, k)]
+    assert np.abs(noisy[0] - noisy[1]).max() > 1e-3  # where the noise is above EPS / K, K does change the flow
+
+
+def test_colour_channels_measure_their_own_noise() -> None:
+    """With colour channels the floor comes from the channels the signatures are taken on: an 8-bit isoluminant
+    pair's normalised luma is mostly quantisation noise, its R and G channels are clean textures."""
+    c0, c1, _ = isoluminant_pair(3, 96, 128)
+    planes = [np.moveaxis(quantised(c), -1, 0) for c in (c0, c1)]
+    grey = [(0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2]).astype(np.float32) for p in planes]  # the luma of 8-bit RGB
+    (g0, g1), _ = stage(*grey, "census")
+    luma = pair_noise((grey[0], grey[1]), (sorted_sample(grey[0]), sorted_sample(grey[1])), 1.0, (g0, g1))
+    colour = channel_noise((planes[0], planes[1]), normalise_channel_pair(*planes), 1.0)
+    assert luma.sigma > 2.0 * CENSUS.eps  # the luma would damp every signature
+    assert 2.0 * colour.sigma < CENSUS.eps
