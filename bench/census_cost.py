@@ -40,10 +40,11 @@ TERMS = ("normalise", "census")  # the grey-value baseline first: every ratio is
 BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "fuse", "consistent", "gradient", "sample",
                  "reliability", "census_reliability")
 # (module, function) timed where the engine calls it through that module's global name (the tree before the
-# fused census kernel had more: `git show 9fd09d8:bench/census_cost.py`, which made `before.md`)
+# fused census kernel had more: `git show 9fd09d8:bench/census_cost.py`, which made `before.md`; frame 0's
+# level signature was `signature_numba` before round censt: `signature/signature_numba` in older results)
 SPANS: tuple[tuple[Any, str], ...] = (
     (engine, "photometric_stage"), (engine, "initialise"), (engine, "make_pyramid"), (refine, "median_filter"),
-    (refine, "warp_source"), (numba_census, "signature_numba"), (numba_census, "census_kernel"))
+    (refine, "warp_source"), (numba_census, "factor_numba"), (numba_census, "census_kernel"))
 
 
 class Spans:
