@@ -77,8 +77,9 @@ def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noq
     k_n = dy.shape[0]
     ss[:] = 0.0
     _neighbour_differences(up, centre, down, dy, dx, out, first, i, ss)
+    inv_k = _F32(1.0) / _F32(k_n)  # float32 throughout (ss / k_n, an int, promoted the row to float64)
     for j in range(centre.shape[0]):
-        ss[j] = gain / (math.sqrt(ss[j] / k_n) + eps)
+        ss[j] = gain / (math.sqrt(ss[j] * inv_k) + eps)
 
 
 @njit(parallel=True, **_JIT)
