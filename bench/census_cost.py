@@ -3,6 +3,7 @@
     python -m bench.census_cost                                  # realtime, fastest, quality; 3 rounds
     python -m bench.census_cost --presets realtime --rounds 5 --out bench/results/census_cost/realtime
     python -m bench.census_cost --term main=census_median_filter=-1   # also census with the fields changed
+    python -m bench.census_cost --clock cpu                      # the process's CPU time instead of wall time
 
 
 Each preset runs with ``photometric`` ``normalise`` (grey values, the default) and ``census`` on the 8
@@ -14,6 +15,9 @@ backend's fields and a few module functions (:data:`SPANS`); "other" is the call
 (Python glue, resizes, layout). The wrappers cost ~1 us per call: the totals are a few ms above an untimed call.
 ``--term NAME=key=value,...`` adds a census variant (the preset with ``photometric=census`` and those fields),
 timed in the same rounds: an A/B of a census change against the preset's census and grey values in one run.
+``--clock cpu`` times with the process's CPU time (time.process_time) instead of the wall clock: on a machine
+shared with other jobs (load above the core count) the wall clock counts the time the process waits for a core,
+which lands on whichever term runs then; CPU time does not (it still sees their cache and memory traffic).
 """
 
 from __future__ import annotations
@@ -40,17 +44,23 @@ TERMS = ("normalise", "census")  # the grey-value baseline first: every ratio is
 BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "fuse", "consistent", "gradient", "sample",
                  "reliability", "census_reliability")
 # (module, function) timed where the engine calls it through that module's global name (the tree before the
-# fused census kernel had more: `git show 9fd09d8:bench/census_cost.py`, which made `before.md`)
+# fused census kernel had more: `git show 9fd09d8:bench/census_cost.py`, which made `before.md`; frame 0's
+# level signature was `signature_numba` before round censt: `signature/signature_numba` in older results)
 SPANS: tuple[tuple[Any, str], ...] = (
     (engine, "photometric_stage"), (engine, "pair_noise"), (engine, "initialise"), (engine, "make_pyramid"),
     (refine, "median_filter"),
-    (refine, "warp_source"), (numba_census, "signature_numba"), (numba_census, "census_kernel"))
+    (refine, "warp_source"), (numba_census, "factor_numba"), (numba_census, "census_kernel"))
+
+
+CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
 
 
 class Spans:
-    """Exclusive time per span name: a stack of the spans running, each one's time minus its children's."""
+    """Exclusive time per span name: a stack of the spans running, each one's time minus its children's
+    (``clock``: :data:`CLOCKS`)."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.perf_counter) -> None:
+        self.clock = clock
         self.seconds: dict[str, float] = {}
         self._stack: list[list[Any]] = []  # per open span: [its name, its children's time so far]
 
@@ -59,11 +69,11 @@ class Spans:
         def timed(*args: Any, **kwargs: Any) -> Any:
             key = f"{self._stack[-1][0]}/{name}" if self._stack else name
             self._stack.append([name, 0.0])
-            start = time.perf_counter()
+            start = self.clock()
             try:
                 return fn(*args, **kwargs)
             finally:
-                total = time.perf_counter() - start
+                total = self.clock() - start
                 children = self._stack.pop()[1]
                 self.seconds[key] = self.seconds.get(key, 0.0) + total - children
                 if self._stack:
@@ -105,15 +115,17 @@ def parse_terms(specs: list[str]) -> dict[str, dict[str, str]]:
     return terms
 
 
-def run(presets: list[str], rounds: int, terms: dict[str, dict[str, str]] | None = None) -> dict[str, Any]:
+def run(presets: list[str], rounds: int, terms: dict[str, dict[str, str]] | None = None,
+        clock: str = "wall") -> dict[str, Any]:
     """Per preset and data term (:func:`parse_terms`; default :data:`TERMS`), per round: {stage: seconds summed over
-    the pairs, 'total': wall seconds}."""
+    the pairs, 'total': seconds} on ``clock`` (:data:`CLOCKS`)."""
+    tick = CLOCKS[clock]
     terms = parse_terms([]) if terms is None else terms
     names = tuple(terms)
     samples = middlebury(False)
     out: dict[str, Any] = {}
     for preset in presets:
-        spans = {t: Spans() for t in names}
+        spans = {t: Spans(tick) for t in names}
         ests = {t: timed_estimator(FlowConfig.preset(preset).replace(threads=1).with_overrides(
             f"{k}={v}" for k, v in terms[t].items()), spans[t]) for t in names}
         rows: dict[str, list[dict[str, float]]] = {t: [] for t in names}
@@ -128,9 +140,9 @@ def run(presets: list[str], rounds: int, terms: dict[str, dict[str, str]] | None
             for k, s in enumerate(samples):
                 for t in (names if (k + r) % 2 == 0 else names[::-1]):
                     with patched(spans[t]):
-                        start = time.perf_counter()
+                        start = tick()
                         ests[t].estimate(s.f0, s.f1)
-                        totals[t] += time.perf_counter() - start
+                        totals[t] += tick() - start
             for t in names:
                 rows[t].append({**spans[t].seconds, "total": totals[t]})
         out[preset] = rows
@@ -158,7 +170,8 @@ def ratio(rows: dict[str, list[dict[str, float]]], term: str) -> tuple[float, fl
 def markdown(result: dict[str, Any], record: dict[str, Any]) -> str:
     lines = [f"# Census vs grey values, per stage (`{record['command']}`)", "",
              f"{record['started']}, load {record['load_average_start']}; ms summed over the 8 Middlebury pairs, "
-             "one thread, median over rounds; exclusive times (bench/census_cost.py).", ""]
+             "one thread, median over rounds; exclusive times (bench/census_cost.py), clock "
+             f"{record.get('clock', 'wall')}.", ""]
     for preset, rows in result.items():
         names = list(rows)
         terms = [t for t in names if t != "normalise"]
@@ -182,9 +195,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--out", type=Path, default=None, help="result stem (.json and .md); default: print only")
     ap.add_argument("--term", action="append", default=[], metavar="NAME=key=value[,key=value...]",
                     help="also time census with these fields (repeatable)")
+    ap.add_argument("--clock", choices=tuple(CLOCKS), default="wall",
+                    help="wall clock, or the process's CPU time (robust to other jobs' load)")
     args = ap.parse_args(argv)
-    record = run_record("bench.census_cost", argv)
-    result = run(args.presets.split(","), args.rounds, parse_terms(args.term))
+    record = {**run_record("bench.census_cost", argv), "clock": args.clock}
+    result = run(args.presets.split(","), args.rounds, parse_terms(args.term), args.clock)
     write_result(args.out, {**record, "rounds": result}, markdown(result, record))
 
 

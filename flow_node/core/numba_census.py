@@ -1,14 +1,15 @@
 """numba kernels of the census data term (census.py, the numpy reference and test oracle).
 
-:func:`signature_kernel` computes the soft census signature of an image (frame 0's, once per level);
-:func:`census_kernel` one warp's quadratic form in one pass over the level (census.census_form): frame 1's
-channels sampled at x + v0 (a value-only warp, numba_warp.sample_row), their signatures and the form, row by
-row, the warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings of three rows
-(cache-resident) instead of level-sized arrays; :func:`unexplained_kernel` the counts behind
-census.reliability. Grey and colour input are the same kernel (C = 1 or 3 channels of K signatures each).
-Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same quantities as
-the reference, the form's sums rearranged (:func:`_form_finish`): equal to float32 rounding (test_census,
-1e-5 of the form's largest value).
+:func:`factor_kernel` computes the factor GAIN / (RMS + EPS) that turns an image's neighbour differences into
+its soft census signature (frame 0's, once per level: the level's signatures are frame 0 and that one plane,
+:func:`level_signature_numba`); :func:`census_kernel` one warp's quadratic form in one pass over the level
+(census.census_form): frame 1's channels sampled at x + v0 (a value-only warp, numba_warp.sample_row), both
+frames' signatures and the form, row by row, the warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept
+in per-thread rings of three rows (cache-resident) instead of level-sized arrays; :func:`unexplained_kernel`
+the counts behind census.reliability. Grey and colour input are the same kernel (C = 1 or 3 channels of K
+signatures each). Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same
+quantities as the reference, the form's sums rearranged (:func:`_form_finish`): equal to float32 rounding
+(test_census, 1e-5 of the form's largest value).
 
 Importing this module raises ImportError when numba is not installed (backends.py then uses numpy).
 """
@@ -21,7 +22,7 @@ import numba
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams
+from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams, shifted
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_warp import cubic_weights4, sample_row, tap_indices, tap_sum
 from .photometric import reliability_stride
@@ -37,23 +38,24 @@ _K = len(OFFSETS)
 
 @njit(**_JIT)
 def _diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN201
-    """dst = neighbour - centre and ss += dst^2 over one row (1-D views; vectorises)."""
+    """dst = neighbour - centre and, unless ``ss`` is None (a compile-time case), ss += dst^2 over one row
+    (1-D views; vectorises)."""
     for j in range(dst.shape[0]):
         d = neighbour[j] - centre[j]
         dst[j] = d
-        ss[j] += d * d
+        if ss is not None:
+            ss[j] += d * d
 
 
 @njit(**_JIT)
-def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noqa: ANN001, ANN201
+def _neighbour_differences(up, centre, down, dy, dx, out, first, i, ss):  # noqa: ANN001, ANN201
     """The K neighbour differences of one image row ``centre`` (W), whose neighbour rows are ``up`` and ``down``
     (the row itself at the image's top and bottom: edge values), into the rows out[first + k, i] (k < K) of out
-    (., ., W), column neighbours clamped to the row; and into ss (W) the factor that makes them the signature,
-    GAIN / (RMS + EPS) (census.signature). Channel by channel over whole rows (1-D views of C-contiguous
-    arrays, so that the loops vectorise)."""
+    (., ., W), column neighbours clamped to the row; and, unless ``ss`` is None, their sum of squares added to
+    ss (W). Channel by channel over whole rows (1-D views of C-contiguous arrays, so that the loops
+    vectorise)."""
     w = centre.shape[0]
     k_n = dy.shape[0]
-    ss[:] = 0.0
     for k in range(k_n):
         src = up if dy[k] < 0 else (down if dy[k] > 0 else centre)
         dst = out[first + k, i]
@@ -61,73 +63,98 @@ def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noq
         if d == 0:
             _diff_row(src, centre, dst, ss)
         elif d > 0:  # the last column's neighbour is itself (clamped)
-            _diff_row(src[d:], centre[:w - d], dst[:w - d], ss[:w - d])
-            _diff_row(src[w - 1:], centre[w - d:], dst[w - d:], ss[w - d:])
+            _diff_row(src[d:], centre[:w - d], dst[:w - d], None if ss is None else ss[:w - d])
+            _diff_row(src[w - 1:], centre[w - d:], dst[w - d:], None if ss is None else ss[w - d:])
         else:
-            _diff_row(src[:w + d], centre[-d:], dst[-d:], ss[-d:])
-            _diff_row(src[:1], centre[:-d], dst[:-d], ss[:-d])
-    for j in range(w):
-        ss[j] = gain / (math.sqrt(ss[j] / k_n) + eps)
+            _diff_row(src[:w + d], centre[-d:], dst[-d:], None if ss is None else ss[-d:])
+            _diff_row(src[:1], centre[:-d], dst[:-d], None if ss is None else ss[:-d])
 
 
 @njit(**_JIT)
-def _scale_row(d, ss):  # noqa: ANN001, ANN201
-    """d *= ss over one row (1-D views): the signature from :func:`_differences`."""
-    for j in range(d.shape[0]):
-        d[j] *= ss[j]
+def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noqa: ANN001, ANN201
+    """:func:`_neighbour_differences` and into ss (W) the factor that makes them the signature,
+    GAIN / (RMS + EPS) (census.signature)."""
+    k_n = dy.shape[0]
+    ss[:] = 0.0
+    _neighbour_differences(up, centre, down, dy, dx, out, first, i, ss)
+    inv_k = _F32(1.0) / _F32(k_n)  # float32 throughout (ss / k_n, an int, promoted the row to float64)
+    for j in range(centre.shape[0]):
+        ss[j] = gain / (math.sqrt(ss[j] * inv_k) + eps)
 
 
 @njit(parallel=True, **_JIT)
-def signature_kernel(img, dy, dx, gain, eps, out):  # noqa: ANN001, ANN201
-    """census.signature of img (H, W) into out (K, H, W); neighbours clamped to the image (edge values). Rows
-    in parallel."""
+def factor_kernel(img, dy, dx, gain, eps, out):  # noqa: ANN001, ANN201
+    """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`; census.signature is
+    the neighbour differences times it); neighbours clamped to the image (edge values). Rows in parallel."""
     h, w = img.shape
     for i in prange(h):
-        ss = np.empty(w, np.float32)
-        _differences(img[max(i - 1, 0)], img[i], img[min(i + 1, h - 1)], dy, dx, gain, eps, out, 0, i, ss)
-        for k in range(dy.shape[0]):
-            _scale_row(out[k, i], ss)
+        tmp = np.empty((dy.shape[0], 1, w), np.float32)
+        _differences(img[max(i - 1, 0)], img[i], img[min(i + 1, h - 1)], dy, dx, gain, eps, tmp, 0, 0, out[i])
 
 
 @njit(**_JIT)
-def _pair_row(f0, d, ss, p, r):  # noqa: ANN001, ANN201
-    """With F1 = d ss (the warped frame's signature, :func:`_differences`) over one row (1-D views, W):
-    p[1:W + 1] = F0 + F1 and r = F1 - F0; p's ends mirror its columns 1 and W - 2 (p[0] = P(1),
-    p[W + 1] = P(W - 2); both P(0) when W == 1), so that P(x + 1) - P(x - 1) is 0 on the border columns."""
+def _pair_row(d0, s0, d, ss, p, r):  # noqa: ANN001, ANN201
+    """With F0 = d0 s0 (frame 0's neighbour differences times its factor, :func:`factor_kernel`) and F1 = d ss
+    (the warped frame's, :func:`_differences`) over one row (1-D views, W): p[1:W + 1] = F0 + F1 and
+    r = F1 - F0; p's ends mirror its columns 1 and W - 2 (p[0] = P(1), p[W + 1] = P(W - 2); both P(0) when
+    W == 1), so that P(x + 1) - P(x - 1) is 0 on the border columns."""
     w = r.shape[0]
     for j in range(w):
-        a, b = f0[j], d[j] * ss[j]
+        a, b = d0[j] * s0[j], d[j] * ss[j]
         p[j + 1] = a + b
         r[j] = b - a
     p[0] = p[min(2, w)]
     p[w + 1] = p[max(w - 1, 1)]
 
 
-@njit(**_JIT)
-def _form_row(pl, pr, pu, pd, dc, ql, qr, qu, qd, ec, s0, s1, s2, s3, s4, d2, robust):  # noqa: ANN001, ANN201
-    """Two channels' sums along one row segment (1-D views; vectorises; two per pass: the sums are loaded
-    and stored half as often), from P = F0 + F1 at the pixels' left/right/up/down neighbours and D = F1 - F0
-    at the pixels (p, d: the first channel; q, e: the second): with a channel's unscaled gradient
+def _make_form_row(first: bool):  # noqa: ANN202
+    """The sums of four channels along one row segment (1-D views; vectorises; four per pass: the sums are
+    loaded and stored a quarter as often as one per pass), from P = F0 + F1 at the pixels' left/right/up/down
+    neighbours and D = F1 - F0 at the pixels (p, e, x, y: the four channels): with a channel's unscaled gradient
     ax = P(x + 1) - P(x - 1), ay = P(y + 1) - P(y - 1) (sums of both frames' central differences), the residual
-    D at v0 and the weight wk, s0..s4 += wk (ax ax, ax ay, ay ay, ax D, ay D) of each. :func:`_form_finish`
-    turns the sums over the channels into the form."""
-    one = _F32(1.0)
-    for j in range(s0.shape[0]):
-        ax, ay, r0 = pr[j] - pl[j], pd[j] - pu[j], dc[j]
-        bx, by, r1 = qr[j] - ql[j], qd[j] - qu[j], ec[j]
-        wa = one / math.sqrt(r0 * r0 + d2) if robust else one
-        wb = one / math.sqrt(r1 * r1 + d2) if robust else one
-        wax, way, wbx, wby = wa * ax, wa * ay, wb * bx, wb * by
-        s0[j] += wax * ax + wbx * bx
-        s1[j] += wax * ay + wbx * by
-        s2[j] += way * ay + wby * by
-        s3[j] += wax * r0 + wbx * r1
-        s4[j] += way * r0 + wby * r1
+    D at v0 and the weight wk, s0..s4 += wk (ax ax, ax ay, ay ay, ax D, ay D) of each (``first``: s0..s4 = the
+    sums, the row's first pass; no zeroing pass). ``first`` is a compile-time constant: one source, two kernels
+    (:data:`_form_row_first`, :data:`_form_row_add`). :func:`_form_finish` turns the sums over the channels into
+    the form."""
+
+    def form_row(pl, pr, pu, pd, pc, el, er, eu, ed, ec, xl, xr, xu, xd, xc, yl, yr, yu, yd, yc,  # noqa: ANN001, ANN202
+                 s0, s1, s2, s3, s4, d2, robust):
+        one = _F32(1.0)
+        for j in range(s0.shape[0]):
+            ax, ay, r0 = pr[j] - pl[j], pd[j] - pu[j], pc[j]
+            bx, by, r1 = er[j] - el[j], ed[j] - eu[j], ec[j]
+            cx, cy, r2 = xr[j] - xl[j], xd[j] - xu[j], xc[j]
+            dx, dy, r3 = yr[j] - yl[j], yd[j] - yu[j], yc[j]
+            wa = one / math.sqrt(r0 * r0 + d2) if robust else one
+            wb = one / math.sqrt(r1 * r1 + d2) if robust else one
+            wc = one / math.sqrt(r2 * r2 + d2) if robust else one
+            wd = one / math.sqrt(r3 * r3 + d2) if robust else one
+            wax, way, wbx, wby = wa * ax, wa * ay, wb * bx, wb * by
+            wcx, wcy, wdx, wdy = wc * cx, wc * cy, wd * dx, wd * dy
+            t0 = (wax * ax + wbx * bx) + (wcx * cx + wdx * dx)
+            t1 = (wax * ay + wbx * by) + (wcx * cy + wdx * dy)
+            t2 = (way * ay + wby * by) + (wcy * cy + wdy * dy)
+            t3 = (wax * r0 + wbx * r1) + (wcx * r2 + wdx * r3)
+            t4 = (way * r0 + wby * r1) + (wcy * r2 + wdy * r3)
+            if first:
+                s0[j], s1[j], s2[j], s3[j], s4[j] = t0, t1, t2, t3, t4
+            else:
+                s0[j] += t0
+                s1[j] += t1
+                s2[j] += t2
+                s3[j] += t3
+                s4[j] += t4
+
+    form_row.__name__ = form_row.__qualname__ = "form_row_first" if first else "form_row_add"
+    return njit(**_JIT)(form_row)
+
+
+_form_row_first, _form_row_add = _make_form_row(True), _make_form_row(False)
 
 
 @njit(**_JIT)
 def _form_finish(out, i, ry, vx, vy, keep):  # noqa: ANN001, ANN201
-    """Row i of out (5, H, W) from the channels' sums of :func:`_form_row` in place: the gradients' scales
+    """Row i of out (5, H, W) from the channels' sums of :func:`_make_form_row` in place: the gradients' scales
     (x: 1/4, the mean of two central differences; y: ``ry``, 1/4 or 0 on the first and last rows) and the
     pixel's weight ``keep`` (W), and the linearisation point: with rho_k(v) = a_k . (v - v0) + r0_k,
     g = sum_k w_k a_k r0_k - T v0 (census.signature_form's sum of w_k c_k a_k, c_k = r0_k - a_k . v0)."""
@@ -150,8 +177,8 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
     """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, 3, W) and keep (3, W)
     hold rows of frame 1 warped and its weight, pair (C K, 3, W + 2) and diff (C K, 3, W) rows of P = F0 + F1
     (border-mirrored: :func:`_pair_row`) and D = F1 - F0 (F1 the warped frame's signatures), row r in slot
-    (r + 3) % 3; temp (K, 1, W) and ss (W) one channel's neighbour differences and their factor
-    (:func:`_differences`). Row r of the rings stands for the image row clamped to 0 .. H - 1 (so the
+    (r + 3) % 3; temp (2 K, 1, W) and ss (W) one channel's neighbour differences in both frames and frame 1's
+    factor (:func:`_differences`). Row r of the rings stands for the image row clamped to 0 .. H - 1 (so the
     signature of the first and last rows sees edge values, as census.signature), and output row i needs
     signature rows i - 1 .. i + 1, those warped rows i - 2 .. i + 2: each block warps its rows and two on
     either side, each once. (The rings' rows -1 and H are read for the first and last rows' y-gradient, whose
@@ -171,13 +198,17 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
 @njit(**_JIT)
 def _pair_rows(f0, rr, warped, sm, s0, sp, dy, dx, gain, eps, pair, diff, temp, ss):  # noqa: ANN001, ANN201
     """P and D of one row (image row rr) into ring slot s0 of pair and diff, from the warped rows in slots sm,
-    s0, sp (above, at, below) and frame 0's signatures f0 (C K, H, W) (:func:`_census_rows`)."""
+    s0, sp (above, at, below) and frame 0's level f0 (2 C, H, W): its channels, then their factors
+    (:func:`level_signature_numba`; its differences are taken here, from its rows rr - 1 .. rr + 1 clamped)
+    (:func:`_census_rows`)."""
     k_n = dy.shape[0]
-    for c in range(warped.shape[0]):
+    n_c, h = warped.shape[0], f0.shape[1]
+    for c in range(n_c):
         _differences(warped[c, sm], warped[c, s0], warped[c, sp], dy, dx, gain, eps, temp, 0, 0, ss)
+        _neighbour_differences(f0[c, max(rr - 1, 0)], f0[c, rr], f0[c, min(rr + 1, h - 1)], dy, dx, temp, k_n, 0, None)
         for k in range(k_n):
             q = c * k_n + k
-            _pair_row(f0[q, rr], temp[k, 0], ss, pair[q, s0], diff[q, s0])
+            _pair_row(temp[k_n + k, 0], f0[n_c + c, rr], temp[k, 0], ss, pair[q, s0], diff[q, s0])
 
 
 @njit(**_JIT)
@@ -186,25 +217,30 @@ def _form_rows(out, i, pair, diff, keep, flow, d2, robust):  # noqa: ANN001, ANN
     h = out.shape[1]
     su, sc, sd = (i + 2) % 3, (i + 3) % 3, (i + 4) % 3
     ry = _F32(0.25) if 0 < i < h - 1 else _F32(0.0)
-    for n in range(5):
-        out[n, i] = _F32(0.0)
     w = diff.shape[2]
     o0, o1, o2, o3, o4 = out[0, i], out[1, i], out[2, i], out[3, i], out[4, i]
-    for q in range(0, pair.shape[0], 2):  # C K channels: K = 8 is even
-        p, e = pair[q], pair[q + 1]  # rows (W + 2), border-mirrored: x - 1 at [:w], x + 1 at [2:]
-        _form_row(p[sc, :w], p[sc, 2:], p[su, 1:w + 1], p[sd, 1:w + 1], diff[q, sc],
-                  e[sc, :w], e[sc, 2:], e[su, 1:w + 1], e[sd, 1:w + 1], diff[q + 1, sc], o0, o1, o2, o3, o4, d2, robust)
+    for q in range(0, pair.shape[0], 4):  # C K channels: K = 8, four per pass
+        p, e, x, y = pair[q], pair[q + 1], pair[q + 2], pair[q + 3]  # rows (W + 2), border-mirrored: x - 1 at
+        rows = (p[sc, :w], p[sc, 2:], p[su, 1:w + 1], p[sd, 1:w + 1], diff[q, sc],  # [:w], x + 1 at [2:]
+                e[sc, :w], e[sc, 2:], e[su, 1:w + 1], e[sd, 1:w + 1], diff[q + 1, sc],
+                x[sc, :w], x[sc, 2:], x[su, 1:w + 1], x[sd, 1:w + 1], diff[q + 2, sc],
+                y[sc, :w], y[sc, 2:], y[su, 1:w + 1], y[sd, 1:w + 1], diff[q + 3, sc], o0, o1, o2, o3, o4, d2, robust)
+        if q == 0:
+            _form_row_first(*rows)
+        else:
+            _form_row_add(*rows)
     _form_finish(out, i, ry, flow[0, i], flow[1, i], keep[sc])
 
 
 @njit(parallel=True, **_JIT)
 def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, weight, out,  # noqa: ANN001, ANN201
                   warped, keep, pair, diff, temp, ss, taps, base, blocks):
-    """census.census_form in one pass: out (5, H, W) from frame 0's signatures f0 (C K, H, W), frame 1's
+    """census.census_form in one pass: out (5, H, W) from frame 0's level f0 (2 C, H, W) (its channels and their
+    factors, :func:`level_signature_numba`), frame 1's
     interpolation coefficients ``coefs`` and channels ``frames`` (C, H, W) and the flow v0 (2, H, W); each
     pixel's weight ``weight`` (1 / C) inside, 0 where x + v0 leaves the image. The rows in ``blocks``
     contiguous blocks, in parallel when more than one (:func:`_census_rows`; per-thread rings warped
-    (T, C, 3, W), keep (T, 3, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, K, 1, W), ss (T, W)
+    (T, C, 3, W), keep (T, 3, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, 2 K, 1, W), ss (T, W)
     and the warp's row scratch taps (T, 9, W), base (T, 2, W) int32)."""
     h = f0.shape[1]
     d2 = delta * delta
@@ -219,33 +255,46 @@ def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, de
                      warped[0], keep[0], pair[0], diff[0], temp[0], ss[0], taps[0], base[0])
 
 
-def signature_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
-    """census.signature with the kernel: (H, W) -> (K, H, W) float32 (into ``out`` when given)."""
+def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
+    """GAIN / (RMS + EPS) of an image (H, W) with :func:`factor_kernel`: (H, W) float32 (into ``out`` when
+    given); census.signature = the neighbour differences (census.shifted) times it."""
     src = np.ascontiguousarray(img, dtype=_F32)
-    out = np.empty((_K,) + src.shape, _F32) if out is None else out
-    signature_kernel(src, _DY, _DX, _F32(params.gain), _F32(params.eps), out)
+    out = np.empty(src.shape, _F32) if out is None else out
+    factor_kernel(src, _DY, _DX, _F32(params.gain), _F32(params.eps), out)
     return out
 
 
 def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.ndarray, None]:
-    """census.level_signature with the kernel: frame 0's signatures (K or C K, H, W) of an image (H, W) or a
-    channel stack (C, H, W) on one level, and None (the gradients are taken inside :func:`census_kernel`,
-    which reads f0's neighbours anyway). Into the calling thread's scratch array (workspace.py; as the grey
-    path's level arrays, refine.grey_problem): valid until this thread's next level signature of that shape,
-    i.e. for the level's warps. A fresh 8-plane array per level paid its page faults: `realtime`'s level
-    signatures on the 8 Middlebury pairs took 41.7 ms, 15.4 ms from scratch (two runs at load 5, whose census
-    kernels took 269 and 175 ms)."""
+    """census.level_signature for the kernel: frame 0's signatures on one level of an image (H, W) or a channel
+    stack (C, H, W) as the level (2 C, H, W) -- the channels, then their factors (:func:`factor_numba`) -- and
+    None (the gradients are taken inside :func:`census_kernel`, which reads f0's neighbours anyway).
+    :func:`census_kernel` takes each channel's neighbour differences itself and scales them by the factor (the
+    signatures as census.signature computes them, value for value): it reads two planes per channel and warp
+    instead of K, and the level writes one per channel instead of K (:func:`level_signatures` expands them, for
+    checks). Into the calling thread's scratch array (workspace.py; as the grey path's level arrays,
+    refine.grey_problem): valid until this thread's next level signature of that shape, i.e. for the level's
+    warps."""
     stack = frames if frames.ndim == 3 else frames[None]
     n, h, w = stack.shape
-    out = scratch("census.f0", (n * _K, h, w))
+    out = scratch("census.f0", (2 * n, h, w))
+    out[:n] = stack
     for c in range(n):
-        signature_numba(stack[c], params, out=out[c * _K:(c + 1) * _K])
+        factor_numba(out[c], params, out=out[n + c])
     return out, None
+
+
+def level_signatures(level: np.ndarray) -> np.ndarray:
+    """The signatures (C K, H, W) that a level of :func:`level_signature_numba` (2 C, H, W) stands for: each
+    channel's neighbour differences (census.shifted: edge values) times its factor (numpy; for checks)."""
+    n = level.shape[0] // 2
+    return np.concatenate([np.stack([shifted(level[c], dy, dx) - level[c] for dy, dx in OFFSETS]) * level[n + c]
+                           for c in range(n)]).astype(np.float32)
 
 
 def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,
                       robust: bool, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
-    """census.census_form with :func:`census_kernel`: the quadratic form (5, H, W) of one warp. The rings are the
+    """census.census_form with :func:`census_kernel`: the quadratic form (5, H, W) of one warp, f0 frame 0's level
+    (2 C, H, W) (:func:`level_signature_numba`). The rings are the
     calling thread's scratch arrays (workspace.py); the rows run in one block per thread on levels of
     LINEARISE_PARALLEL_MIN_PIXELS or more (else in one); the form itself is fresh (a Bregman step reuses the
     last warp's), or ``out`` (5, H, W) float32 C-contiguous when given."""
@@ -255,7 +304,7 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
     n, q = numba.config.NUMBA_NUM_THREADS, n_c * _K  # per-thread rings: get_thread_id's range
     rings = (scratch("census.warped", (n, n_c, 3, w)), scratch("census.keep", (n, 3, w)),
              scratch("census.pair", (n, q, 3, w + 2)), scratch("census.diff", (n, q, 3, w)),
-             scratch("census.temp", (n, _K, 1, w)), scratch("census.ss", (n, w)), *row_scratch(w))
+             scratch("census.temp", (n, 2 * _K, 1, w)), scratch("census.ss", (n, w)), *row_scratch(w))
     out = np.empty((5, h, w), _F32) if out is None else out
     census_kernel(np.ascontiguousarray(f0, dtype=_F32), np.ascontiguousarray(coefs, dtype=_F32),
                   np.ascontiguousarray(frames, dtype=_F32), np.ascontiguousarray(v0, dtype=_F32),
