@@ -10,8 +10,7 @@ import pytest
 from synth import isoluminant_pair, texture
 
 from flow_node.core.api import FlowEstimator
-from flow_node.core.backends import select_backend
-from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
+from flow_node.core.census import CENSUS
 from flow_node.core.census_noise import PairNoise, channel_noise, difference_noise_gains, noise_sigma, pair_noise
 from flow_node.core.colour import normalise_channel_pair
 from flow_node.core.config import FlowConfig
@@ -25,8 +24,7 @@ from flow_node.core.photometric import (
     stage,
 )
 from flow_node.core.pyramid import antialias_steps, build_pyramid, make_pyramid, pyramid_shapes, step_sigmas
-from flow_node.core.refine import census_problem, level_census
-from flow_node.core.warping import NUMPY_WARPER
+from flow_node.core.refine import level_census
 
 CENSUS_RT = FlowConfig.preset("realtime").replace(photometric="census")
 
@@ -76,23 +74,7 @@ def test_the_carried_noise_matches_the_pyramid_of_white_noise(cfg: FlowConfig, b
     assert gains[-1] < 0.2  # and it falls: the coarse levels' EPS floor is far below the input's
 
 
-@pytest.mark.parametrize("backend", ["numpy", "numba"])
-def test_census_problem_with_an_eps_floor_matches_the_numpy_form(backend: str) -> None:
-    h, w = 30, 40
-    i0 = texture(h, w, seed=5, cell=2).image
-    i1 = texture(h, w, seed=6, cell=2).image
-    v0 = np.full((2, h, w), 0.3, np.float32)
-    be = select_backend(backend)
-    got = census_problem(i0[None], i1[None], CENSUS_RT, be, True, 0.07)(v0)
-    base = census_problem(i0[None], i1[None], CENSUS_RT, be, True)(v0)
-    params = CensusParams(eps=0.07)
-    f0, g0 = level_signature(i0, params)
-    coefs = NUMPY_WARPER.coefficients(i1[None], CENSUS_RT.warp_kernel)
-    want = census_form(f0, g0, coefs, i1[None], v0, CENSUS_RT.warp_kernel, True, params)
-    np.testing.assert_allclose(got.q, want, atol=1e-5 * max(1.0, float(np.abs(want).max())))
-    assert np.abs(got.q - base.q).max() > 1e-3  # the floor changed the form
-    assert level_census(CENSUS_RT, 400, 0.005) is CENSUS  # a floor below EPS changes nothing
-    assert level_census(CENSUS_RT.replace(census_coarse_eps=0.03, census_coarse_width=50), 40, 0.02).eps == 0.03
+# the floor reaching the form (numpy and numba): test_census_schedule.test_census_problem_uses_the_level_eps
 
 
 def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:

@@ -45,21 +45,32 @@ def test_coarse_eps_applies_below_the_width_only() -> None:
 
 
 @pytest.mark.parametrize("backend", ["numpy", "numba"])
-def test_census_problem_uses_the_level_eps(backend: str) -> None:
+@pytest.mark.parametrize("source", ["coarse", "noise floor"])
+def test_census_problem_uses_the_level_eps(backend: str, source: str) -> None:
+    """A level's EPS -- census_coarse_eps below census_coarse_width, or the pair's noise floor
+    (census_noise.py, refine.census_problem's eps_floor) -- is the one the numpy form is taken with."""
     h, w = 30, 40
     i0 = texture(h, w, seed=5, cell=2).image
     i1 = texture(h, w, seed=6, cell=2).image
     v0 = np.full((2, h, w), 0.3, np.float32)
-    cfg = CENSUS_RT.replace(census_coarse_eps=0.3, census_coarse_width=w + 1)
+    plain = CENSUS_RT.replace(census_coarse_width=0)
+    cfg, floor, eps = ((CENSUS_RT.replace(census_coarse_eps=0.3, census_coarse_width=w + 1), 0.0, 0.3)
+                       if source == "coarse" else (plain, 0.07, 0.07))
     be = select_backend(backend)
-    got = census_problem(i0[None], i1[None], cfg, be, True)(v0)
-    base = census_problem(i0[None], i1[None], CENSUS_RT.replace(census_coarse_width=0), be, True)(v0)
-    params = CensusParams(eps=0.3)
+    got = census_problem(i0[None], i1[None], cfg, be, True, floor)(v0)
+    base = census_problem(i0[None], i1[None], plain, be, True)(v0)
+    params = CensusParams(eps=eps)
     f0, g0 = level_signature(i0, params)
     coefs = NUMPY_WARPER.coefficients(i1[None], cfg.warp_kernel)
     want = census_form(f0, g0, coefs, i1[None], v0, cfg.warp_kernel, True, params)
     np.testing.assert_allclose(got.q, want, atol=1e-5 * max(1.0, float(np.abs(want).max())))
     assert np.abs(got.q - base.q).max() > 1e-3  # the level EPS changed the form
+
+
+def test_noise_floor_raises_the_level_eps_only_above_it() -> None:
+    assert level_census(CENSUS_RT, 400, 0.005) is CENSUS  # a floor below EPS changes nothing
+    assert level_census(CENSUS_RT.replace(census_coarse_eps=0.03, census_coarse_width=50), 40, 0.02).eps == 0.03
+    assert level_census(CENSUS_RT, 400, 0.07).eps == 0.07
 
 
 def test_the_schedule_only_changes_the_census_mode() -> None:

@@ -2,6 +2,7 @@
 # After K = 2 was chosen on the tune split (run_tune.sh, run_tune_k46.sh; FlowConfig.census_noise_k default 2):
 # fastest on the tune split as a check, then ONE report-split run per census preset, each with the new default
 # (K = 2, symmetric presmoothing) and K = 0 (symmetric presmoothing only) in the same run. From the worktree root.
+# The committed report_* files are these three report runs made again after NOISE_STRIDE 3 -> 4 (stride 3: e9ee5eb).
 set -e
 D=bench/results/suite/invariance/lowlight2
 PY="nice env PYTHONPATH=$PWD /work/main/.venv-bench/bin/python -m bench.suite"
