@@ -5,7 +5,7 @@ With grey input the census data term compares one signature per pixel, K = 8 cha
 frame has three grey images, each with its own texture (an edge between two colours of one brightness is
 invisible in luma), and a camera changes each of them on its own: white balance is a gain per channel, and
 tone curves are applied per channel. So each colour channel is normalised on its own (per frame, as the
-census mode does with grey: :func:`normalise_channels`), its signature taken as for grey, and the C x K
+census mode does with grey: :func:`normalise_channel_pair`), its signature taken as for grey, and the C x K
 signatures stacked into one data term:
 
     rho_{c,k}(v) = a_{c,k} . v + c_{c,k},    data = 1/C sum_c sum_k rho_{c,k}^2 (L2)  or  |rho_{c,k}| (L1)
@@ -27,20 +27,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .photometric import normalise_frame, normalise_frames
+from .photometric import normalise_frames
 
 COLOUR_MODES = ("grey", "channels")  # the FlowConfig field ``colour``: luma only, or every channel (census)
 
 
-def normalise_channels(frame: np.ndarray, noise_gain: float = 1.0) -> np.ndarray:
-    """Each channel of a frame (C, H, W) float32 mapped by its own robust range (photometric.normalise_frame):
-    (C, H, W) float32. A per-channel gain (white balance) and offset are undone exactly."""
-    return np.stack([normalise_frame(ch, noise_gain) for ch in frame]).astype(np.float32, copy=False)
-
-
 def normalise_channel_pair(frame0: np.ndarray, frame1: np.ndarray, noise_gain: float = 1.0
                            ) -> tuple[np.ndarray, np.ndarray]:
-    """Both frames' channels (C, H, W) float32, each by its own robust range, channel c of both frames
-    presmoothed alike (photometric.normalise_frames: when either's quantisation is coarse): (C, H, W) each."""
+    """Both frames' channels (C, H, W) float32, each by its own robust range (a per-channel gain -- white
+    balance -- and offset are undone exactly), channel c of both frames presmoothed alike
+    (photometric.normalise_frames: when either's quantisation is coarse): (C, H, W) each."""
     pairs = [normalise_frames((c0, c1), noise_gain) for c0, c1 in zip(frame0, frame1, strict=True)]
     return tuple(np.stack([p[k] for p in pairs]).astype(np.float32, copy=False) for k in (0, 1))

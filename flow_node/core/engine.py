@@ -79,7 +79,8 @@ class Judged:
 
 
 def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
-                      sample0: np.ndarray | None = None, known0: tuple[MapKey, np.ndarray] | None = None
+                      sample0: np.ndarray | None = None, known0: tuple[MapKey, np.ndarray] | None = None,
+                      colour: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
                       ) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
     """The photometric stage (photometric.stage with the pyramid's noise gain) and its own judge: what the
     solver sees of the pair (H, W) float32, and the :class:`Judged` pair. A census data term is judged on
@@ -87,7 +88,9 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     so the caller never branches on the mode. ``sample0``: frame 0's sorted sample when
     known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1); ``known0``: frame 0
     normalised by a previous pair, with that pair's :func:`map_key`, taken when this pair's key is the same
-    (the normalised frame is then the same bit for bit: temporal.Seen)."""
+    (the normalised frame is then the same bit for bit: temporal.Seen). ``colour``: both frames' channels as
+    they came and as :func:`colour_stage` normalised them, when the census term compares them: the noise floor
+    is then the channels' (census_noise.channel_noise), not the luma's."""
     samples = frame_samples(i0, i1, sample0, backend.sample)
     signatures = compares_signatures(cfg.photometric)
     pmap = None if signatures else pair_map(samples)
@@ -96,7 +99,9 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     gain = noise_gain(i0.shape, cfg)
     solver_pair, frames = stage(i0, i1, cfg.photometric, gain, samples, pmap, n0)
     judge = backend.census_reliability if signatures else backend.reliability
-    noise = pair_noise((i0, i1), samples, gain, solver_pair) if signatures and cfg.census_noise_k > 0 else None
+    noise = None
+    if signatures and cfg.census_noise_k > 0:
+        noise = pair_noise((i0, i1), samples, gain, solver_pair) if colour is None else channel_noise(*colour, gain)
     return solver_pair, Judged(frames, judge, samples, key, noise)
 
 
@@ -243,11 +248,9 @@ def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend
         i0, i1 = fill_invalid(i0, valid[0]), fill_invalid(i1, valid[1])
         sample0 = None
     raw, channels = channels, colour_stage(i0.shape, channels, cfg)
-    (i0, i1), judged = photometric_stage(i0, i1, cfg, backend, sample0)
-    noise = judged.noise
-    if noise is not None and raw is not None and channels is not None:  # the signatures are the channels'
-        noise = channel_noise(raw, channels, noise_gain(i0.shape, cfg))
+    colour = None if raw is None or channels is None else (raw, channels)
+    (i0, i1), judged = photometric_stage(i0, i1, cfg, backend, sample0, colour=colour)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
-    pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid, noise=noise)
+    pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid, noise=judged.noise)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     return refine_from(pyr, cfg, backend, candidates, stats), stats, judged

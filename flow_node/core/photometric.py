@@ -138,17 +138,6 @@ def compares_signatures(mode: str) -> bool:
     return mode in SIGNATURE_MODES
 
 
-def normalise_frame(img: np.ndarray, noise_gain: float = 1.0, ordered: np.ndarray | None = None) -> np.ndarray:
-    """One frame (H, W) float32 with its own robust range (2nd and 98th percentiles) mapped to [0, 1], and
-    coarsely quantised content treated as in :func:`normalise_pair` (presmoothed, contrast shrunk). The
-    ``census`` mode's map: its data term is invariant to each frame's gain and offset, so a map per frame
-    costs nothing there, and it gives the census EPS the same meaning in both frames. ``ordered``: img's
-    :func:`sorted_sample` when known (computed here otherwise)."""
-    ordered = sorted_sample(img) if ordered is None else ordered
-    lo, hi = quantiles(ordered, PERCENTILES)
-    return affine_normalised(img, lo, hi, quantisation_step(ordered), noise_gain)
-
-
 def affine_normalised(img: np.ndarray, lo: float, hi: float, step: float, noise_gain: float,
                       presmooth: bool | None = None) -> np.ndarray:
     """img mapped by (img - lo) / (hi - lo), or to [0, STEP_REF / rel] with rel = step * noise_gain / (hi - lo)
@@ -172,8 +161,10 @@ def relative_step(lo: float, hi: float, step: float, noise_gain: float) -> float
 
 def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 1.0,
                      samples: Samples | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Both frames (H, W) float32, each by its own robust range (:func:`normalise_frame`, the ``census`` mode's
-    map), and both presmoothed by QUANT_SIGMA when either's quantisation is coarse (:func:`frame_maps`): the
+    """Both frames (H, W) float32, each by its own robust range (its 2nd and 98th percentiles mapped to [0, 1],
+    coarsely quantised content's contrast shrunk as in :func:`normalise_pair`: the ``census`` mode's map; its
+    data term is invariant to each frame's gain and offset, and the map gives EPS the same meaning in both
+    frames), and both presmoothed by QUANT_SIGMA when either's quantisation is coarse (:func:`frame_maps`): the
     two signatures a census data term compares must come from the same filter (a blur is not a tone curve, so
     one frame blurred and the other not differ wherever there is texture; issue 25's low light, frame 2
     darkened 0.4x: docs/engine.md). ``samples``: the frames' :func:`sorted_sample` when known."""
