@@ -4,8 +4,8 @@ CPU time of its predicted frames alone, for an A/B of two code versions on a sha
 
     python -m bench.suite.stream_costs --size 320x240 --method lite=stream_lite[,key=value...] [--out DIR]
     python -m bench.suite.stream_costs --cpu --size 320x240 --kind pan --repeats 6   # stream_fast by default
-    for r in 1 2 3; do for t in /path/main /path/branch; do (cd $t && PYTHONPATH=$t python -m \
-        bench.suite.stream_costs --cpu --size 320x240 --kind objects); done; done
+    for r in 1 2 3; do for t in /path/main /path/branch; do
+        (cd $t && PYTHONPATH=$t python -m bench.suite.stream_costs --cpu --kind objects); done; done
 
 A sequence is streamed 1 + ``--repeats`` times through ``FlowStream.process`` (as bench.suite.streams runs
 it; the first pass warms caches up and is not counted). Stages: the tune pan; every stage the stream stage
