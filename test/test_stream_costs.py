@@ -23,12 +23,11 @@ def test_stages_timed_and_restored() -> None:
 
 
 
-def test_stream_cpu_counts_the_predicted_frames_of_a_pan() -> None:
-    """bench.suite.stream_cpu: every pair of a report pan after the first is predicted and timed."""
-    from bench.suite import stream_cpu
+def test_cpu_counts_the_predicted_frames_of_a_pan() -> None:
+    """bench.suite.stream_costs --cpu: every pair of a report pan after the first is predicted and timed."""
     from bench.suite.sequences import sequences
 
     frames = len(next(iter(sequences("report", (96, 72), ("pan",)))).frames)
-    best, median, n = stream_cpu.cpu_per_frame("stream_lite", (96, 72), "pan", 1)
+    best, median, n = stream_costs.cpu_per_frame("lite=stream_lite", (96, 72), "pan", 1)
     assert n == frames - 2  # the first frame starts the stream, the first pair is solved in full
     assert 0 < best <= median * 1.001  # one pass: the per-frame minima are that pass's times

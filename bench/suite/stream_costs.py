@@ -1,8 +1,20 @@
-"""``python -m bench.suite.stream_costs --size 320x240 --method lite=stream_lite[,key=value...] [--out DIR]``:
-where a stream preset's time per frame goes, against OpenCV DIS ultrafast on the same frames (issue 26: a
-stream preset at <= 2x DIS ultrafast's time). The tune pan is streamed 1 + ``--repeats`` times; every stage
-the stream stage calls (STAGES) is timed by wrapping its function, per predicted frame, with the frame's wall
-and CPU time and DIS ultrafast right after it; medians over the repeats (docs/suite.md, "Streams").
+"""``python -m bench.suite.stream_costs``: where a stream preset's time per frame goes, against OpenCV DIS
+ultrafast on the same frames (issue 26: a stream preset at <= 2x DIS ultrafast's time), or with ``--cpu`` the
+CPU time of its predicted frames alone, for an A/B of two code versions on a shared machine.
+
+    python -m bench.suite.stream_costs --size 320x240 --method lite=stream_lite[,key=value...] [--out DIR]
+    python -m bench.suite.stream_costs --cpu --size 320x240 --kind pan --repeats 6   # stream_fast by default
+    for r in 1 2 3; do for t in /path/main /path/branch; do
+        (cd $t && PYTHONPATH=$t python -m bench.suite.stream_costs --cpu --kind objects); done; done
+
+A sequence is streamed 1 + ``--repeats`` times through ``FlowStream.process`` (as bench.suite.streams runs
+it; the first pass warms caches up and is not counted). Stages: the tune pan; every stage the stream stage
+calls (STAGES) is timed by wrapping its function, per predicted frame, with the frame's wall and CPU time and
+DIS ultrafast right after it; medians over the repeats (docs/suite.md, "Streams"). ``--cpu``: one report
+sequence (``--kind``); each predicted frame's ``time.process_time`` (every thread of the process); the figure
+is the mean over the frames of each frame's minimum over the passes (the least disturbed figure on a loaded
+machine: a frame's minimum is the pass in which nothing else ran on its core), beside the median over passes
+of the per-pass mean; one line per method, no file.
 """
 
 from __future__ import annotations
@@ -20,11 +32,12 @@ import cv2
 import numpy as np
 
 from flow_node.core import api, numba_backend, refine, temporal
+from flow_node.core.config import FlowConfig
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
 from ..common import machine, run_record, write_result, wxh
-from .sequences import sequences
+from .sequences import Sequence, sequences
 from .streams import PERIOD_NS, parse_method
 
 # (module, function, label): the stages timed; the refinement's parts are indented under it
@@ -60,6 +73,24 @@ def timed_stages(acc: dict[str, float]) -> Iterator[None]:
             setattr(mod, name, fn)
 
 
+def stream_passes(config: FlowConfig, seq: Sequence, repeats: int, before: Callable[[], None] = lambda: None
+                  ) -> Iterator[tuple[int, int, bool, float, float]]:
+    """Stream ``seq`` 1 + ``repeats`` times (pass 0 warms up) through a FlowStream with ``config``, built on
+    the first step; per frame t >= 1 (``before()`` called just before it) yield (pass, t, whether the stream
+    predicted it, its wall seconds, its CPU seconds)."""
+    stream = FlowStream(StreamSettings(config=config))
+    stream.warmup(seq.frames[0].shape)
+    for r in range(repeats + 1):
+        stream.reset("repeat")
+        stream.process(seq.frames[0], PERIOD_NS, "mono8")
+        for t in range(1, len(seq.frames)):
+            before()
+            start, cpu = time.perf_counter(), time.process_time()
+            out = stream.process(seq.frames[t], (t + 1) * PERIOD_NS, "mono8")
+            seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+            yield r, t, out is not None and out.stats.stream == temporal.PREDICTED, seconds, cpu
+
+
 def measure(method: str, size: tuple[int, int], repeats: int) -> dict[str, Any]:
     """Per-stage ms per frame of ``method`` (NAME=PRESET[,key=value...]) and DIS ultrafast's, medians over
     ``repeats`` passes over the tune split's pan sequence at ``size`` (W, H)."""
@@ -67,32 +98,19 @@ def measure(method: str, size: tuple[int, int], repeats: int) -> dict[str, Any]:
     seq = next(iter(sequences("tune", size, ("pan",))))
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
     acc: dict[str, float] = defaultdict(float)
-    passes = []
+    dis_s: dict[int, list[float]] = defaultdict(list)
+    frames: dict[int, list[tuple[float, float, dict[str, float]]]] = defaultdict(list)  # the predicted ones
     with timed_stages(acc):
-        stream = FlowStream(StreamSettings(config=config))
-        stream.warmup(size[::-1])
-        for r in range(repeats + 1):  # the first pass warms caches up, not counted
-            stream.reset("repeat")
-            stream.process(seq.frames[0], PERIOD_NS, "mono8")
-            frame_s, cpu_s, dis_s, totals = [], [], [], defaultdict(float)
-            for t in range(1, len(seq.frames)):
-                acc.clear()
-                start, cpu = time.perf_counter(), time.process_time()
-                out = stream.process(seq.frames[t], (t + 1) * PERIOD_NS, "mono8")
-                seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
-                start = time.perf_counter()
-                dis.calc(seq.frames[t - 1], seq.frames[t], None)
-                dis_s.append(time.perf_counter() - start)
-                if out is not None and out.stats.stream == temporal.PREDICTED:  # the stream stage's frames only
-                    frame_s.append(seconds)
-                    cpu_s.append(cpu)
-                    for k, v in acc.items():
-                        totals[k] += v
-            if r:
-                n = len(frame_s)
-                passes.append({"frame": float(np.mean(frame_s)), "cpu": float(np.mean(cpu_s)),
-                               "dis": float(np.median(dis_s)),
-                               "stages": {k: v / n for k, v in totals.items()}, "predicted": n})
+        for r, t, predicted, seconds, cpu in stream_passes(config, seq, repeats, acc.clear):
+            start = time.perf_counter()
+            dis.calc(seq.frames[t - 1], seq.frames[t], None)
+            dis_s[r].append(time.perf_counter() - start)
+            if predicted:  # the stream stage's frames only
+                frames[r].append((seconds, cpu, dict(acc)))
+    passes = [{"frame": float(np.mean([f[0] for f in frames[r]])), "cpu": float(np.mean([f[1] for f in frames[r]])),
+               "dis": float(np.median(dis_s[r])), "predicted": len(frames[r]),
+               "stages": {k: sum(f[2].get(k, 0.0) for f in frames[r]) / len(frames[r])
+                          for k in dict.fromkeys(k for f in frames[r] for k in f[2])}} for r in range(1, repeats + 1)]
     frame, cpu, dis_median = (float(np.median([p[k] for p in passes])) for k in ("frame", "cpu", "dis"))
     stages = {label: float(np.median([p["stages"].get(label, 0.0) for p in passes])) for _, _, label in STAGES}
     top = sum(v for k, v in stages.items() if not k.startswith(" "))
@@ -100,6 +118,21 @@ def measure(method: str, size: tuple[int, int], repeats: int) -> dict[str, Any]:
     return {"method": name, "config": config.to_dict(), "size": list(size), "repeats": repeats,
             "frame_seconds": frame, "frame_cpu_seconds": cpu, "dis_ultrafast_seconds": dis_median, "stages": stages,
             "predicted": min(p["predicted"] for p in passes), "pairs": len(seq.frames) - 1}
+
+
+def cpu_per_frame(method: str, size: tuple[int, int], kind: str, repeats: int) -> tuple[float, float, int]:
+    """(mean of each predicted frame's minimum CPU seconds over ``repeats`` passes, median over passes of the
+    pass's mean, predicted frames per pass) of ``method`` (NAME=PRESET[,key=value...]) on the report sequence
+    ``kind`` at ``size`` (W, H)."""
+    seq = next(iter(sequences("report", size, (kind,))))
+    per_frame: dict[int, list[float]] = {}
+    per_pass: dict[int, list[float]] = defaultdict(list)
+    for r, t, predicted, _, cpu in stream_passes(parse_method(method)[1], seq, repeats):
+        if r and predicted:
+            per_frame.setdefault(t, []).append(cpu)
+            per_pass[r].append(cpu)
+    return (float(np.mean([min(v) for v in per_frame.values()])),
+            float(np.median([np.mean(v) for v in per_pass.values()])), len(per_frame))
 
 
 def markdown(results: list[dict[str, Any]], command: str, load: str) -> str:
@@ -123,13 +156,23 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.suite.stream_costs", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--size", default="320x240", help="WIDTHxHEIGHT")
-    ap.add_argument("--method", action="append", default=[], metavar="NAME=PRESET[,key=value...]")
-    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--method", action="append", default=[], metavar="NAME=PRESET[,key=value...]",
+                    help="default stream_lite (--cpu: stream_fast)")
+    ap.add_argument("--repeats", type=int, default=None, help="passes counted (default 5; --cpu: 6)")
     ap.add_argument("--out", type=Path, default=None, help="directory for costs_<size>.{json,md}")
+    ap.add_argument("--cpu", action="store_true", help="only the CPU time per predicted frame: one line per method")
+    ap.add_argument("--kind", default="pan", help="--cpu: the report sequence (bench.suite.sequences.KINDS)")
     args = ap.parse_args(argv)
     keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
     w, h = wxh(args.size)
-    results = [measure(m, (w, h), args.repeats) for m in (args.method or ["stream_lite=stream_lite"])]
+    if args.cpu:
+        load, repeats = f"{os.getloadavg()[0]:.2f}", args.repeats or 6
+        for m in args.method or ["stream_fast=stream_fast"]:
+            best, median, n = cpu_per_frame(m, (w, h), args.kind, repeats)
+            print(f"{parse_method(m)[0]} {w}x{h} {args.kind}: CPU ms per predicted frame {1e3 * best:.3f} (per-frame "
+                  f"min over {repeats} passes), {1e3 * median:.3f} (median pass); {n} frames; load {load}")
+        return 0
+    results = [measure(m, (w, h), args.repeats or 5) for m in (args.method or ["stream_lite=stream_lite"])]
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg()) + " (1, 5, 15 min)"
     command = run_record("bench.suite.stream_costs", argv)["command"]
     md = markdown(results, command, load)

@@ -12,6 +12,7 @@ import argparse
 import os
 import time
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,64 +37,47 @@ DEFAULT_METHODS = {"stream_fast": ("stream_fast", {}), "stream_lite": ("stream_l
                    "fastest": ("fastest", {}), "stream_lite/single": ("stream_lite", {"stream_levels": 0})}
 
 
+@dataclass(frozen=True)
 class Runner:
-    """One method over one sequence: ``start()`` before its first frame, ``step(previous, frame, t)`` returns
-    the flow of the pair ending with ``frame`` (t its index), or None for the first frame."""
+    """One method over one sequence: ``start()`` before its first frame; ``step(previous, frame, t)`` returns the
+    flow of the pair ending with ``frame`` (t its index; a stream's first frame: zeros) and the stream's label
+    (SolveStats.stream; '' for single pairs). A ``stream`` carries state from frame to frame."""
 
-    kind = "single"
-
-    def start(self) -> None: ...
-
-    def step(self, previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
-        raise NotImplementedError
+    step: Callable[[np.ndarray, np.ndarray, int], tuple[np.ndarray, str]]
+    start: Callable[[], None] = lambda: None
+    kind: str = "single"
 
 
-class StreamRunner(Runner):
-    """flow_node's FlowStream with ``config`` (a stream preset): state carried from frame to frame."""
+def stream_runner(config: FlowConfig) -> Runner:
+    """flow_node's FlowStream with ``config`` (a stream preset); a new sequence's first frame starts a pair."""
+    stream = FlowStream(StreamSettings(config=config))
+    stream.warmup((240, 320))
 
-    kind = "stream"
-
-    def __init__(self, config: FlowConfig) -> None:
-        self.config = config
-        self.stream = FlowStream(StreamSettings(config=config))
-        self.stream.warmup((240, 320))
-
-    def start(self) -> None:
-        self.stream.reset("new sequence")  # the sequence's first frame starts a pair
-
-    def step(self, previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
-        out = self.stream.process(frame, (t + 1) * PERIOD_NS, "mono8")
+    def step(previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
+        out = stream.process(frame, (t + 1) * PERIOD_NS, "mono8")
         return (np.zeros(frame.shape + (2,), np.float32), "first") if out is None else (out.flow, out.stats.stream)
+    return Runner(step, lambda: stream.reset("new sequence"), "stream")
 
 
-class PairRunner(Runner):
+def pair_runner(config: FlowConfig) -> Runner:
     """flow_node solving every pair on its own (``FlowEstimator.estimate``)."""
-
-    def __init__(self, config: FlowConfig) -> None:
-        self.config = config
-        self.estimator = FlowEstimator(config)
-        self.estimator.warmup((240, 320))
-
-    def step(self, previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
-        return self.estimator.estimate(previous, frame).flow, ""
+    estimator = FlowEstimator(config)
+    estimator.warmup((240, 320))
+    return Runner(lambda previous, frame, t: (estimator.estimate(previous, frame).flow, ""))
 
 
-class DisRunner(Runner):
+def dis_runner(preset: int) -> Runner:
     """OpenCV DIS with a preset on the 8-bit frames."""
-
-    def __init__(self, preset: int) -> None:
-        self.algo = cv2.DISOpticalFlow_create(preset)
-
-    def step(self, previous: np.ndarray, frame: np.ndarray, t: int) -> tuple[np.ndarray, str]:
-        return self.algo.calc(previous, frame, None), ""
+    algo = cv2.DISOpticalFlow_create(preset)
+    return Runner(lambda previous, frame, t: (algo.calc(previous, frame, None), ""))
 
 
 def build(methods: Mapping[str, FlowConfig]) -> dict[str, Runner]:
     """Runners for ``methods`` (a config with ``stream_levels`` > 0 runs as a stream, else pair by pair), then
     DIS medium and ultrafast."""
-    out: dict[str, Runner] = {n: StreamRunner(c) if c.stream_levels else PairRunner(c) for n, c in methods.items()}
-    out[DIS_MEDIUM] = DisRunner(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    out[DIS_ULTRAFAST] = DisRunner(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
+    out = {n: stream_runner(c) if c.stream_levels else pair_runner(c) for n, c in methods.items()}
+    out[DIS_MEDIUM] = dis_runner(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
+    out[DIS_ULTRAFAST] = dis_runner(cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST)
     return out
 
 
