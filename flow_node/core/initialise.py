@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 from .densify import densify, forward_propagate, splat_points
+from .photometric import compares_signatures
 
 # source -> (OpenCV DIS preset, finest scale or None for the preset's own)
 DIS_PRESETS = {"dis_ultrafast": (cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, None),
@@ -256,12 +257,28 @@ class InitSettings(Protocol):
     @property
     def temporal_init(self) -> int: ...
 
+    @property
+    def photometric(self) -> str: ...
+
+
+def equalised(img: np.ndarray) -> np.ndarray:
+    """A frame (H, W) float32 in [0, 1] mapped through its own cumulative histogram (cv2.equalizeHist of its
+    uint8 version, :func:`to_u8`): (H, W) float32 in [0, 1], values k / 255. A global monotone tone change of
+    the frame (gain, offset, gamma, S-curve, knee) leaves it unchanged up to the 8-bit quantisation, so with the
+    census data term the sources see what the data term compares, not the frames' tone curves
+    (docs/engine.md, "Large displacements", Input)."""
+    return cv2.equalizeHist(to_u8(img)).astype(np.float32) * np.float32(1.0 / 255.0)
+
 
 def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: np.ndarray | None = None,
                previous_flow: np.ndarray | None = None) -> list[Candidate]:
     """Every candidate for this pair: the caller's ``initial_flow`` (2, H, W), the carried-forward
     ``previous_flow`` (2, H, W, on the previous pair's first frame; used only with ``cfg.temporal_init``)
-    and the source ``cfg.initialisation`` computes. Empty: the pyramid alone."""
+    and the source ``cfg.initialisation`` computes. Empty: the pyramid alone. With the census data term
+    (``cfg.photometric``) every source sees each frame :func:`equalised` on its own, not the photometric
+    stage's per-frame affine map (docs/engine.md, "Large displacements", Input)."""
+    if compares_signatures(cfg.photometric):
+        i0, i1 = equalised(i0), equalised(i1)
     out = []
     if initial_flow is not None:
         out.append(Candidate(INITIAL_FLOW, initial_flow.astype(np.float32, copy=False)))
