@@ -261,13 +261,24 @@ class InitSettings(Protocol):
     def photometric(self) -> str: ...
 
 
+# grey levels a frame's ranks are taken on (equalised): 12 bits; on 8 (cv2.equalizeHist) a tone curve merges or
+# splits enough levels of a flat-shaded scene to move DIS (the large set's Blender cube under gamma 2: 45 px, 32 on
+# 12 bits; bench/results/suite/invariance/cube/summary.md)
+RANK_LEVELS = 4096
+
+
 def equalised(img: np.ndarray) -> np.ndarray:
-    """A frame (H, W) float32 in [0, 1] mapped through its own cumulative histogram (cv2.equalizeHist of its
-    uint8 version, :func:`to_u8`): (H, W) float32 in [0, 1], values k / 255. A global monotone tone change of
-    the frame (gain, offset, gamma, S-curve, knee) leaves it unchanged up to the 8-bit quantisation, so with the
-    census data term the sources see what the data term compares, not the frames' tone curves
-    (docs/engine.md, "Large displacements", Input)."""
-    return cv2.equalizeHist(to_u8(img)).astype(np.float32) * np.float32(1.0 / 255.0)
+    """A frame (H, W) float32, normalised by its own robust range (the census stage's map: its 2nd and 98th
+    percentiles at 0 and 1), mapped to its mid-ranks: at each pixel the fraction of the frame's pixels darker
+    than it plus half of those as bright, (H, W) float32 in (0, 1), on RANK_LEVELS levels over [0, 1] (the
+    darkest and brightest 2 % are one level each). Any strictly monotone tone change of the frame (gain, offset,
+    gamma, S-curve, knee) moves neither the percentiles' pixels nor the ranks, so it leaves the result
+    unchanged up to that quantisation: with the census data term the sources see what the data term compares,
+    not the frames' tone curves (docs/engine.md, "Large displacements")."""
+    top = RANK_LEVELS - 1
+    q = np.clip(np.rint(img * np.float32(top)), 0, top).astype(np.uint16)
+    counts = np.bincount(q.ravel(), minlength=RANK_LEVELS)
+    return ((np.cumsum(counts) - 0.5 * counts) * (1.0 / q.size)).astype(np.float32)[q]
 
 
 def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: np.ndarray | None = None,
