@@ -274,7 +274,7 @@ def equalised(img: np.ndarray) -> np.ndarray:
     darkest and brightest 2 % are one level each). Any strictly monotone tone change of the frame (gain, offset,
     gamma, S-curve, knee) moves neither the percentiles' pixels nor the ranks, so it leaves the result
     unchanged up to that quantisation: with the census data term the sources see what the data term compares,
-    not the frames' tone curves (docs/engine.md, "Large displacements")."""
+    not the frames' tone curves (docs/engine.md, "Large displacements", With the census data term)."""
     top = RANK_LEVELS - 1
     q = np.clip(np.rint(img * np.float32(top)), 0, top).astype(np.uint16)
     counts = np.bincount(q.ravel(), minlength=RANK_LEVELS)
@@ -287,7 +287,7 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: 
     ``previous_flow`` (2, H, W, on the previous pair's first frame; used only with ``cfg.temporal_init``)
     and the source ``cfg.initialisation`` computes. Empty: the pyramid alone. With the census data term
     (``cfg.photometric``) every source sees each frame :func:`equalised` on its own, not the photometric
-    stage's per-frame affine map (docs/engine.md, "Large displacements", Input)."""
+    stage's per-frame affine map (docs/engine.md, "Large displacements", With the census data term)."""
     if compares_signatures(cfg.photometric):
         i0, i1 = equalised(i0), equalised(i1)
     out = []
