@@ -44,6 +44,31 @@ def test_coarse_eps_applies_below_the_width_only() -> None:
     assert level_census(CENSUS_RT.replace(census_coarse_width=0), 10) is CENSUS  # width 0: never
 
 
+def test_census_finest_radius_reaches_the_finest_level_only_and_the_flow() -> None:
+    """census_finest_radius sets the signature's neighbour distance on the finest solved level only (with the
+    coarse EPS and the noise floor as before); the default is today's 3 x 3 signature everywhere; a radius-2
+    census flow differs from the default's, is as good on an easy pair, and the numba and numpy backends agree."""
+    cfg = CENSUS_RT.replace(census_coarse_eps=0.03, census_coarse_width=50, census_finest_radius=2)
+    assert level_census(cfg, 49, finest=True) == CensusParams(eps=0.03, radius=2)
+    assert level_census(cfg, 50, finest=True) == CensusParams(radius=2)
+    assert level_census(cfg, 50, eps_floor=0.02, finest=True) == CensusParams(eps=0.02, radius=2)
+    assert level_census(cfg, 50) is CENSUS and level_census(cfg, 49) == CensusParams(eps=0.03)
+    assert FlowConfig().census_finest_radius == 1 and level_census(CENSUS_RT, 50, finest=True) is CENSUS
+    tex = texture(64, 80, seed=5).image
+    moved = np.roll(tex, (1, 2), axis=(0, 1))
+    flows = {}
+    for backend in ("numpy", "numba"):
+        for radius in (1, 2):
+            run = CENSUS_RT.replace(census_finest_radius=radius, backend=backend, threads=1)
+            flows[backend, radius] = FlowEstimator(run).estimate(tex, moved).flow
+    inner = (slice(8, -8), slice(8, -8))
+    for radius in (1, 2):
+        err = np.abs(flows["numba", radius][inner] - np.array([2.0, 1.0], np.float32)).mean()
+        assert err < 0.05, (radius, err)
+    assert np.abs(flows["numba", 2] - flows["numba", 1]).max() > 1e-4
+    np.testing.assert_allclose(flows["numpy", 2], flows["numba", 2], atol=1e-3)
+
+
 @pytest.mark.parametrize("backend", ["numpy", "numba"])
 @pytest.mark.parametrize("source", ["coarse", "noise floor"])
 def test_census_problem_uses_the_level_eps(backend: str, source: str) -> None:
