@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from synth import texture
 
+from flow_node.core import engine, refine
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
 from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
@@ -67,6 +68,35 @@ def test_census_finest_radius_reaches_the_finest_level_only_and_the_flow() -> No
         assert err < 0.05, (radius, err)
     assert np.abs(flows["numba", 2] - flows["numba", 1]).max() > 1e-4
     np.testing.assert_allclose(flows["numpy", 2], flows["numba", 2], atol=1e-3)
+
+
+def test_the_finest_level_takes_the_far_noise_floor(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With census_finest_radius 2 the finest solved level's EPS floor is the pyramid's floor for neighbours at
+    distance 2 (Pyramid.census_eps_far), the coarser levels' the 3 x 3 one."""
+    seen: list[tuple[int, float, bool]] = []
+
+    def spy(c0: np.ndarray, *args: object) -> object:
+        seen.append((c0.shape[2], float(args[4]), bool(args[5])))
+        return census_problem(c0, *args)
+
+    built: list[object] = []
+
+    def keep(*args: object, **kwargs: object) -> object:
+        built.append(make_pyramid(*args, **kwargs))
+        return built[-1]
+
+    monkeypatch.setattr(refine, "census_problem", spy)
+    monkeypatch.setattr(engine, "make_pyramid", keep)
+    rng = np.random.default_rng(9)
+    tex = texture(64, 80, seed=6).image
+    noisy = [np.clip(tex + rng.normal(0, 0.03, tex.shape), 0, 1).astype(np.float32) for _ in range(2)]
+    FlowEstimator(CENSUS_RT.replace(census_finest_radius=2, threads=1)).estimate(*noisy)
+    pyr = built[-1]
+    assert pyr.census_eps_far is not None and pyr.census_eps_far[0] > 0
+    finest = [s for s in seen if s[2]]
+    assert finest and all(s[1] == pyr.census_eps_far[0] for s in finest)
+    coarse = [s for s in seen if not s[2]]
+    assert coarse and all(s[1] in pyr.census_eps for s in coarse)
 
 
 @pytest.mark.parametrize("backend", ["numpy", "numba"])

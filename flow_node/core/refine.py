@@ -111,7 +111,8 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     if compares_signatures(cfg.photometric):
         colour = pyr.c0 is not None and pyr.c1 is not None
         frames = (pyr.c0[level], pyr.c1[level]) if colour else (pyr.i0[level][None], pyr.i1[level][None])
-        linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level), on_finest)
+        radius = cfg.census_finest_radius if on_finest else 1  # the signature's neighbours' distance here
+        linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level, radius), on_finest)
     else:
         linearised = problem_source(cfg)(pyr.i0[level], pyr.i1[level], cfg, backend, robust)
     if pyr.valid(level) is not None:
