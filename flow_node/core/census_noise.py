@@ -116,8 +116,8 @@ def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float
     """For one axis of lengths n_0 > n_1 > ..., the step blurs ``sigmas`` and a first ``blur`` on n_0: per
     level, the mean over interior samples of the variance of (white noise of variance 1 through the axis's
     linear map) and of its difference between samples ``lag`` apart. The map is built as a matrix (rows: input
-    impulses) by the very operations of pyramid.build_pyramid along that axis (a Gaussian of OpenCV's kernel size for float
-    input; bilinear resampling); replicated border for the steps, reflected for the first blur (as
+    impulses) by the very operations of pyramid.build_pyramid along that axis (a Gaussian of OpenCV's kernel size
+    for float input; bilinear resampling); replicated border for the steps, reflected for the first blur (as
     photometric.affine_normalised)."""
     m = np.eye(lengths[0], dtype=np.float32)
     if blur > 0:
