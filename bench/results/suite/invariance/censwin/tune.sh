@@ -1,6 +1,6 @@
 #!/bin/bash
 # The tune-split passes on the numba kernels (mean AEE in runs/<pass>_*.json; tables: tables.py, fam.py).
-# Usage: bash tune.sh PASS   (PASS = p2 | p3 | p5 | p6)
+# Usage: bash tune.sh PASS   (PASS = p2 | p3 | p5 | p6 | p7; p7: after the far noise floor, commit a2e9b88)
 # p2 / p3 ran on the branch's intermediate tree, whose FlowConfig field census_radius set the radius on every
 # level; it was replaced by census_finest_radius (finest level only), so they no longer parse. study.py's numpy
 # variant r2 reproduces p2's radius-2 rows (Middlebury 0.304 / 0.396, bags 0.065 / 0.075, real_exact 0.243 /
@@ -31,6 +31,9 @@ p5) fixed_and_tune p5 --method quality_census_f2=$Q,census_finest_radius=2 \
         --method realtime_census_f2=$R,census_finest_radius=2 --method fastest_census=$F \
         --method fastest_census_f2=$F,census_finest_radius=2 ;;
 p6) suite p6_synth noise,fine_320,fine_640,flat,low_contrast --quick --method quality_census=$Q \
+        --method quality_census_f2=$Q,census_finest_radius=2 --method realtime_census=$R \
+        --method realtime_census_f2=$R,census_finest_radius=2 ;;
+p7) suite p7_floor noise,low_contrast,bit_depth,real_exact_photometric,photometric --quick --method quality_census=$Q \
         --method quality_census_f2=$Q,census_finest_radius=2 --method realtime_census=$R \
         --method realtime_census_f2=$R,census_finest_radius=2 ;;
 esac
