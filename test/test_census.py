@@ -53,6 +53,19 @@ def test_signature_is_invariant_to_gain_offset_and_smooth_gain_fields() -> None:
     assert np.abs(field * img - img).mean() > 0.1 * img.mean()
 
 
+def test_radius_2_compares_the_ring_at_distance_2() -> None:
+    """CensusParams radius 2: the eight neighbours at (2 dy, 2 dx), edge values beyond the border; still invariant to
+    gain and offset."""
+    img = rng_image(3)
+    far = CensusParams(radius=2, eps=0.0)
+    f = signature(img, far)
+    pad = np.pad(img, 2, mode="edge")
+    d = np.stack([pad[2 + dy:2 + dy + H, 2 + dx:2 + dx + W] - img for dy, dx in census.offsets(2)])
+    np.testing.assert_allclose(f, 0.1 * d / np.sqrt(np.mean(d * d, axis=0)), rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(signature(1.7 * img - 0.3, far), f, atol=1e-4)
+    assert np.abs(f - signature(img, CensusParams(eps=0.0))).mean() > 0.01  # not the 3 x 3 signature
+
+
 def test_signature_under_a_tone_curve_changes_far_less_than_grey_values() -> None:
     img = rng_image(2)
     ref = signature(img)
@@ -123,13 +136,15 @@ def test_warped_frames_sample_inside_and_keep_frame_1_outside() -> None:
 
 
 @pytest.mark.parametrize(("params", "kernel"), [(census.CENSUS, "bspline"), (CensusParams(eps=0.03), "bspline"),
-                                                (census.CENSUS, "keys")], ids=["eps0.01", "eps0.03", "keys"])
+                                                (census.CENSUS, "keys"), (CensusParams(radius=2), "bspline"),
+                                                (CensusParams(radius=2, eps=0.03), "keys")],
+                         ids=["eps0.01", "eps0.03", "keys", "radius2", "radius2-eps0.03-keys"])
 def test_numba_signature_and_form_match_numpy(params: CensusParams, kernel: str) -> None:
     i0, i1, coefs, v0 = random_warp(7, kernel=kernel)
     f0, g0 = level_signature(i0, params)
     f0_fast, _ = level_signature_numba(i0, params)
     np.testing.assert_array_equal(f0_fast[0], i0)  # the level: frame 0, then its factor
-    np.testing.assert_allclose(level_signatures(f0_fast), f0, atol=AGREE)
+    np.testing.assert_allclose(level_signatures(f0_fast, params.radius), f0, atol=AGREE)
     for robust in (False, True):
         ref = census_form(f0, g0, coefs, i1, v0, kernel, robust, params)
         fast = census_form_numba(f0_fast, None, coefs, i1, v0, kernel, robust, params)
@@ -138,19 +153,22 @@ def test_numba_signature_and_form_match_numpy(params: CensusParams, kernel: str)
         assert np.all(fast[:, :4, :5] == 0.0)  # no data term where x + v0 leaves the image
 
 
-@pytest.mark.parametrize("shape", [(150, 160), (151, 3), (1, 200), (200, 1)], ids=["blocks", "narrow", "row", "column"])
-def test_numba_form_in_row_blocks_and_on_thin_levels_matches_numpy(shape: tuple[int, int]) -> None:
+@pytest.mark.parametrize("radius", [1, 2])
+@pytest.mark.parametrize("shape", [(150, 160), (151, 3), (1, 200), (200, 1), (2, 2)],
+                         ids=["blocks", "narrow", "row", "column", "tiny"])
+def test_numba_form_in_row_blocks_and_on_thin_levels_matches_numpy(shape: tuple[int, int], radius: int) -> None:
     """The kernel's rows in one block per thread (a level of 20,000 pixels or more with two threads: each
-    block warps two rows beyond its own) and on levels one or a few pixels wide or tall (the rings' mirrored
-    borders) give the reference's form."""
+    block warps 1 + radius rows beyond its own) and on levels one or a few pixels wide or tall (the rings'
+    mirrored borders; with radius 2, neighbours clamped two columns or rows deep) give the reference's form."""
+    params = CensusParams(radius=radius)
     i0, i1, coefs, v0 = random_warp(17, *shape)
-    f0, g0 = level_signature(i0)
-    ref = census_form(f0, g0, coefs, i1, v0, "bspline", True)
+    f0, g0 = level_signature(i0, params)
+    ref = census_form(f0, g0, coefs, i1, v0, "bspline", True, params)
     for threads in (1, 2):
         fast = np.full((5, *shape), np.nan, np.float32)  # every row must be written
         with thread_count(threads):
-            census_form_numba(level_signature_numba(i0, census.CENSUS)[0], None, coefs, i1, v0, "bspline", True,
-                              census.CENSUS, out=fast)
+            census_form_numba(level_signature_numba(i0, params)[0], None, coefs, i1, v0, "bspline", True,
+                              params, out=fast)
         np.testing.assert_allclose(fast, ref, atol=AGREE * max(1.0, float(np.abs(ref).max())))
 
 

@@ -57,21 +57,27 @@ def test_noise_sigma_reads_white_noise_and_not_a_smooth_texture() -> None:
                                            (CENSUS_RT.replace(census_antialias=-1, scale_factor=0.8, levels=8), 0.0),
                                            (FlowConfig.preset("fastest").replace(photometric="census"), 0.0)],
                          ids=["realtime", "realtime-presmoothed", "every-step-0.8", "fastest"])
-def test_the_carried_noise_matches_the_pyramid_of_white_noise(cfg: FlowConfig, blur: float) -> None:
-    """The analytic gain of white noise's neighbour differences per level (difference_noise_gains) is what the
-    pyramid's own levels of a white-noise image (presmoothed by ``blur`` first) measure, within sampling error."""
+@pytest.mark.parametrize("lag", [1, 2])
+def test_the_carried_noise_matches_the_pyramid_of_white_noise(cfg: FlowConfig, blur: float, lag: int) -> None:
+    """The analytic gain of white noise's differences ``lag`` px apart per level (difference_noise_gains) is
+    what the pyramid's own levels of a white-noise image (presmoothed by ``blur`` first) measure, within sampling
+    error."""
     noise = np.random.default_rng(3).normal(0.0, 1.0, (240, 320)).astype(np.float32)
     if blur:
         noise = cv2.GaussianBlur(noise, (0, 0), blur, borderType=cv2.BORDER_REFLECT)
     shapes = pyramid_shapes(noise.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
     steps = antialias_steps(cfg, len(shapes))
-    gains = difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, steps), blur)
-    assert gains[0] == pytest.approx(1.0) if not blur else gains[0] < 0.3
+    gains = difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, steps), blur, lag)
+    assert gains[0] == pytest.approx(1.0) if not blur else gains[0] < (0.3 if lag == 1 else 0.6)
     for level, gain in zip(build_pyramid(noise, shapes, cfg.scale_factor, steps), gains, strict=True):
         inner = level[2:-2, 2:-2].astype(np.float64)
-        rms = np.sqrt(0.5 * (np.mean(np.diff(inner, axis=1) ** 2) + np.mean(np.diff(inner, axis=0) ** 2)))
+        dx, dy = inner[:, lag:] - inner[:, :-lag], inner[lag:] - inner[:-lag]
+        rms = np.sqrt(0.5 * (np.mean(dx ** 2) + np.mean(dy ** 2)))
         assert rms / np.sqrt(2.0) == pytest.approx(gain, rel=0.06), level.shape
-    assert gains[-1] < 0.2  # and it falls: the coarse levels' EPS floor is far below the input's
+    assert gains[-1] < 0.25  # and it falls: the coarse levels' EPS floor is far below the input's
+    if blur and lag == 2:  # presmoothed noise differs more between far pixels than between neighbours
+        assert gains[0] > 1.5 * difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, steps),
+                                                       blur)[0]
 
 
 # the floor reaching the form (numpy and numba): test_census_schedule.test_census_problem_uses_the_level_eps
@@ -108,6 +114,12 @@ def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
     assert level_census(cfg, pyr.shapes[0][1], pyr.eps_floor(0)).eps == pyr.census_eps[0]
     # the engine hands the stage's noise to the pyramid: the same floor (both frames use it, refine.census_problem)
     assert make_pyramid(n0, n1, cfg, noise=PairNoise(noise.sigma, QUANT_SIGMA)).census_eps == pyr.census_eps
+    assert pyr.census_eps_far is None and pyr.eps_floor(0, 2) == 0.0
+    far = make_pyramid(n0, n1, cfg.replace(census_finest_radius=2), noise=PairNoise(noise.sigma, QUANT_SIGMA))
+    assert far.census_eps == pyr.census_eps  # the 3 x 3 floors unchanged
+    gains2 = difference_noise_gains(pyr.shapes, step_sigmas(len(pyr.shapes) - 1, 0.5, 3), QUANT_SIGMA, 2)
+    assert far.census_eps_far == pytest.approx([2.0 * noise.sigma * g for g in gains2])
+    assert far.eps_floor(0, 2) > 1.5 * far.eps_floor(0)  # presmoothed: far differences carry more noise
 
 
 def test_a_clean_pair_without_coarse_quantisation_is_not_presmoothed() -> None:

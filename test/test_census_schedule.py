@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from synth import texture
 
+from flow_node.core import engine, refine
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
 from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
@@ -42,6 +43,60 @@ def test_coarse_eps_applies_below_the_width_only() -> None:
     assert level_census(cfg, 49) == CensusParams(eps=0.03)
     assert level_census(cfg, 50) is CENSUS
     assert level_census(CENSUS_RT.replace(census_coarse_width=0), 10) is CENSUS  # width 0: never
+
+
+def test_census_finest_radius_reaches_the_finest_level_only_and_the_flow() -> None:
+    """census_finest_radius sets the signature's neighbour distance on the finest solved level only (with the
+    coarse EPS and the noise floor as before); the default is today's 3 x 3 signature everywhere; a radius-2
+    census flow differs from the default's, is as good on an easy pair, and the numba and numpy backends agree."""
+    cfg = CENSUS_RT.replace(census_coarse_eps=0.03, census_coarse_width=50, census_finest_radius=2)
+    assert level_census(cfg, 49, finest=True) == CensusParams(eps=0.03, radius=2)
+    assert level_census(cfg, 50, finest=True) == CensusParams(radius=2)
+    assert level_census(cfg, 50, eps_floor=0.02, finest=True) == CensusParams(eps=0.02, radius=2)
+    assert level_census(cfg, 50) is CENSUS and level_census(cfg, 49) == CensusParams(eps=0.03)
+    assert FlowConfig().census_finest_radius == 1 and level_census(CENSUS_RT, 50, finest=True) is CENSUS
+    tex = texture(64, 80, seed=5).image
+    moved = np.roll(tex, (1, 2), axis=(0, 1))
+    flows = {}
+    for backend in ("numpy", "numba"):
+        for radius in (1, 2):
+            run = CENSUS_RT.replace(census_finest_radius=radius, backend=backend, threads=1)
+            flows[backend, radius] = FlowEstimator(run).estimate(tex, moved).flow
+    inner = (slice(8, -8), slice(8, -8))
+    for radius in (1, 2):
+        err = np.abs(flows["numba", radius][inner] - np.array([2.0, 1.0], np.float32)).mean()
+        assert err < 0.05, (radius, err)
+    assert np.abs(flows["numba", 2] - flows["numba", 1]).max() > 1e-4
+    np.testing.assert_allclose(flows["numpy", 2], flows["numba", 2], atol=1e-3)
+
+
+def test_the_finest_level_takes_the_far_noise_floor(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With census_finest_radius 2 the finest solved level's EPS floor is the pyramid's floor for neighbours at
+    distance 2 (Pyramid.census_eps_far), the coarser levels' the 3 x 3 one."""
+    seen: list[tuple[int, float, bool]] = []
+
+    def spy(c0: np.ndarray, *args: object) -> object:
+        seen.append((c0.shape[2], float(args[4]), bool(args[5])))
+        return census_problem(c0, *args)
+
+    built: list[object] = []
+
+    def keep(*args: object, **kwargs: object) -> object:
+        built.append(make_pyramid(*args, **kwargs))
+        return built[-1]
+
+    monkeypatch.setattr(refine, "census_problem", spy)
+    monkeypatch.setattr(engine, "make_pyramid", keep)
+    rng = np.random.default_rng(9)
+    tex = texture(64, 80, seed=6).image
+    noisy = [np.clip(tex + rng.normal(0, 0.03, tex.shape), 0, 1).astype(np.float32) for _ in range(2)]
+    FlowEstimator(CENSUS_RT.replace(census_finest_radius=2, threads=1)).estimate(*noisy)
+    pyr = built[-1]
+    assert pyr.census_eps_far is not None and pyr.census_eps_far[0] > 0
+    finest = [s for s in seen if s[2]]
+    assert finest and all(s[1] == pyr.census_eps_far[0] for s in finest)
+    coarse = [s for s in seen if not s[2]]
+    assert coarse and all(s[1] in pyr.census_eps for s in coarse)
 
 
 @pytest.mark.parametrize("backend", ["numpy", "numba"])

@@ -5,6 +5,8 @@ CLI with ``colour = channels`` -- invariant to white balance, and seeing edges t
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import small_frames
@@ -63,19 +65,21 @@ def test_a_channel_with_different_texture_changes_the_form() -> None:
     assert np.abs(other - base).max() > 1e-2
 
 
+@pytest.mark.parametrize("radius", [1, 2])
 @pytest.mark.parametrize("robust", [False, True])
-def test_numba_colour_form_matches_numpy(robust: bool) -> None:
+def test_numba_colour_form_matches_numpy(robust: bool, radius: int) -> None:
+    params = replace(CENSUS, radius=radius)
     i0, i1 = channels(4), channels(14)
     v0, coefs, warped, outside = warp_of(i1, 5)
-    f0, g0 = level_signature(i0, CENSUS)
-    want = census_form(f0, g0, coefs, i1, v0, "bspline", robust, CENSUS)
+    f0, g0 = level_signature(i0, params)
+    want = census_form(f0, g0, coefs, i1, v0, "bspline", robust, params)
     _, _, warped_n, outside_n = warp_of(i1, 5, WARPER.sample)
     np.testing.assert_allclose(warped_n, warped, atol=AGREE)
     np.testing.assert_array_equal(outside_n, outside)
-    f0n, g0n = level_signature_numba(i0, CENSUS)
+    f0n, g0n = level_signature_numba(i0, params)
     assert g0n is None
-    np.testing.assert_allclose(level_signatures(f0n), f0, atol=AGREE)
-    got = census_form_numba(f0n, None, WARPER.coefficients(i1, "bspline"), i1, v0, "bspline", robust, CENSUS)
+    np.testing.assert_allclose(level_signatures(f0n, radius), f0, atol=AGREE)
+    got = census_form_numba(f0n, None, WARPER.coefficients(i1, "bspline"), i1, v0, "bspline", robust, params)
     np.testing.assert_allclose(got, want, atol=AGREE, rtol=AGREE)
     assert np.all(got[:, :4, :5] == 0.0) and np.all(got[2, 4:-4, 6:-4] > 0.0)  # no data term only outside
 

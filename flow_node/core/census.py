@@ -7,11 +7,12 @@ after Stein 2004 and its use inside TV-L1 by Mueller et al. 2011 and Ranftl et a
 
     F_k(I)(x) = GAIN * (I(x + d_k) - I(x)) / (s(x) + EPS),   s(x) = sqrt(mean_k (I(x + d_k) - I(x))^2)
 
-for the offsets d_k of the 3 x 3 neighbourhood (K = 8 channels). Over one pixel any smooth monotonic tone
-curve is affine to first order, and a smooth gain field is a constant: both scale the differences and s
-alike, so F does not change (exactly for a gain and offset, to second order in the local grey-value span
-for a curve). EPS (in units of the frame's robust range) keeps flat, noise-only areas from being
-amplified.
+for the offsets d_k of the 3 x 3 neighbourhood (K = 8 channels), or with ``radius`` 2 the ring of eight
+pixels at distance 2 (d_k = 2 x the 3 x 3 offsets: the 5 x 5 window's corners and edge midpoints; FlowConfig
+``census_finest_radius`` on the finest solved level). Over one pixel any smooth monotonic tone curve is affine
+to first order, and a smooth gain field is a constant: both scale the differences and s alike, so F does not
+change (exactly for a gain and offset, to second order in the grey-value span of the window for a curve).
+EPS (in units of the frame's robust range) keeps flat, noise-only areas from being amplified.
 
 Each channel is linearised like the grey value (paper, "Large Displacements"): with W = I1(x + v0) the
 warped frame 1 (sampled directly, :func:`warped_frames`: the data term needs its values, not the grey-value
@@ -50,27 +51,35 @@ class CensusParams:
 
     ``gain``: scale of the signature (sets the data term's weight against the regulariser's alpha);
     ``eps``: contrast (of the frame's robust range) below which differences are damped, not normalised;
-    ``delta``: residual (signature units) below which the L1 majoriser is quadratic."""
+    ``delta``: residual (signature units) below which the L1 majoriser is quadratic;
+    ``radius``: the neighbours' distance (px), 1 (the 3 x 3 neighbourhood) or 2 (:func:`offsets`)."""
 
     gain: float = 0.1
     eps: float = 0.01
     delta: float = 0.2
+    radius: int = 1
 
 
 CENSUS = CensusParams()
 
 
+def offsets(radius: int) -> tuple[tuple[int, int], ...]:
+    """The signature's 8 neighbour offsets (dy, dx) px at distance ``radius``: radius x :data:`OFFSETS`."""
+    return tuple((radius * dy, radius * dx) for dy, dx in OFFSETS)
+
+
 def shifted(img: np.ndarray, dy: int, dx: int) -> np.ndarray:
     """img(x + (dy, dx)) on img's grid, edge values repeated outside. (H, W) -> (H, W)."""
     h, w = img.shape
-    padded = np.pad(img, 1, mode="edge")
-    return padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+    r = max(abs(dy), abs(dx), 1)
+    padded = np.pad(img, r, mode="edge")
+    return padded[r + dy:r + dy + h, r + dx:r + dx + w]
 
 
 def signature(img: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
     """The soft census signature F(img) of the module doc: (H, W) float32 -> (K, H, W) float32."""
     img = img.astype(np.float32, copy=False)
-    diffs = np.stack([shifted(img, dy, dx) - img for dy, dx in OFFSETS])
+    diffs = np.stack([shifted(img, dy, dx) - img for dy, dx in offsets(params.radius)])
     return (normalised(diffs, params) * np.float32(params.gain)).astype(np.float32)
 
 
@@ -182,11 +191,11 @@ def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample
     inside = (map_x >= 1) & (map_x <= w - 2) & (map_y >= 1) & (map_y <= h - 2)
     if not inside.any():
         return 1.0
-    offsets = ((0, 0),) + OFFSETS
-    mx = np.concatenate([map_x + dx for _, dx in offsets])
-    my = np.concatenate([map_y + dy for dy, _ in offsets])
-    warped = sample(np.asarray(i1, np.float32), mx, my, "keys").reshape((len(offsets),) + map_x.shape)
-    grid = np.stack([i0[np.clip(ys + dy, 0, h - 1)][:, np.clip(xs + dx, 0, w - 1)] for dy, dx in offsets])
+    taps = ((0, 0),) + OFFSETS
+    mx = np.concatenate([map_x + dx for _, dx in taps])
+    my = np.concatenate([map_y + dy for dy, _ in taps])
+    warped = sample(np.asarray(i1, np.float32), mx, my, "keys").reshape((len(taps),) + map_x.shape)
+    grid = np.stack([i0[np.clip(ys + dy, 0, h - 1)][:, np.clip(xs + dx, 0, w - 1)] for dy, dx in taps])
     residual = np.mean(np.abs(normalised(warped[1:] - warped[0], params) - normalised(grid[1:] - grid[0], params)),
                        axis=0)
     return float(np.mean(residual[inside] > OUTLIER))

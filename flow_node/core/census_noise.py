@@ -17,7 +17,8 @@ exactly those pixels and leaves textured ones (s(x) >> EPS) normalised as before
   noise's neighbour differences on a level have a known RMS, computed from that filter
   (:func:`difference_noise_gains`, the photometric stage's presmoothing included: a white-noise estimator
   would read a blurred frame's noise as far smaller than it is). The floor on a level is K sigma times that
-  gain.
+  gain, for the differences the level's signature takes (its neighbours at distance 1, or 2 on the finest level
+  with census_finest_radius 2: a blurred frame's noise differs less between close pixels than between far ones).
 """
 
 from __future__ import annotations
@@ -88,34 +89,35 @@ def channel_noise(raw: tuple[np.ndarray, np.ndarray], normalised: tuple[np.ndarr
     return PairNoise(max(n.sigma for n in noises), max(n.blur for n in noises))
 
 
-def difference_noise_gains(shapes: list[tuple[int, int]], sigmas: list[float], blur: float = 0.0
+def difference_noise_gains(shapes: list[tuple[int, int]], sigmas: list[float], blur: float = 0.0, lag: int = 1
                            ) -> tuple[float, ...]:
-    """Per pyramid level (finest first), the RMS of white noise's neighbour differences (along x and y) on that
-    level over their RMS on the input (1 on level 0 without ``blur``). ``shapes`` (h, w) per level; ``sigmas``:
-    the Gaussian blur (px of the finer level) of each step before its bilinear resampling
-    (pyramid.build_pyramid), one per step; ``blur``: a Gaussian (px) on the input first (the photometric
-    stage's presmoothing; 0: none). Computed exactly from the separable linear map of each axis
-    (:func:`_axis_gains`), cached per argument set."""
-    return _difference_noise_gains(tuple(tuple(s) for s in shapes), tuple(float(s) for s in sigmas), float(blur))
+    """Per pyramid level (finest first), the RMS of white noise's differences between pixels ``lag`` px apart
+    (along x and y) on that level over the RMS of its neighbour differences on the input (1 on level 0 without
+    ``blur``, for any lag). ``shapes`` (h, w) per level; ``sigmas``: the Gaussian blur (px of the finer level) of
+    each step before its bilinear resampling (pyramid.build_pyramid), one per step; ``blur``: a Gaussian (px) on
+    the input first (the photometric stage's presmoothing; 0: none). Computed exactly from the separable linear
+    map of each axis (:func:`_axis_gains`), cached per argument set."""
+    return _difference_noise_gains(tuple(tuple(s) for s in shapes), tuple(float(s) for s in sigmas), float(blur),
+                                   int(lag))
 
 
 @lru_cache(maxsize=64)
-def _difference_noise_gains(shapes: tuple[tuple[int, int], ...], sigmas: tuple[float, ...], blur: float
+def _difference_noise_gains(shapes: tuple[tuple[int, int], ...], sigmas: tuple[float, ...], blur: float, lag: int
                             ) -> tuple[float, ...]:
     """:func:`difference_noise_gains` on hashable arguments."""
-    vy, dy = _axis_gains(tuple(s[0] for s in shapes), sigmas, blur)
-    vx, dx = _axis_gains(tuple(s[1] for s in shapes), sigmas, blur)
+    vy, dy = _axis_gains(tuple(s[0] for s in shapes), sigmas, blur, lag)
+    vx, dx = _axis_gains(tuple(s[1] for s in shapes), sigmas, blur, lag)
     # white noise through a separable map: Var(x difference) = dx * vy, Var(y difference) = vx * dy; 2 on level 0
     return tuple(float(np.sqrt((dx[k] * vy[k] + vx[k] * dy[k]) / 4.0)) for k in range(len(shapes)))
 
 
-def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0
+def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0, lag: int = 1
                 ) -> tuple[list[float], list[float]]:
     """For one axis of lengths n_0 > n_1 > ..., the step blurs ``sigmas`` and a first ``blur`` on n_0: per
     level, the mean over interior samples of the variance of (white noise of variance 1 through the axis's
-    linear map) and of its neighbour difference. The map is built as a matrix (rows: input impulses) by the
-    very operations of pyramid.build_pyramid along that axis (a Gaussian of OpenCV's kernel size for float
-    input; bilinear resampling); replicated border for the steps, reflected for the first blur (as
+    linear map) and of its difference between samples ``lag`` apart. The map is built as a matrix (rows: input
+    impulses) by the very operations of pyramid.build_pyramid along that axis (a Gaussian of OpenCV's kernel size
+    for float input; bilinear resampling); replicated border for the steps, reflected for the first blur (as
     photometric.affine_normalised)."""
     m = np.eye(lengths[0], dtype=np.float32)
     if blur > 0:
@@ -127,7 +129,7 @@ def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float
             m = cv2.resize(m, (n, m.shape[0]), interpolation=cv2.INTER_LINEAR)
         inner = (m[:, 2:-2] if n > 8 else m).astype(np.float64)
         var.append(float(np.mean(np.sum(inner ** 2, axis=0))))
-        diff = np.diff(inner, axis=1)
+        diff = inner[:, lag:] - inner[:, :-lag]
         dvar.append(float(np.mean(np.sum(diff * diff, axis=0))) if diff.size else 0.0)
     return var, dvar
 

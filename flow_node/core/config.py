@@ -84,6 +84,11 @@ class FlowConfig:
                                "used in both frames, carried down the pyramid by its filters' noise gain; 0 = "
                                "off). Damps flat areas whose contrast is noise (low light); 2 chosen on the suite's "
                                "tune split (docs/engine.md, 'The census data term')", lo=0.0, hi=100.0)
+    census_finest_radius: int = _f(1, "photometric census: the distance (px) of the signature's eight neighbours "
+                                   "on the finest solved level: 1 = the 3 x 3 neighbourhood, as on every coarser "
+                                   "level; 2 = the ring at distance 2 (the 5 x 5 window's corners and edge "
+                                   "midpoints), which sees more of a smooth texture's curvature; no preset sets it "
+                                   "(docs/engine.md, 'The census data term')", choices=(1, 2))
     census_median_filter: int = _f(-1, "photometric census: median filter size after each warp of a level but its "
                                    "last (-1 = median_filter; the last warp's is median_filter's). The earlier "
                                    "medians only move the next warp's linearisation point, and a 3 x 3 median costs "

@@ -5,9 +5,11 @@ its soft census signature (frame 0's, once per level: the level's signatures are
 :func:`level_signature_numba`); :func:`census_kernel` one warp's quadratic form in one pass over the level
 (census.census_form): frame 1's channels sampled at x + v0 (a value-only warp, numba_warp.sample_row), both
 frames' signatures and the form, row by row, the warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept
-in per-thread rings of three rows (cache-resident) instead of level-sized arrays; :func:`unexplained_kernel`
-the counts behind census.reliability. Grey and colour input are the same kernel (C = 1 or 3 channels of K
-signatures each). Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same
+in per-thread rings (cache-resident) instead of level-sized arrays; :func:`unexplained_kernel` the counts behind
+census.reliability. Grey and colour input are the same kernel (C = 1 or 3 channels of K signatures each), and so
+are the neighbours at distance 1 and 2 (CensusParams.radius: the warped rows' ring holds 2 radius + 1 rows; the
+reliability figure compares the 3 x 3 signature either way). Rows run as whole-row loops (1-D views of
+C-contiguous arrays, so they vectorise). The same
 quantities as the reference, the form's sums rearranged (:func:`_form_finish`): equal to float32 rounding
 (test_census, 1e-5 of the form's largest value).
 
@@ -22,7 +24,7 @@ import numba
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams, shifted
+from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams, offsets, shifted
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_warp import cubic_weights4, sample_row, tap_indices, tap_sum
 from .photometric import reliability_stride
@@ -34,6 +36,11 @@ _F32 = np.float32
 _DY = np.array([d[0] for d in OFFSETS], np.int64)
 _DX = np.array([d[1] for d in OFFSETS], np.int64)
 _K = len(OFFSETS)
+
+
+def _offset_arrays(radius: int) -> tuple[np.ndarray, np.ndarray]:
+    """The signature's neighbour offsets at distance ``radius`` (census.offsets) as (dy, dx) int64 arrays (K)."""
+    return (_DY, _DX) if radius == 1 else (_DY * radius, _DX * radius)
 
 
 @njit(**_JIT)
@@ -48,26 +55,39 @@ def _diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN201
 
 
 @njit(**_JIT)
+def _diff_edge(neighbour, centre, dst, ss):  # noqa: ANN001, ANN201
+    """dst = neighbour[0] - centre (one neighbour value for every pixel: the columns whose neighbour is clamped
+    to the row's end) and, unless ``ss`` is None, ss += dst^2 (1-D views)."""
+    v = neighbour[0]
+    for j in range(dst.shape[0]):
+        d = v - centre[j]
+        dst[j] = d
+        if ss is not None:
+            ss[j] += d * d
+
+
+@njit(**_JIT)
 def _neighbour_differences(up, centre, down, dy, dx, out, first, i, ss):  # noqa: ANN001, ANN201
     """The K neighbour differences of one image row ``centre`` (W), whose neighbour rows are ``up`` and ``down``
-    (the row itself at the image's top and bottom: edge values), into the rows out[first + k, i] (k < K) of out
-    (., ., W), column neighbours clamped to the row; and, unless ``ss`` is None, their sum of squares added to
-    ss (W). Channel by channel over whole rows (1-D views of C-contiguous arrays, so that the loops
-    vectorise)."""
+    (rows y - r and y + r for offsets (dy, dx) of distance r, clamped to the image: edge values), into the rows
+    out[first + k, i] (k < K) of out (., ., W), column neighbours clamped to the row; and, unless ``ss`` is None,
+    their sum of squares added to ss (W). Channel by channel over whole rows (1-D views of C-contiguous arrays,
+    so that the loops vectorise)."""
     w = centre.shape[0]
     k_n = dy.shape[0]
     for k in range(k_n):
         src = up if dy[k] < 0 else (down if dy[k] > 0 else centre)
         dst = out[first + k, i]
         d = dx[k]
+        m = min(abs(d), w)  # the columns whose neighbour is clamped to the row's end
         if d == 0:
             _diff_row(src, centre, dst, ss)
-        elif d > 0:  # the last column's neighbour is itself (clamped)
-            _diff_row(src[d:], centre[:w - d], dst[:w - d], None if ss is None else ss[:w - d])
-            _diff_row(src[w - 1:], centre[w - d:], dst[w - d:], None if ss is None else ss[w - d:])
+        elif d > 0:  # the last d columns' neighbour is the last column
+            _diff_row(src[m:], centre[:w - m], dst[:w - m], None if ss is None else ss[:w - m])
+            _diff_edge(src[w - 1:], centre[w - m:], dst[w - m:], None if ss is None else ss[w - m:])
         else:
-            _diff_row(src[:w + d], centre[-d:], dst[-d:], None if ss is None else ss[-d:])
-            _diff_row(src[:1], centre[:-d], dst[:-d], None if ss is None else ss[:-d])
+            _diff_row(src[:w - m], centre[m:], dst[m:], None if ss is None else ss[m:])
+            _diff_edge(src[:1], centre[:m], dst[:m], None if ss is None else ss[:m])
 
 
 @njit(**_JIT)
@@ -83,13 +103,14 @@ def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noq
 
 
 @njit(parallel=True, **_JIT)
-def factor_kernel(img, dy, dx, gain, eps, out):  # noqa: ANN001, ANN201
+def factor_kernel(img, dy, dx, rad, gain, eps, out):  # noqa: ANN001, ANN201
     """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`; census.signature is
-    the neighbour differences times it); neighbours clamped to the image (edge values). Rows in parallel."""
+    the neighbour differences times it) for the offsets (dy, dx) at distance ``rad``; neighbours clamped to the
+    image (edge values). Rows in parallel."""
     h, w = img.shape
     for i in prange(h):
         tmp = np.empty((dy.shape[0], 1, w), np.float32)
-        _differences(img[max(i - 1, 0)], img[i], img[min(i + 1, h - 1)], dy, dx, gain, eps, tmp, 0, 0, out[i])
+        _differences(img[max(i - rad, 0)], img[i], img[min(i + rad, h - 1)], dy, dx, gain, eps, tmp, 0, 0, out[i])
 
 
 @njit(**_JIT)
@@ -174,46 +195,52 @@ def _form_finish(out, i, ry, vx, vy, keep):  # noqa: ANN001, ANN201
 @njit(**_JIT)
 def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, r0, r1,  # noqa: ANN001, ANN201
                  warped, keep, pair, diff, temp, ss, taps, base):
-    """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, 3, W) and keep (3, W)
-    hold rows of frame 1 warped and its weight, pair (C K, 3, W + 2) and diff (C K, 3, W) rows of P = F0 + F1
-    (border-mirrored: :func:`_pair_row`) and D = F1 - F0 (F1 the warped frame's signatures), row r in slot
-    (r + 3) % 3; temp (2 K, 1, W) and ss (W) one channel's neighbour differences in both frames and frame 1's
-    factor (:func:`_differences`). Row r of the rings stands for the image row clamped to 0 .. H - 1 (so the
-    signature of the first and last rows sees edge values, as census.signature), and output row i needs
-    signature rows i - 1 .. i + 1, those warped rows i - 2 .. i + 2: each block warps its rows and two on
-    either side, each once. (The rings' rows -1 and H are read for the first and last rows' y-gradient, whose
-    weight is 0.) Each step's work is its own function (:func:`_pair_rows`, :func:`_form_rows`): written
-    inline here the same code ran ~25 % slower."""
+    """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, M, W) and keep (M, W)
+    hold rows of frame 1 warped and its weight, row r in slot r mod M (M = 2 rad + 1, rad the offsets'
+    distance: 3 rows for the 3 x 3 neighbours, 5 for the ring at distance 2); pair (C K, 3, W + 2) and diff
+    (C K, 3, W) rows of P = F0 + F1 (border-mirrored: :func:`_pair_row`) and D = F1 - F0 (F1 the warped frame's
+    signatures), row r in slot r mod 3; temp (2 K, 1, W) and ss (W) one channel's neighbour differences in both
+    frames and frame 1's factor (:func:`_differences`). Row r of the rings stands for the image row clamped to
+    0 .. H - 1 (so the signature of the first and last rows sees edge values, as census.signature), and output
+    row i needs signature rows i - 1 .. i + 1, those warped rows i - 1 - rad .. i + 1 + rad: each block warps
+    its rows and 1 + rad on either side, each once. (The rings' rows -1 and H are read for the first and last
+    rows' y-gradient, whose weight is 0.) Each step's work is its own function (:func:`_pair_rows`,
+    :func:`_form_rows`): written inline here the same code ran ~25 % slower."""
     h = f0.shape[1]
-    for r in range(r0 - 2, r1 + 2):  # warp row r (ring), then the signatures of row r - 1, then output row r - 2
-        s = (r + 3) % 3
+    m = warped.shape[1]
+    rad = (m - 1) // 2
+    for r in range(r0 - 1 - rad, r1 + 1 + rad):  # warp row r, the signatures of row r - rad, output row r - rad - 1
+        s = (r + 2 * m) % m
         sample_row(coefs, frames, flow, min(max(r, 0), h - 1), kernel, weight, warped, s, keep[s], taps, base)
-        if r >= r0:  # the signatures of row r - 1 (warped rows r - 2, r - 1, r) into diff, then P and D
-            _pair_rows(f0, min(max(r - 1, 0), h - 1), warped, (r + 1) % 3, (r + 2) % 3, s, dy, dx, gain, eps,
-                       pair, diff, temp, ss)
-        if r - 2 >= r0:  # output row i: signature rows i - 1, i, i + 1 are in the ring
-            _form_rows(out, r - 2, pair, diff, keep, flow, d2, robust)
+        rr = r - rad
+        if rr >= r0 - 1:  # the signatures of row rr (warped rows rr - rad, rr, rr + rad) into diff, then P and D
+            _pair_rows(f0, min(max(rr, 0), h - 1), rad, warped, (rr - rad + 2 * m) % m, (rr + 2 * m) % m, s,
+                       (rr + 3) % 3, dy, dx, gain, eps, pair, diff, temp, ss)
+        if rr - 1 >= r0:  # output row i: signature rows i - 1, i, i + 1 are in the ring
+            _form_rows(out, rr - 1, pair, diff, keep[(rr - 1 + 2 * m) % m], flow, d2, robust)
 
 
 @njit(**_JIT)
-def _pair_rows(f0, rr, warped, sm, s0, sp, dy, dx, gain, eps, pair, diff, temp, ss):  # noqa: ANN001, ANN201
-    """P and D of one row (image row rr) into ring slot s0 of pair and diff, from the warped rows in slots sm,
-    s0, sp (above, at, below) and frame 0's level f0 (2 C, H, W): its channels, then their factors
-    (:func:`level_signature_numba`; its differences are taken here, from its rows rr - 1 .. rr + 1 clamped)
-    (:func:`_census_rows`)."""
+def _pair_rows(f0, rr, rad, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, temp, ss):  # noqa: ANN001, ANN201
+    """P and D of one row (image row rr) into ring slot sq of pair and diff, from the warped rows in slots sm,
+    s0, sp (rad rows above, at, rad below) and frame 0's level f0 (2 C, H, W): its channels, then their factors
+    (:func:`level_signature_numba`; its differences are taken here, from its rows rr - rad, rr, rr + rad
+    clamped) (:func:`_census_rows`)."""
     k_n = dy.shape[0]
     n_c, h = warped.shape[0], f0.shape[1]
     for c in range(n_c):
         _differences(warped[c, sm], warped[c, s0], warped[c, sp], dy, dx, gain, eps, temp, 0, 0, ss)
-        _neighbour_differences(f0[c, max(rr - 1, 0)], f0[c, rr], f0[c, min(rr + 1, h - 1)], dy, dx, temp, k_n, 0, None)
+        _neighbour_differences(f0[c, max(rr - rad, 0)], f0[c, rr], f0[c, min(rr + rad, h - 1)], dy, dx, temp, k_n, 0,
+                               None)
         for k in range(k_n):
             q = c * k_n + k
-            _pair_row(temp[k_n + k, 0], f0[n_c + c, rr], temp[k, 0], ss, pair[q, s0], diff[q, s0])
+            _pair_row(temp[k_n + k, 0], f0[n_c + c, rr], temp[k, 0], ss, pair[q, sq], diff[q, sq])
 
 
 @njit(**_JIT)
 def _form_rows(out, i, pair, diff, keep, flow, d2, robust):  # noqa: ANN001, ANN201
-    """Row i of the form out (5, H, W) from the rings' rows i - 1, i, i + 1 (:func:`_census_rows`)."""
+    """Row i of the form out (5, H, W) from the rings' rows i - 1, i, i + 1 and the row's weight keep (W)
+    (:func:`_census_rows`)."""
     h = out.shape[1]
     su, sc, sd = (i + 2) % 3, (i + 3) % 3, (i + 4) % 3
     ry = _F32(0.25) if 0 < i < h - 1 else _F32(0.0)
@@ -229,7 +256,7 @@ def _form_rows(out, i, pair, diff, keep, flow, d2, robust):  # noqa: ANN001, ANN
             _form_row_first(*rows)
         else:
             _form_row_add(*rows)
-    _form_finish(out, i, ry, flow[0, i], flow[1, i], keep[sc])
+    _form_finish(out, i, ry, flow[0, i], flow[1, i], keep)
 
 
 @njit(parallel=True, **_JIT)
@@ -238,9 +265,10 @@ def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, de
     """census.census_form in one pass: out (5, H, W) from frame 0's level f0 (2 C, H, W) (its channels and their
     factors, :func:`level_signature_numba`), frame 1's
     interpolation coefficients ``coefs`` and channels ``frames`` (C, H, W) and the flow v0 (2, H, W); each
-    pixel's weight ``weight`` (1 / C) inside, 0 where x + v0 leaves the image. The rows in ``blocks``
+    pixel's weight ``weight`` (1 / C) inside, 0 where x + v0 leaves the image; the signatures' offsets (dy, dx)
+    at distance rad, the warped rings' M = 2 rad + 1 rows. The rows in ``blocks``
     contiguous blocks, in parallel when more than one (:func:`_census_rows`; per-thread rings warped
-    (T, C, 3, W), keep (T, 3, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, 2 K, 1, W), ss (T, W)
+    (T, C, M, W), keep (T, M, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, 2 K, 1, W), ss (T, W)
     and the warp's row scratch taps (T, 9, W), base (T, 2, W) int32)."""
     h = f0.shape[1]
     d2 = delta * delta
@@ -260,7 +288,7 @@ def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None =
     given); census.signature = the neighbour differences (census.shifted) times it."""
     src = np.ascontiguousarray(img, dtype=_F32)
     out = np.empty(src.shape, _F32) if out is None else out
-    factor_kernel(src, _DY, _DX, _F32(params.gain), _F32(params.eps), out)
+    factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps), out)
     return out
 
 
@@ -283,12 +311,13 @@ def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.
     return out, None
 
 
-def level_signatures(level: np.ndarray) -> np.ndarray:
+def level_signatures(level: np.ndarray, radius: int = 1) -> np.ndarray:
     """The signatures (C K, H, W) that a level of :func:`level_signature_numba` (2 C, H, W) stands for: each
-    channel's neighbour differences (census.shifted: edge values) times its factor (numpy; for checks)."""
+    channel's neighbour differences at distance ``radius`` (census.shifted: edge values) times its factor (numpy;
+    for checks)."""
     n = level.shape[0] // 2
-    return np.concatenate([np.stack([shifted(level[c], dy, dx) - level[c] for dy, dx in OFFSETS]) * level[n + c]
-                           for c in range(n)]).astype(np.float32)
+    return np.concatenate([np.stack([shifted(level[c], dy, dx) - level[c] for dy, dx in offsets(radius)])
+                           * level[n + c] for c in range(n)]).astype(np.float32)
 
 
 def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,
@@ -302,13 +331,15 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
     t = threads()
     blocks = min(t, h) if t > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS else 1
     n, q = numba.config.NUMBA_NUM_THREADS, n_c * _K  # per-thread rings: get_thread_id's range
-    rings = (scratch("census.warped", (n, n_c, 3, w)), scratch("census.keep", (n, 3, w)),
+    m = 2 * params.radius + 1  # warped rows per ring (_census_rows)
+    rings = (scratch("census.warped", (n, n_c, m, w)), scratch("census.keep", (n, m, w)),
              scratch("census.pair", (n, q, 3, w + 2)), scratch("census.diff", (n, q, 3, w)),
              scratch("census.temp", (n, 2 * _K, 1, w)), scratch("census.ss", (n, w)), *row_scratch(w))
     out = np.empty((5, h, w), _F32) if out is None else out
     census_kernel(np.ascontiguousarray(f0, dtype=_F32), np.ascontiguousarray(coefs, dtype=_F32),
                   np.ascontiguousarray(frames, dtype=_F32), np.ascontiguousarray(v0, dtype=_F32),
-                  KERNEL_CODES[kernel], _DY, _DX, _F32(params.gain), _F32(params.eps), robust, _F32(params.delta),
+                  KERNEL_CODES[kernel], *_offset_arrays(params.radius), _F32(params.gain), _F32(params.eps), robust,
+                  _F32(params.delta),
                   _F32(1.0 / n_c), out, *rings, blocks)
     return out
 

@@ -101,7 +101,8 @@ class Pyramid:
     colour input for the data term (colour.py), also their channels ``c0[l]``, ``c1[l]`` (C, h, w) float32; with
     a validity mask (validity.py) ``valid0[l]`` and ``valid1[l]`` float32 in [0, 1] (None: every pixel valid);
     with the census data term and ``census_noise_k`` > 0, ``census_eps[l]``: the floor of the signature's EPS on
-    level l from the pair's noise (census_noise.py; None: no floor)."""
+    level l from the pair's noise (census_noise.py; None: no floor), and with ``census_finest_radius`` 2 also
+    ``census_eps_far[l]``, the floor for neighbours at distance 2."""
 
     shapes: list[tuple[int, int]]
     i0: list[np.ndarray]
@@ -111,10 +112,12 @@ class Pyramid:
     valid0: list[np.ndarray] | None = None
     valid1: list[np.ndarray] | None = None
     census_eps: tuple[float, ...] | None = None
+    census_eps_far: tuple[float, ...] | None = None
 
-    def eps_floor(self, level: int) -> float:
-        """The census EPS floor on ``level`` (0 without one)."""
-        return 0.0 if self.census_eps is None else self.census_eps[level]
+    def eps_floor(self, level: int, radius: int = 1) -> float:
+        """The census EPS floor on ``level`` for the signature's neighbours at distance ``radius`` (0 without one)."""
+        floors = self.census_eps if radius == 1 else self.census_eps_far
+        return 0.0 if floors is None else floors[level]
 
     def valid(self, level: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Both frames' masks on ``level`` (float32 in [0, 1], validity.mask_levels), or None without a mask."""
@@ -184,12 +187,14 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
         [channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels]
     masks = [None, None] if valid is None else \
         [mask_levels(m, build_pyramid(m.astype(np.float32), shapes, cfg.scale_factor, antialias)) for m in valid]
-    floors = None
+    floors: list[tuple[float, ...] | None] = [None, None]  # neighbours at distance 1, 2
     if compares_signatures(cfg.photometric) and cfg.census_noise_k > 0:
         noise = PairNoise(max(noise_sigma(i0), noise_sigma(i1))) if noise is None else noise
-        gains = difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, antialias), noise.blur)
-        floors = eps_floors(noise, cfg.census_noise_k, gains)
-    return Pyramid(shapes, *grey, *colour, *masks, census_eps=floors)
+        sigmas = step_sigmas(len(shapes) - 1, cfg.scale_factor, antialias)
+        for lag in sorted({1, cfg.census_finest_radius}):
+            floors[lag - 1] = eps_floors(noise, cfg.census_noise_k, difference_noise_gains(shapes, sigmas, noise.blur,
+                                                                                          lag))
+    return Pyramid(shapes, *grey, *colour, *masks, census_eps=floors[0], census_eps_far=floors[1])
 
 
 def antialias_steps(cfg: FlowConfig, levels: int) -> int:
