@@ -26,12 +26,16 @@ from numba import get_thread_id, njit, prange
 
 from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams, offsets, shifted
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
+from .numba_kernels import FASTMATH
 from .numba_warp import cubic_weights4, sample_row, tap_indices, tap_sum
 from .photometric import reliability_stride
 from .warping import KERNEL_CODES
 from .workspace import scratch
 
-_JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
+# the solver's fastmath flags, not fastmath=True: with reassoc/arcp the census kernels computed other last bits when
+# compiled in a process than when read from numba's cache (a new install's first process got census flows 2e-3 px
+# away from every later process's; test_cold_start.test_census_kernels_compute_the_same_compiled_or_cached)
+_JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
 _F32 = np.float32
 _DY = np.array([d[0] for d in OFFSETS], np.int64)
 _DX = np.array([d[1] for d in OFFSETS], np.int64)
