@@ -127,3 +127,27 @@ def test_census_iterations_change_the_census_mode_only() -> None:
     assert level_schedule(cfg.replace(finest_iterations=0, census_finest_iterations=0), True) == (cfg.finest_warps, 5)
     stream = stream_schedule(cfg)  # the stream mode's refinement keeps its own counts
     assert level_schedule(stream, False)[1] == cfg.stream_iterations
+
+
+def test_fastest_census_damps_the_empty_coarsest_level() -> None:
+    """fastest with census carries the coarse EPS (presets.CENSUS_COARSE; task blob, chosen on the tune split):
+    on a tune-seed zoomed finest-band texture (seed 62 of the suite's photometric regime, 320x240, 8 bit) the
+    40 px coarsest level holds no texture, its undamped signature locked the flow into a wrong minimum the half-
+    size level never left (0.68 px); with EPS 0.03 there it is 0.05 px. Grey values: bit-identical."""
+    from bench.suite import photometric, synthetic
+    from flow_node.bag.scenes import render_grey_pair
+
+    scene, _ = synthetic.scene_for(62, 62, photometric.SIZE, span=photometric.SPAN)
+    i0, i1, gt = render_grey_pair(scene)
+    f0, f1 = synthetic.quantise(i0, 8), synthetic.quantise(i1, 8)
+    fastest = FlowConfig.preset("fastest")
+    assert (fastest.census_coarse_eps, fastest.census_coarse_width) == (0.03, 50)
+    without = fastest.replace(census_coarse_eps=0.01, census_coarse_width=0)
+
+    def aee(cfg: FlowConfig) -> float:
+        flow = FlowEstimator(cfg.replace(photometric="census", threads=1)).estimate(f0, f1).flow
+        return float(np.hypot(*np.moveaxis(flow - gt, -1, 0)).mean())
+
+    assert aee(fastest) < 0.1 < 0.3 < aee(without)
+    grey = [FlowEstimator(c.replace(threads=1)).estimate(f0, f1).flow for c in (fastest, without)]
+    np.testing.assert_array_equal(*grey)

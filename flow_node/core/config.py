@@ -75,10 +75,10 @@ class FlowConfig:
                                "(chosen on the suite's tune split, docs/engine.md 'Presets')", lo=-1, hi=30)
     census_coarse_eps: float = _f(0.01, "photometric census: the signature's EPS (of the frame's robust range) on "
                                   "pyramid levels narrower than census_coarse_width (still invariant: EPS only damps "
-                                  "flat areas; the finer levels' EPS is 0.01; quality and realtime set 0.03)",
+                                  "flat areas; the finer levels' EPS is 0.01; quality, realtime and fastest set 0.03)",
                                   lo=0.0, hi=1.0, lo_open=True)
     census_coarse_width: int = _f(0, "photometric census: levels narrower than this (px) use census_coarse_eps "
-                                  "(0 = none; quality and realtime set 50)", lo=0, hi=100000)
+                                  "(0 = none; quality, realtime and fastest set 50)", lo=0, hi=100000)
     census_noise_k: float = _f(2.0, "photometric census: the signature's EPS is at least this many times the pair's "
                                "noise std (estimated once per frame at full resolution, the larger of the two, "
                                "used in both frames, carried down the pyramid by its filters' noise gain; 0 = "
