@@ -79,6 +79,27 @@ def normalised(diffs: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
     return diffs / (np.sqrt(np.mean(diffs * diffs, axis=0)) + np.float32(params.eps))
 
 
+CONTRAST_STRIDE = 4  # median_contrast samples every 4th interior pixel in each direction of a level over 64 px
+
+
+def median_contrast(frames: np.ndarray) -> float:
+    """How much texture a pyramid level holds: the median over interior pixels (every CONTRAST_STRIDE-th in each
+    direction where both sides exceed 16 strides) of s(x), the RMS of the 8 neighbour differences (the module
+    doc's), of the channel with the largest median. frames (C, H, W) float32 -> in the frames' units (their
+    robust range); 0 for a level smaller than 3 x 3."""
+    h, w = frames.shape[1:]
+    if h < 3 or w < 3:
+        return 0.0
+    st = CONTRAST_STRIDE if min(h, w) > 16 * CONTRAST_STRIDE else 1
+    centre = frames[:, 1:h - 1:st, 1:w - 1:st]
+    ny, nx = centre.shape[1:]
+    sq = np.zeros_like(centre)
+    for dy, dx in OFFSETS:
+        d = frames[:, 1 + dy:1 + dy + (ny - 1) * st + 1:st, 1 + dx:1 + dx + (nx - 1) * st + 1:st] - centre
+        sq += d * d
+    return float(np.median(np.sqrt(sq / len(OFFSETS)), axis=(1, 2)).max())
+
+
 def signature_gradient(f: np.ndarray) -> np.ndarray:
     """Central differences of every channel of f (K, H, W): (2, K, H, W) [x, y], zero on the image border
     (as the paper's central scheme)."""
