@@ -20,7 +20,7 @@ from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowEstimator, numba_backend
 from flow_node.core.backends import select_backend
 from flow_node.core.config import FlowConfig
-from flow_node.core.fusion import FINAL_MARGIN, fuse, planes
+from flow_node.core.fusion import FINAL_MARGIN, cost_planes, fuse, planes
 from flow_node.core.initialise import forward_backward_consistent
 from flow_node.core.numba_fusion import _rows_on, consistent_numba, fuse_numba, residual_kernel
 
@@ -138,13 +138,16 @@ def rows(request, monkeypatch: pytest.MonkeyPatch) -> str:
 @pytest.mark.parametrize("count", [2, 3])
 @pytest.mark.parametrize("margin,only_consistent,propagate", [(1.3, False, True), (FINAL_MARGIN, True, True),
                                                               (1.0, False, False), (2.0, True, False)])
-def test_fusion_equals_the_reference(count, margin, only_consistent, propagate, rows) -> None:
+@pytest.mark.parametrize("photometric", ["normalise", "census"])
+def test_fusion_equals_the_reference(count, margin, only_consistent, propagate, photometric, rows) -> None:
+    """Grey-value cost planes (3) and census signatures (8: two groups of fusion.REMAP_CHANNELS)."""
     i0, i1, truth = jump_scene()
     cands, masks = candidates(truth, count)
     cands, masks = cands[:count], masks[:count]
-    ref = fuse(i0, i1, cands, masks, margin, only_consistent, propagate)
+    planes_of = cost_planes(photometric)
+    ref = fuse(i0, i1, cands, masks, margin, only_consistent, propagate, planes_of=planes_of)
     assert len(np.unique(ref[1])) == count  # every candidate wins somewhere: the choice is exercised
-    assert_same_fusion(ref, fuse_numba(i0, i1, cands, masks, margin, only_consistent, propagate))
+    assert_same_fusion(ref, fuse_numba(i0, i1, cands, masks, margin, only_consistent, propagate, planes_of=planes_of))
 
 
 def test_fusion_without_masks_and_with_undecided_pixels_equals_the_reference(rows) -> None:

@@ -36,7 +36,7 @@ from .backends import Backend
 from .census_noise import PairNoise, channel_noise, pair_noise
 from .colour import normalise_channel_pair
 from .config import FlowConfig
-from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
+from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT, cost_planes
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
@@ -153,13 +153,13 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: lis
         state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, start + 1, stats, finest)
         state = resize_state(state, pyr.shapes[start])
     on_start = candidates_on_level(pyr, start, candidates, backend)
-    state.v, choice = fuse_on_level(pyr, start, state.v, on_start, backend)
+    state.v, choice = fuse_on_level(pyr, start, state.v, on_start, backend, photometric=cfg.photometric)
     stats.init = "+".join(c.name for c in candidates)
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
     state = refine_levels(pyr, cfg, backend, state, start, finest, stats, finest)
     on_finest = on_start if finest == start else candidates_on_level(pyr, finest, candidates, backend)
-    state.v, choice = fuse_on_level(pyr, finest, state.v, on_finest, backend, final=True)
+    state.v, choice = fuse_on_level(pyr, finest, state.v, on_finest, backend, final=True, photometric=cfg.photometric)
     stats.final_init_share = float(np.mean(choice > 0))
     return state
 
@@ -180,19 +180,23 @@ def candidates_on_level(pyr: Pyramid, level: int, candidates: list[Candidate], b
 
 
 def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, on_level: OnLevel, backend: Backend,
-                  final: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                  final: bool = False, photometric: str = "normalise") -> tuple[np.ndarray, np.ndarray]:
     """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with the candidates there (``on_level``, from
     :func:`candidates_on_level`); returns the fused flow and the per-pixel choice (0 = ``flow``). On the
     start level (``final`` False) candidates are preferred (FUSION_MARGIN) and forward-backward consistent
     pixels trusted more; after the refinement (``final``) the same with FINAL_MARGIN (a candidate is taken
     where it costs less than that times the refined flow, a consistent one at CONSISTENT_COST of its cost:
     BENCHMARKS.md, "Large motions at a bounded cost", measures what that keeps of the refinement). The
-    backend's fusion (numpy reference or numba kernels, same results)."""
+    backend's fusion (numpy reference or numba kernels, same results). The cost compares what the data term of
+    ``photometric`` compares (fusion.cost_planes: census signatures, with the level's EPS floor, or grey values
+    and their gradient), so with the census term the choice is as invariant as the term (docs/engine.md,
+    "Large displacements")."""
     flows, trusted = [flow, *on_level[0]], [None, *on_level[1]]
+    planes_of = cost_planes(photometric, pyr.eps_floor(level))
     if final:
         return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted, FINAL_MARGIN,
-                            only_consistent=FINAL_ONLY_CONSISTENT)
-    return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted)
+                            only_consistent=FINAL_ONLY_CONSISTENT, planes_of=planes_of)
+    return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted, planes_of=planes_of)
 
 
 def warm_fusion(backend: Backend) -> None:

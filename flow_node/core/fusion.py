@@ -2,9 +2,11 @@
 flow, judged on the same residual, is :mod:`flow_node.core.confidence`).
 
 Images are float32 (h, w) grey; flows are channel-first (2, h, w) in pixels of that grid. The data cost of
-a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the brightness and gradient
-mismatch after warping frame 1 back along the flow, over the pixels whose x + flow(x) stays inside the
-image. Fusion takes, per pixel, the candidate of least cost, with the pyramid's own estimate (the first
+a flow at a pixel is the local mean (a ``window`` x ``window`` box) of the mismatch of the frames' cost planes
+after warping frame 1's back along the flow, over the pixels whose x + flow(x) stays inside the image: the
+brightness and its gradient (:func:`planes`) with a grey-value data term, the soft census signature
+(:func:`census_planes`) with the census one, so that the fusion is invariant to what the data term is
+invariant to. Fusion takes, per pixel, the candidate of least cost, with the pyramid's own estimate (the first
 candidate) weighted by a margin and forward-backward confirmed candidate pixels by CONSISTENT_COST. Two
 kinds of pixel are not decided by their cost but continue the flow of the nearest decided pixel: those where
 no candidate has data, and those won by a candidate that fails its forward-backward check (occluded
@@ -17,11 +19,14 @@ the pyramid alone.
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import partial
 
 import cv2
 import numpy as np
 
+from .census import CENSUS, CensusParams, signature
 from .operators import warp_maps
+from .photometric import compares_signatures
 
 FUSION_WINDOW = 31  # px on the fusion level: the cost is a local mean, so one lucky pixel does not switch
 FUSION_MARGIN = 1.3  # a candidate is taken where it costs less than this times the pyramid's flow
@@ -47,17 +52,43 @@ def planes(img: np.ndarray) -> np.ndarray:
     return cv2.merge([img.astype(np.float32, copy=False), *_grad(img)])
 
 
+def census_planes(img: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
+    """An image's soft census signature (census.signature), interleaved (h, w, 8) float32: what a cost compares
+    with the census data term (invariant to the tone changes the data term is invariant to)."""
+    return np.ascontiguousarray(np.moveaxis(signature(img, params), 0, -1))
+
+
+# a frame (h, w) -> its cost planes (h, w, P) float32: planes, census_planes
+CostPlanes = Callable[[np.ndarray], np.ndarray]
+
+
+def cost_planes(photometric: str, eps: float = 0.0) -> CostPlanes:
+    """The cost planes of photometric mode ``photometric``: :func:`census_planes` (EPS at least ``eps``, a pyramid
+    level's noise floor) when its data term compares census signatures, else :func:`planes`."""
+    if not compares_signatures(photometric):
+        return planes
+    return partial(census_planes, params=CENSUS if eps <= CENSUS.eps else CensusParams(CENSUS.gain, eps, CENSUS.delta))
+
+
+REMAP_CHANNELS = 4  # OpenCV's remap samples up to 4 interleaved channels exactly; more go in groups of 4
+
+
 def warp_residual(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray,
                   stacks: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per-pixel mismatch |I1(x + f) - I0(x)| + |grad I1(x + f) - grad I0(x)|_1 (h, w) float32, and the
-    bool mask of pixels whose x + f stays inside the image. The gradient part keeps the cost meaningful
-    under a brightness change between the frames. Frame 1 and its gradient are sampled bilinearly (one
-    OpenCV remap): enough for judging a flow -- a cost, not the data term. ``stacks`` = (:func:`planes` of
-    i0, of i1), computed once when several flows are judged on one pair."""
+    """Per-pixel mismatch of the cost planes, |S1(x + f) - S0(x)|_1 over the planes (h, w) float32 -- by default
+    (:func:`planes`) |I1(x + f) - I0(x)| + |grad I1(x + f) - grad I0(x)|_1 --, and the bool mask of pixels
+    whose x + f stays inside the image. The gradient part keeps the cost meaningful under a brightness change
+    between the frames. Frame 1's planes are sampled bilinearly (OpenCV's remap, REMAP_CHANNELS at a time):
+    enough for judging a flow -- a cost, not the data term. ``stacks`` = (the cost planes (h, w, P) of i0, of
+    i1), computed once when several flows are judged on one pair (default: :func:`planes`)."""
     s0, s1 = stacks if stacks is not None else (planes(i0), planes(i1))
     map_x, map_y, inside = warp_maps(flow)
-    w1 = cv2.remap(s1, map_x, map_y, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    r = np.abs(w1 - s0).sum(axis=-1, dtype=np.float32)
+    r = np.zeros(s0.shape[:2], np.float32)
+    for k in range(0, s0.shape[2], REMAP_CHANNELS):
+        part = s1 if s1.shape[2] <= REMAP_CHANNELS else np.ascontiguousarray(s1[..., k:k + REMAP_CHANNELS])
+        w1 = cv2.remap(part, map_x, map_y, interpolation=cv2.INTER_LINEAR,
+                       borderMode=cv2.BORDER_REPLICATE).reshape(part.shape)
+        r += np.abs(w1 - s0[..., k:k + REMAP_CHANNELS]).sum(axis=-1, dtype=np.float32)
     return r, inside
 
 
@@ -78,7 +109,7 @@ def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | No
 def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
          consistent: list[np.ndarray | None] | None = None,
          margin: float = FUSION_MARGIN, only_consistent: bool = False,
-         propagate: bool = PROPAGATE_INCONSISTENT) -> tuple[np.ndarray, np.ndarray]:
+         propagate: bool = PROPAGATE_INCONSISTENT, planes_of: CostPlanes = planes) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel fusion of flow candidates (each (2, h, w)); candidates[0] is the reference (the pyramid's
     own flow); another candidate is taken where it costs less than ``margin`` times the reference.
     ``consistent`` (per candidate, (h, w) bool or None) marks pixels where a forward-backward check
@@ -89,8 +120,10 @@ def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     the candidate continuing the flow of the nearest decided pixel (:func:`fill_undecided`) -- the cost of
     an occluded pixel favours any wrong flow that lands on similar grey values; its neighbours' flow is
     the better guess.
-    Returns the fused flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
-    stacks = (planes(i0), planes(i1))
+    ``planes_of``: what the cost compares (:func:`cost_planes`: grey values and their gradient, or census
+    signatures). Returns the fused flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w)
+    int."""
+    stacks = (planes_of(i0), planes_of(i1))
     costs = np.stack([data_cost(i0, i1, c, stacks=stacks) for c in candidates])
     costs[0] *= margin
     for k, ok in enumerate(consistent or []):
@@ -109,7 +142,7 @@ def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     return fused.astype(np.float32, copy=False), choice
 
 
-# fuse(i0, i1, candidates, consistent, margin, only_consistent) -> (flow, choice): :func:`fuse` or a
+# fuse(i0, i1, candidates, consistent, margin, only_consistent, planes_of=) -> (flow, choice): :func:`fuse` or a
 # backend's kernels (numba_fusion.fuse_numba)
 Fuse = Callable[..., tuple[np.ndarray, np.ndarray]]
 

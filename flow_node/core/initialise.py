@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 from .densify import densify, forward_propagate, splat_points
+from .photometric import compares_signatures
 
 # source -> (OpenCV DIS preset, finest scale or None for the preset's own)
 DIS_PRESETS = {"dis_ultrafast": (cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, None),
@@ -256,12 +257,39 @@ class InitSettings(Protocol):
     @property
     def temporal_init(self) -> int: ...
 
+    @property
+    def photometric(self) -> str: ...
+
+
+# grey levels a frame's ranks are taken on (equalised): 12 bits; on 8 (cv2.equalizeHist) a tone curve merges or
+# splits enough levels of a flat-shaded scene to move DIS (the large set's Blender cube under gamma 2: 45 px, 32 on
+# 12 bits; bench/results/suite/invariance/cube/summary.md)
+RANK_LEVELS = 4096
+
+
+def equalised(img: np.ndarray) -> np.ndarray:
+    """A frame (H, W) float32, normalised by its own robust range (the census stage's map: its 2nd and 98th
+    percentiles at 0 and 1), mapped to its mid-ranks: at each pixel the fraction of the frame's pixels darker
+    than it plus half of those as bright, (H, W) float32 in (0, 1), on RANK_LEVELS levels over [0, 1] (the
+    darkest and brightest 2 % are one level each). Any strictly monotone tone change of the frame (gain, offset,
+    gamma, S-curve, knee) moves neither the percentiles' pixels nor the ranks, so it leaves the result
+    unchanged up to that quantisation: with the census data term the sources see what the data term compares,
+    not the frames' tone curves (docs/engine.md, "Large displacements", With the census data term)."""
+    top = RANK_LEVELS - 1
+    q = np.clip(np.rint(img * np.float32(top)), 0, top).astype(np.uint16)
+    counts = np.bincount(q.ravel(), minlength=RANK_LEVELS)
+    return ((np.cumsum(counts) - 0.5 * counts) * (1.0 / q.size)).astype(np.float32)[q]
+
 
 def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: np.ndarray | None = None,
                previous_flow: np.ndarray | None = None) -> list[Candidate]:
     """Every candidate for this pair: the caller's ``initial_flow`` (2, H, W), the carried-forward
     ``previous_flow`` (2, H, W, on the previous pair's first frame; used only with ``cfg.temporal_init``)
-    and the source ``cfg.initialisation`` computes. Empty: the pyramid alone."""
+    and the source ``cfg.initialisation`` computes. Empty: the pyramid alone. With the census data term
+    (``cfg.photometric``) every source sees each frame :func:`equalised` on its own, not the photometric
+    stage's per-frame affine map (docs/engine.md, "Large displacements", With the census data term)."""
+    if compares_signatures(cfg.photometric):
+        i0, i1 = equalised(i0), equalised(i1)
     out = []
     if initial_flow is not None:
         out.append(Candidate(INITIAL_FLOW, initial_flow.astype(np.float32, copy=False)))

@@ -23,7 +23,15 @@ import numpy as np
 from numba import njit, prange
 
 from . import numba_backend as nb
-from .fusion import CONSISTENT_COST, FUSION_MARGIN, FUSION_WINDOW, PROPAGATE_INCONSISTENT, planes
+from .fusion import (
+    CONSISTENT_COST,
+    FUSION_MARGIN,
+    FUSION_WINDOW,
+    PROPAGATE_INCONSISTENT,
+    REMAP_CHANNELS,
+    CostPlanes,
+    planes,
+)
 from .initialise import FB_TOLERANCE_PX
 
 _F32 = np.float32
@@ -52,10 +60,11 @@ def _bilinear_taps(x, y, h, w):  # noqa: ANN001, ANN202
 @njit(**_JIT)
 def _residual_row(out, s0, s1, flow, i):  # noqa: ANN001, ANN202
     """Row i of fusion.data_cost's two box inputs for the candidate ``flow`` (2, h, w), interleaved:
-    out[..., 0] = |I1(x + f) - I0(x)|_1 over the 3 planes of s0, s1 (h, w, 3) where x + f stays inside the
-    image, else 0; out[..., 1] = that inside mask (1 / 0). I1 is sampled bilinearly (fusion.warp_residual:
-    OpenCV's remap, which OpenCV 5 computes exactly so: per plane two lerps along x, one along y)."""
-    h, w = s0.shape[0], s0.shape[1]
+    out[..., 0] = |S1(x + f) - S0(x)|_1 over the P cost planes of s0, s1 (h, w, P; fusion.cost_planes) where
+    x + f stays inside the image, else 0; out[..., 1] = that inside mask (1 / 0). S1 is sampled bilinearly
+    (fusion.warp_residual: OpenCV's remap, which OpenCV 5 computes exactly so: per plane two lerps along x,
+    one along y), and the planes are summed in groups of fusion.REMAP_CHANNELS as the reference sums them."""
+    h, w, n = s0.shape[0], s0.shape[1], s0.shape[2]
     right, bottom = _F32(w - 1), _F32(h - 1)
     y_row = _F32(i)
     for j in range(w):
@@ -63,9 +72,12 @@ def _residual_row(out, s0, s1, flow, i):  # noqa: ANN001, ANN202
         if x >= 0 and x <= right and y >= 0 and y <= bottom:
             xa, xb, ax, ya, yb, ay = _bilinear_taps(x, y, h, w)
             r = _F32(0)
-            for c in range(3):
-                top = _lerp(s1[ya, xa, c], s1[ya, xb, c], ax)
-                r += abs(_lerp(top, _lerp(s1[yb, xa, c], s1[yb, xb, c], ax), ay) - s0[i, j, c])
+            for g in range(0, n, REMAP_CHANNELS):
+                part = _F32(0)
+                for c in range(g, min(g + REMAP_CHANNELS, n)):
+                    top = _lerp(s1[ya, xa, c], s1[ya, xb, c], ax)
+                    part += abs(_lerp(top, _lerp(s1[yb, xa, c], s1[yb, xb, c], ax), ay) - s0[i, j, c])
+                r += part
             out[i, j, 0] = r
             out[i, j, 1] = 1
         else:
@@ -235,17 +247,17 @@ def consistent_numba(forward: np.ndarray, backward: np.ndarray) -> np.ndarray:
 
 def fuse_numba(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
                consistent: list[np.ndarray | None] | None = None, margin: float = FUSION_MARGIN,
-               only_consistent: bool = False, propagate: bool = PROPAGATE_INCONSISTENT
-               ) -> tuple[np.ndarray, np.ndarray]:
+               only_consistent: bool = False, propagate: bool = PROPAGATE_INCONSISTENT,
+               planes_of: CostPlanes = planes) -> tuple[np.ndarray, np.ndarray]:
     """fusion.fuse with the kernels above: same arguments, same result (with OpenCV 5)."""
     stack = np.stack([np.asarray(c, dtype=_F32) for c in candidates])
     with _rows_on(*stack.shape[2:]):
-        return _fuse(planes(i0), planes(i1), stack, consistent, margin, only_consistent, propagate)
+        return _fuse(planes_of(i0), planes_of(i1), stack, consistent, margin, only_consistent, propagate)
 
 
 def _fuse(s0: np.ndarray, s1: np.ndarray, stack: np.ndarray, consistent: list[np.ndarray | None] | None,
           margin: float, only_consistent: bool, propagate: bool) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`fuse_numba` on the planes s0, s1 (h, w, 3) and the candidates' stack (K, 2, h, w)."""
+    """:func:`fuse_numba` on the cost planes s0, s1 (h, w, P) and the candidates' stack (K, 2, h, w)."""
     k_n, h, w = stack.shape[0], stack.shape[2], stack.shape[3]
     boxed = np.empty((k_n, h, w, 2), _F32)
     for k in range(k_n):  # the masked residual, then its box means in place (OpenCV's filters allow it)
