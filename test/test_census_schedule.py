@@ -11,7 +11,16 @@ from synth import texture
 from flow_node.core import engine, refine
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
-from flow_node.core.census import CENSUS, CensusParams, census_form, level_signature
+from flow_node.core.census import (
+    CENSUS,
+    CONTRAST_SAMPLES,
+    OFFSETS,
+    CensusParams,
+    census_form,
+    level_signature,
+    median_contrast,
+    shifted,
+)
 from flow_node.core.config import FlowConfig
 from flow_node.core.pyramid import build_pyramid, make_pyramid, pyramid_shapes
 from flow_node.core.refine import census_problem, level_census, level_schedule, warp_medians
@@ -182,3 +191,60 @@ def test_census_iterations_change_the_census_mode_only() -> None:
     assert level_schedule(cfg.replace(finest_iterations=0, census_finest_iterations=0), True) == (cfg.finest_warps, 5)
     stream = stream_schedule(cfg)  # the stream mode's refinement keeps its own counts
     assert level_schedule(stream, False)[1] == cfg.stream_iterations
+
+
+def test_median_contrast_is_the_median_neighbour_rms_of_the_richest_channel() -> None:
+    """census.median_contrast: the median of s(x) over interior pixels (strided to ~CONTRAST_SAMPLES on large levels),
+    the larger over channels; 0 on a flat level."""
+    rng = np.random.default_rng(1)
+    for h, w in ((30, 40), (90, 120), (240, 320)):
+        stride = max(1, int(np.sqrt((h - 2) * (w - 2) / CONTRAST_SAMPLES)))
+        frames = rng.random((2, h, w)).astype(np.float32) * np.float32([[[1.0]], [[0.2]]])
+        want = max(float(np.median(np.sqrt(np.mean([(shifted(ch, dy, dx) - ch) ** 2 for dy, dx in OFFSETS],
+                                                   axis=0))[1:-1:stride, 1:-1:stride])) for ch in frames)
+        assert median_contrast(frames) == pytest.approx(want, rel=1e-6)
+    assert median_contrast(np.full((1, 30, 40), 0.5, np.float32)) == 0.0
+
+
+def test_empty_levels_get_the_coarse_eps() -> None:
+    cfg = CENSUS_RT.replace(census_coarse_width=0, census_coarse_eps=0.03, census_empty_contrast=0.005)
+    assert level_census(cfg, 400, 0.0, 0.004) == CensusParams(eps=0.03)
+    assert level_census(cfg, 400, 0.0, 0.006) is CENSUS
+    assert level_census(cfg, 400) is CENSUS  # contrast not measured: not empty
+    assert level_census(cfg.replace(census_empty_contrast=0.0), 400, 0.0, 0.0) is CENSUS  # 0: off
+
+
+def test_fastest_census_damps_the_empty_coarsest_level(monkeypatch: pytest.MonkeyPatch) -> None:
+    """fastest with census damps texture-free levels (census_empty_contrast; task blob, chosen on the tune split):
+    on a tune-seed zoomed finest-band texture (seed 62 of the suite's photometric regime, 320x240, 8 bit) the
+    40 px coarsest level holds no texture after the anti-alias blur (median contrast ~1e-4), and its undamped
+    signature locked the flow into a wrong minimum the half-size level never left (0.68 px); with EPS 0.03 there
+    it is 0.05 px. The finer levels are not empty (unchanged), and grey values are bit-identical."""
+    from bench.suite import photometric, synthetic
+    from flow_node.bag.scenes import render_grey_pair
+
+    scene, _ = synthetic.scene_for(62, 62, photometric.SIZE, span=photometric.SPAN)
+    i0, i1, gt = render_grey_pair(scene)
+    f0, f1 = synthetic.quantise(i0, 8), synthetic.quantise(i1, 8)
+    fastest = FlowConfig.preset("fastest")
+    assert (fastest.census_coarse_eps, fastest.census_empty_contrast) == (0.03, 0.005)
+    without = fastest.replace(census_empty_contrast=0.0)
+
+    def aee(cfg: FlowConfig) -> float:
+        flow = FlowEstimator(cfg.replace(photometric="census", threads=1)).estimate(f0, f1).flow
+        return float(np.hypot(*np.moveaxis(flow - gt, -1, 0)).mean())
+
+    seen: list[tuple[int, float]] = []  # (level width, its EPS) as the refinement took them
+
+    def spy(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: float = np.inf,
+            finest: bool = False) -> CensusParams:
+        params = level_census(cfg, width, eps_floor, contrast, finest)
+        seen.append((width, params.eps))
+        return params
+
+    monkeypatch.setattr(refine, "level_census", spy)
+    assert aee(fastest) < 0.1
+    assert {w for w, eps in seen if eps == 0.03} == {40}, seen  # the coarsest level only (80, 160 px: textured)
+    assert aee(without) > 0.3
+    grey = [FlowEstimator(c.replace(threads=1)).estimate(f0, f1).flow for c in (fastest, without)]
+    np.testing.assert_array_equal(*grey)

@@ -88,6 +88,27 @@ def normalised(diffs: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
     return diffs / (np.sqrt(np.mean(diffs * diffs, axis=0)) + np.float32(params.eps))
 
 
+CONTRAST_SAMPLES = 1200  # median_contrast samples about this many interior pixels of a level (all on small ones)
+
+
+def median_contrast(frames: np.ndarray) -> float:
+    """How much texture a pyramid level holds: the median over interior pixels (on a grid of stride
+    sqrt(pixels / CONTRAST_SAMPLES), at least 1) of s(x), the RMS of the 8 neighbour differences (the module
+    doc's), of the channel with the largest median. frames (C, H, W) float32 -> in the frames' units (their
+    robust range); 0 for a level smaller than 3 x 3. ~0.05 ms per level and frame."""
+    h, w = frames.shape[1:]
+    if h < 3 or w < 3:
+        return 0.0
+    st = max(1, int(np.sqrt((h - 2) * (w - 2) / CONTRAST_SAMPLES)))
+    centre = frames[:, 1:h - 1:st, 1:w - 1:st]
+    ny, nx = centre.shape[1:]
+    sq = np.zeros_like(centre)
+    for dy, dx in OFFSETS:
+        d = frames[:, 1 + dy:1 + dy + (ny - 1) * st + 1:st, 1 + dx:1 + dx + (nx - 1) * st + 1:st] - centre
+        sq += d * d
+    return float(np.median(np.sqrt(sq / len(OFFSETS)), axis=(1, 2)).max())
+
+
 def signature_gradient(f: np.ndarray) -> np.ndarray:
     """Central differences of every channel of f (K, H, W): (2, K, H, W) [x, y], zero on the image border
     (as the paper's central scheme)."""

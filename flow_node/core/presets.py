@@ -30,7 +30,9 @@ from typing import Any
 # - census schedule (issue 25, docs/engine.md "Presets", third round): with photometric=census, quality and realtime
 #   anti-alias only the three finest pyramid steps and use EPS 0.03 on levels under 50 px wide (chosen on the
 #   suite's tune split); balanced keeps every step anti-aliased (3 steps broke its fine textures on tune: 0.010 ->
-#   0.057), fastest solves at half size (every step anti-aliased anyway) and was not tuned for the coarse EPS.
+#   0.057), fastest solves at half size (every step anti-aliased anyway) and uses the coarse EPS on empty levels
+#   only (census_empty_contrast; issue 25, task blob: on zoomed finest-band textures the texture-free 40 px coarsest
+#   level locked its flow into a wrong minimum, tune seed 62 0.68 px; a width rule cost real_exact 2 %).
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
@@ -51,7 +53,8 @@ PRESETS: dict[str, dict[str, Any]] = {
                      initialisation="dis_ultrafast", init_finest_level=2, **CENSUS_SCHEDULE),
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                    initialisation="dis_ultrafast", init_finest_level=2, census_median_filter=3),
+                    initialisation="dis_ultrafast", init_finest_level=2, census_median_filter=3,
+                    census_coarse_eps=0.03, census_empty_contrast=0.005),
     # the paper's joint model (issue 27; docs/engine.md, "Joint model"): realtime's schedule with the images
     # eliminated (J_gamma data term); gamma and alpha chosen on the suite's noise regime, tune seeds
     "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,

@@ -9,6 +9,7 @@ Flow is channel-first (2, h, w) in pixels of its level.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
@@ -17,7 +18,7 @@ import numpy as np
 
 from .backends import Backend
 from .bregman import bregman
-from .census import CENSUS, CensusParams
+from .census import CENSUS, CensusParams, median_contrast
 from .config import FlowConfig
 from .layout import interleaved_flow
 from .models import MODEL_SPECS, weight_coefficient, weight_data, weight_quadratic
@@ -188,12 +189,15 @@ def problem_source(cfg: FlowConfig) -> Callable[..., Linearisation]:
     return mass_problem if cfg.constraint == "mass" else grey_problem
 
 
-def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, finest: bool = False) -> CensusParams:
+def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: float = math.inf,
+                 finest: bool = False) -> CensusParams:
     """The census constants of a pyramid level ``width`` px wide: CENSUS, with EPS ``cfg.census_coarse_eps`` on
-    levels narrower than ``cfg.census_coarse_width`` (docs/engine.md, "Presets"), raised to ``eps_floor`` (the
-    pair's noise on that level, Pyramid.census_eps) where that is larger; on the ``finest`` solved level the
-    neighbours at distance ``cfg.census_finest_radius``."""
-    params = replace(CENSUS, eps=cfg.census_coarse_eps) if width < cfg.census_coarse_width else CENSUS
+    levels narrower than ``cfg.census_coarse_width`` or whose ``contrast`` (the smaller of both frames'
+    census.median_contrast) is below ``cfg.census_empty_contrast`` (docs/engine.md, "Presets"), raised to
+    ``eps_floor`` (the pair's noise on that level, Pyramid.census_eps) where that is larger; on the ``finest``
+    solved level the neighbours at distance ``cfg.census_finest_radius``."""
+    coarse = width < cfg.census_coarse_width or contrast < cfg.census_empty_contrast
+    params = replace(CENSUS, eps=cfg.census_coarse_eps) if coarse else CENSUS
     params = replace(params, radius=cfg.census_finest_radius) if finest and cfg.census_finest_radius != 1 else params
     return replace(params, eps=eps_floor) if eps_floor > params.eps else params
 
@@ -205,9 +209,10 @@ def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
     coefficients; per warp the backend's form around v0 (frame 1 sampled at x + v0, its signatures, the
     quadratic form: census.census_form). The form replaces (a, c) in the solve: they are zeros. ``eps_floor``:
     the least EPS of both frames' signatures on this level; ``finest``: this is the finest solved level
-    (:func:`level_census`)."""
+    (:func:`level_census`; the level's contrast is measured only where ``cfg.census_empty_contrast`` asks for it)."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
-    params = level_census(cfg, c0.shape[2], eps_floor, finest)
+    contrast = min(median_contrast(c0), median_contrast(c1)) if cfg.census_empty_contrast > 0 else math.inf
+    params = level_census(cfg, c0.shape[2], eps_floor, contrast, finest)
     f0, g0 = backend.signature(c0, params)
     h, w = c0.shape[1:]
     a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
