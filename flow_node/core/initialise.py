@@ -265,26 +265,20 @@ class InitSettings(Protocol):
 # splits enough levels of a flat-shaded scene to move DIS (the large set's Blender cube under gamma 2: 45 px, 32 on
 # 12 bits; bench/results/suite/invariance/cube/summary.md)
 RANK_LEVELS = 4096
-# the ranks are counted on every RANK_STRIDE-th pixel of every RANK_STRIDE-th row (19,200 of a VGA frame's): the
-# map from grey level to rank stays monotone and a tone change moves no pixel's rank among the samples, and the
-# frame costs ~0.5 instead of ~1.3 ms (the full count and a float gather)
-RANK_STRIDE = 4
 
 
 def equalised(img: np.ndarray) -> np.ndarray:
     """A frame (H, W) float32, normalised by its own robust range (the census stage's map: its 2nd and 98th
-    percentiles at 0 and 1), mapped to its mid-ranks: at each pixel the fraction of the frame's sampled pixels
-    (RANK_STRIDE) darker than it plus half of those as bright, (H, W) float32 in [0, 1], on RANK_LEVELS levels
-    over [0, 1] (the darkest and brightest 2 % are one level each). Any strictly monotone tone change of the
-    frame (gain, offset, gamma, S-curve, knee) moves neither the percentiles' pixels nor the ranks, so it leaves
-    the result unchanged up to that quantisation: with the census data term the sources see what the data term
-    compares, not the frames' tone curves (docs/engine.md, "Large displacements", With the census data term)."""
-    top = np.float32(RANK_LEVELS - 1)
-    q = np.minimum(np.maximum(img, np.float32(0)) * top + np.float32(0.5), top).astype(np.uint16)  # nearest level
-    sample = q[::RANK_STRIDE, ::RANK_STRIDE]
-    counts = np.bincount(sample.ravel(), minlength=RANK_LEVELS)
-    ranks = ((np.cumsum(counts) - 0.5 * counts) * (1.0 / sample.size)).astype(np.float32)
-    return np.take(ranks, q)
+    percentiles at 0 and 1), mapped to its mid-ranks: at each pixel the fraction of the frame's pixels darker
+    than it plus half of those as bright, (H, W) float32 in (0, 1), on RANK_LEVELS levels over [0, 1] (the
+    darkest and brightest 2 % are one level each). Any strictly monotone tone change of the frame (gain, offset,
+    gamma, S-curve, knee) moves neither the percentiles' pixels nor the ranks, so it leaves the result
+    unchanged up to that quantisation: with the census data term the sources see what the data term compares,
+    not the frames' tone curves (docs/engine.md, "Large displacements", With the census data term)."""
+    top = RANK_LEVELS - 1
+    q = np.clip(np.rint(img * np.float32(top)), 0, top).astype(np.uint16)
+    counts = np.bincount(q.ravel(), minlength=RANK_LEVELS)
+    return np.take(((np.cumsum(counts) - 0.5 * counts) * (1.0 / q.size)).astype(np.float32), q)  # take: ~2x indexing
 
 
 def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: np.ndarray | None = None,
