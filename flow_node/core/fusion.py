@@ -19,6 +19,7 @@ the pyramid alone.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from functools import partial
 
 import cv2
@@ -67,7 +68,7 @@ def cost_planes(photometric: str, eps: float = 0.0) -> CostPlanes:
     level's noise floor) when its data term compares census signatures, else :func:`planes`."""
     if not compares_signatures(photometric):
         return planes
-    return partial(census_planes, params=CENSUS if eps <= CENSUS.eps else CensusParams(CENSUS.gain, eps, CENSUS.delta))
+    return partial(census_planes, params=CENSUS if eps <= CENSUS.eps else replace(CENSUS, eps=eps))
 
 
 REMAP_CHANNELS = 4  # OpenCV's remap samples up to 4 interleaved channels exactly; more go in groups of 4

@@ -288,15 +288,17 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: 
     and the source ``cfg.initialisation`` computes. Empty: the pyramid alone. With the census data term
     (``cfg.photometric``) every source sees each frame :func:`equalised` on its own, not the photometric
     stage's per-frame affine map (docs/engine.md, "Large displacements", With the census data term)."""
-    if compares_signatures(cfg.photometric):
+    source = cfg.initialisation
+    propagate = previous_flow is not None and bool(cfg.temporal_init)
+    dis = source in DIS_PRESETS and min(i0.shape) >= DIS_MIN_SIDE
+    if compares_signatures(cfg.photometric) and (propagate or dis or source in MATCHERS):  # only if a source reads them
         i0, i1 = equalised(i0), equalised(i1)
     out = []
     if initial_flow is not None:
         out.append(Candidate(INITIAL_FLOW, initial_flow.astype(np.float32, copy=False)))
-    if previous_flow is not None and cfg.temporal_init:
+    if propagate:
         out.append(Candidate("previous", propagated_flow(i0, previous_flow)))
-    source = cfg.initialisation
-    if source in DIS_PRESETS and min(i0.shape) >= DIS_MIN_SIDE:
+    if dis:
         out.extend(dis_candidates(i0, i1, source, cfg.init_min_motion))
     elif source in MATCHERS:
         flow = matches_flow(i0, i1, source)
