@@ -79,7 +79,9 @@ class FlowConfig:
                                   "fastest for empty levels only: census_empty_contrast)",
                                   lo=0.0, hi=1.0, lo_open=True)
     census_coarse_width: int = _f(0, "photometric census: levels narrower than this (px) use census_coarse_eps "
-                                  "(0 = none; quality and realtime set 50)", lo=0, hi=100000)
+                                  "(0 = none; quality and realtime set 50: for them the contrast rule, "
+                                  "census_empty_contrast, was worse on the tune split, docs/engine.md 'Presets')",
+                                  lo=0, hi=100000)
     census_empty_contrast: float = _f(0.0, "photometric census: a pyramid level whose median 3x3 contrast (RMS of the "
                                       "neighbour differences, of the frame's robust range; the smaller of the two "
                                       "frames') is below this is empty -- the anti-alias blur took its texture -- and "

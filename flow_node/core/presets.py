@@ -32,7 +32,11 @@ from typing import Any
 #   suite's tune split); balanced keeps every step anti-aliased (3 steps broke its fine textures on tune: 0.010 ->
 #   0.057), fastest solves at half size (every step anti-aliased anyway) and uses the coarse EPS on empty levels
 #   only (census_empty_contrast; issue 25, task blob: on zoomed finest-band textures the texture-free 40 px coarsest
-#   level locked its flow into a wrong minimum, tune seed 62 0.68 px; a width rule cost real_exact 2 %).
+#   level locked its flow into a wrong minimum, tune seed 62 0.68 px; a width rule cost real_exact 2 %). The two
+#   rules stay two (issue 25, task dampunify, tune split): for quality and realtime the contrast rule alone is
+#   worse at every threshold tried (0.001-0.02; geomean 1.003-1.22): the median contrast of a faint texture at
+#   full resolution is ~0.004 (thresholds >= 0.005: low_contrast 1.3-4.6x), and below that damping the faint but
+#   textured < 50 px levels the width rule damps helps them (low_contrast +5 %, real_exact +1.7 % without it).
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
