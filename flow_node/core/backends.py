@@ -18,7 +18,7 @@ from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .densify import push_pull, splat_forward
 from .errors import ConfigError
 from .fusion import Fuse, LevelPlanes, fuse, level_planes
-from .initialise import Consistent, forward_backward_consistent
+from .initialise import Consistent, equalised, forward_backward_consistent
 from .operators import ImageGradient, Linearise, image_gradient, linearise
 from .photometric import Reliability, reliability, sorted_sample
 from .solver import LevelSolver, solve_numpy
@@ -39,10 +39,10 @@ class Backend(NamedTuple):
     a flow, the stream stage's forward splat (temporal.predict), the photometric stage's sorted sample of a
     frame (photometric.sorted_sample; the same array in every backend), the data term's image gradient
     (operators.image_gradient), the stream stage's hole fill (densify.push_pull), the census data term's
-    reliability figure (census.reliability) and the fusion's cost planes of a level's frame (fusion.level_planes)
-    (same semantics in every backend; the defaults are the numpy
-    references, the linearisation on ``warper``); the threads its kernels run on and the context that binds
-    them (:meth:`running`).
+    reliability figure (census.reliability), the fusion's cost planes of a level's frame (fusion.level_planes)
+    and the census initialisation's mid-ranks of a frame (initialise.equalised) (same semantics in every backend;
+    the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on and the
+    context that binds them (:meth:`running`).
     """
 
     name: str
@@ -64,6 +64,7 @@ class Backend(NamedTuple):
     fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull  # the stream stage's hole fill (densify.push_pull)
     census_reliability: Reliability = census_reliability  # the reliability figure of the census data term
     cost_planes: LevelPlanes = level_planes  # what the fusion compares of a level's frame (fusion.level_planes)
+    ranks: Callable[[np.ndarray], np.ndarray] = equalised  # a frame's mid-ranks for census's sources (equalised)
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -192,4 +193,4 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    sample=Deferred(_numba_sort, "sorted_sample_numba"), gradient=numba_backend.image_gradient_numba,
                    fill=Deferred(_numba_temporal, "push_pull_numba"),
                    census_reliability=Deferred(_numba_census, "reliability_numba"),
-                   cost_planes=numba_fusion.planes_numba)
+                   cost_planes=numba_fusion.planes_numba, ranks=Deferred(_numba_sort, "ranks_numba"))

@@ -266,7 +266,7 @@ def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend
     raw, channels = channels, colour_stage(i0.shape, channels, cfg)
     colour = None if raw is None or channels is None else (raw, channels)
     (i0, i1), judged = photometric_stage(i0, i1, cfg, backend, sample0, colour=colour)
-    candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
+    candidates = initialise(i0, i1, cfg, initial_flow, previous_flow, backend.ranks)
     pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid, noise=judged.noise)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     return refine_from(pyr, cfg, backend, candidates, stats), stats, judged
