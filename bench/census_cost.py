@@ -25,6 +25,7 @@ which lands on whichever term runs then; CPU time does not (it still sees their 
 from __future__ import annotations
 
 import argparse
+import gc
 import statistics
 import time
 from collections.abc import Callable, Iterator
@@ -58,6 +59,10 @@ DATA: dict[str, Callable[[bool], list[Sample]]] = {"middlebury": middlebury, "la
 
 
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
+# After the warm-up every object is frozen (gc.freeze): a full collection of the cyclic collector walks every object
+# of the process -- numba's and the modules', ~35 ms here -- and lands in whichever call allocates the container
+# that triggers it; a run of one round per process (an A/B of two trees) then charged it to one term of one
+# preset in 11 of 12 rounds (bench/results/census_cost/fusecens/summary.md). What remains is each call's own.
 
 
 class Spans:
@@ -141,6 +146,8 @@ def run(presets: list[str], rounds: int, terms: dict[str, dict[str, str]] | None
             for s in samples:
                 for t in names:
                     ests[t].estimate(s.f0, s.f1)
+        gc.collect()  # every object so far (numba's, the modules') out of the cyclic collector's reach (CLOCKS)
+        gc.freeze()
         for r in range(rounds):
             totals = dict.fromkeys(names, 0.0)
             for t in names:
