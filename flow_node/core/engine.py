@@ -212,12 +212,15 @@ def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, on_level: OnLevel,
 
 def warm_fusion(backend: Backend, photometric: str = "normalise") -> None:
     """Run the backend's fusion, its cost planes for ``photometric`` and forward-backward check once on a small
-    synthetic level, so that a warm-up compiles them, or loads them from numba's cache, before the first frame
-    that moves far (a warm-up solve does not reach them: only such pairs are fused). Two candidates leave the
+    synthetic level (and, when ``photometric``'s data term compares signatures, the initialisation's ranks), so that
+    a warm-up compiles them, or loads them from numba's cache, before the first frame that moves far (a warm-up
+    solve does not reach them: only such pairs are fused, and DIS skips its small frames). Two candidates leave the
     32 x 128 level on opposite sides, so a stripe between them is undecided and every pass of the fusion runs."""
     i0 = np.random.default_rng(0).random((32, 128), dtype=np.float32)
     left = np.zeros((2, 32, 128), np.float32)
     left[0] = -100.0
+    if compares_signatures(photometric):
+        backend.ranks(i0)
     s0 = backend.cost_planes(i0, photometric, 0.0)
     backend.fuse(i0, i0, [left, -left], [None, backend.consistent(-left, left)], stacks=(s0, s0))
 
