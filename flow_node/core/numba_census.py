@@ -34,7 +34,7 @@ from .workspace import scratch
 
 # the solver's fastmath flags, not fastmath=True: with reassoc/arcp the census kernels computed other last bits when
 # compiled in a process than when read from numba's cache (a new install's first process got census flows 2e-3 px
-# away from every later process's; test_cold_start.test_census_kernels_compute_the_same_compiled_or_cached)
+# away from every later process's; test_cold_start.test_kernels_compute_the_same_compiled_or_cached)
 _JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
 _F32 = np.float32
 _DY = np.array([d[0] for d in OFFSETS], np.int64)

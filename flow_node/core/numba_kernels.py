@@ -46,7 +46,8 @@ REG_CODES = {"l2": 0, "tv": 1, "tv_l2": 2, "tv_tv": 3}  # regulariser -> integer
 # the scalar iterations of the same loop; which elements take which path can depend on the arrays' addresses,
 # and the iterations amplify the last-bit differences: with them a process's first solve of a pair came out
 # 3e-5-8e-4 px away from its later solves of the same pair. With these flags every solve of the same input
-# is bit for bit the same (test_cold_start). The census kernels use these flags too (numba_census); the warp and
+# is bit for bit the same (test_cold_start). The census and 3-D kernels use these flags too (numba_census,
+# numba_volume: compiled and cached otherwise differed); the warp and
 # confidence kernels keep fastmath=True.
 FASTMATH = {"nnan", "ninf", "nsz", "contract"}
 # error_model numpy: no zero-check branch per division; nogil: a kernel releases the GIL, so another

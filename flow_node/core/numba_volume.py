@@ -25,10 +25,12 @@ from numba import njit, prange
 
 from .models import step_sizes
 from .numba_backend import PARALLEL_MIN_PIXELS, zero_rows
-from .numba_kernels import REG_CODES
+from .numba_kernels import FASTMATH, REG_CODES
 from .solver import CHECK_EVERY, PDState, Problem, SolveParams
 
-_JIT = dict(fastmath=True, cache=True, error_model="numpy", nogil=True)
+# the solver's fastmath flags (numba_kernels.FASTMATH): with fastmath=True (reassoc, arcp) a process that compiled
+# these kernels computed other volume flows than every later process reading them from the cache (test_cold_start)
+_JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
 _ONE = np.float32(1.0)
 _ZERO = np.float32(0.0)
 
@@ -91,10 +93,12 @@ def _x_div(q, p, m, k, i):  # noqa: ANN001, ANN201
 
 
 @njit(**_JIT)
-def primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, vt):  # noqa: ANN001, ANN201
+def primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, vt, measure):  # noqa: ANN001, ANN201
     """The primal step on slice k: v <- prox_data(v + tau div(y + diag s)); w <- w + tau (y + div z) (tv_tv)
     or shrunk (tv_l2); the extrapolations v_bar, w_bar. In place; vt: (4, X + 1) float32 scratch. Reads y, z,
-    s on slices k - 1, k. Returns sum |v_new - v|^2 over the slice."""
+    s on slices k - 1, k. Returns sum |v_new - v|^2 over the slice if ``measure``, else 0 (a sum inside the
+    pixel loop keeps it from being vectorised without fastmath's "reassoc": the row keeps the change in v_bar,
+    sums it when asked and then adds v_new, as numba_kernels' primal pass does)."""
     nz, ny, nx = v.shape[1], v.shape[2], v.shape[3]
     kp, ok, pk = max(k - 1, 0), _ONE if k < nz - 1 else _ZERO, _ONE if k > 0 else _ZERO
     yx = y[0]  # (3, Z, Y, X): the x direction of y, by component
@@ -122,25 +126,31 @@ def primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1
             step_l2 = -(tau_d * r / (_ONE + tau_d * aa))
             step = step_l1 if data_l1 else step_l2
             n0, n1, n2 = vt[0, j] + step * a0, vt[1, j] + step * a1, vt[2, j] + step * a2
-            d0, d1, d2 = n0 - v[0, k, i, j], n1 - v[1, k, i, j], n2 - v[2, k, i, j]
-            v_bar[0, k, i, j] = n0 + d0
-            v_bar[1, k, i, j] = n1 + d1
-            v_bar[2, k, i, j] = n2 + d2
+            v_bar[0, k, i, j] = n0 - v[0, k, i, j]  # the change; the extrapolation v_new + change is made below
+            v_bar[1, k, i, j] = n1 - v[1, k, i, j]
+            v_bar[2, k, i, j] = n2 - v[2, k, i, j]
             v[0, k, i, j] = n0
             v[1, k, i, j] = n1
             v[2, k, i, j] = n2
-            acc += d0 * d0 + d1 * d1 + d2 * d2
+        if measure:
+            for j in range(nx):
+                d0, d1, d2 = v_bar[0, k, i, j], v_bar[1, k, i, j], v_bar[2, k, i, j]
+                acc += d0 * d0 + d1 * d1 + d2 * d2
+        for cc in range(3):
+            for j in range(nx):
+                v_bar[cc, k, i, j] += v[cc, k, i, j]
         if reg >= 2:
             _w_row(w, w_bar, y, z, k, i, kp, ip, ok, oi, pk, pi, tau, rel1, reg, q)
     return acc
 
 
 @njit(**_JIT)
-def step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_inc, data_l1, reg, iso, inc):  # noqa: ANN001, ANN201
+def step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_inc, data_l1, reg, iso, inc,  # noqa: ANN001, ANN201
+               measure):
     """One whole iteration on one thread as a wavefront: the dual step of slice k, then the primal step of
     slice k - 1, which needs y, z, s only on k - 2 .. k - 1 (already updated) while the dual step of k needs
     v_bar, w_bar on k, k + 1 (not yet). Same result as the two passes, each slice's arrays read while still
-    in cache. Returns sum |v_new - v|^2."""
+    in cache. Returns sum |v_new - v|^2 if ``measure``, else 0."""
     nz, nx = v.shape[1], v.shape[3]
     n2, vt = np.empty(nx, np.float32), np.empty((4, nx + 1), np.float32)
     total = 0.0
@@ -148,7 +158,8 @@ def step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_i
         if k < nz:
             dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc, n2)
         if k > 0:
-            total += primal_slice(k - 1, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, vt)
+            total += primal_slice(k - 1, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, vt,
+                                  measure)
     return total
 
 
@@ -161,13 +172,13 @@ def _make_kernels(parallel: bool):  # noqa: ANN202
             dual_slice(k, v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc,
                        np.empty(v_bar.shape[3], np.float32))
 
-    def primal_pass(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc):  # noqa: ANN001, ANN202
-        """:func:`primal_slice` on every slice; returns sum |v_new - v|^2."""
+    def primal_pass(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, measure):  # noqa: ANN001, ANN202
+        """:func:`primal_slice` on every slice; returns sum |v_new - v|^2 if ``measure``, else 0."""
         nz = v.shape[1]
         per_slice = np.zeros(nz)  # a scalar reduction confuses the parfor pass
         for k in prange(nz):
             per_slice[k] = primal_slice(k, v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc,
-                                        np.empty((4, v.shape[3] + 1), np.float32))
+                                        np.empty((4, v.shape[3] + 1), np.float32), measure)
         return per_slice.sum()
 
     def linearise(i0, src, v0, gi0, interpolated, a, c):  # noqa: ANN001, ANN202
@@ -289,12 +300,14 @@ def iterate(v, y, w, z, s, v_bar, w_bar, a, c, tau, sigma, tau_d, rel1, rel_inc,
     n = 3.0 * v.shape[1] * v.shape[2] * v.shape[3]
     k = 0
     for k in range(1, iterations + 1):
+        measure = tolerance > 0.0 and k % check_every == 0
         if parallel:
             dual_pass_par(v_bar, w_bar, y, z, s, sigma, rel1, rel_inc, reg, iso, inc)
-            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc)
+            ss = primal_pass_par(v, v_bar, w, w_bar, y, z, s, a, c, tau, tau_d, rel1, data_l1, reg, inc, measure)
         else:
-            ss = step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_inc, data_l1, reg, iso, inc)
-        if k % check_every == 0 and tolerance > 0.0 and math.sqrt(ss / n) < tolerance:
+            ss = step_fused(v, v_bar, w, w_bar, y, z, s, a, c, tau, sigma, tau_d, rel1, rel_inc, data_l1, reg, iso, inc,
+                            measure)
+        if measure and math.sqrt(ss / n) < tolerance:
             break
     return k
 
