@@ -4,15 +4,17 @@
     python -m bench.census_cost --presets realtime --rounds 5 --out bench/results/census_cost/realtime
     python -m bench.census_cost --term main=census_median_filter=-1   # also census with the fields changed
     python -m bench.census_cost --clock cpu                      # the process's CPU time instead of wall time
+    python -m bench.census_cost --data large --pairs kitti2012_000000,tartanair_a_000010_to_000009
 
 
 Each preset runs with ``photometric`` ``normalise`` (grey values, the default) and ``census`` on the 8
-Middlebury pairs, one thread, warm (one call per pair first); each round runs every pair with each data term in
-turn (the order reversed every other pair and round), and the table gives the median over rounds of each stage's
-time summed over the 8 pairs (ms). A stage's time is *exclusive*: a timed function's time minus that of the
-timed functions it calls (e.g. the census form without the kernels listed beside it). The spans wrap the
-backend's fields and a few module functions (:data:`SPANS`); "other" is the call's time outside every span
-(Python glue, resizes, layout). The wrappers cost ~1 us per call: the totals are a few ms above an untimed call.
+Middlebury pairs (``--data large``: the large-motion set, ../shared/data/large, where the initialisation and
+fusion run; ``--pairs`` a subset by name), one thread, warm (one call per pair first); each round runs every pair
+with each data term in turn (the order reversed every other pair and round), and the table gives the median over
+rounds of each stage's time summed over the pairs (ms). A stage's time is *exclusive*: a timed function's time
+minus that of the timed functions it calls (e.g. the census form without the kernels listed beside it). The spans
+wrap the backend's fields and a few module functions (:data:`SPANS`); "other" is the call's time outside every
+span (Python glue, resizes, layout). The wrappers cost ~1 us per call: the totals are a few ms above an untimed call.
 ``--term NAME=key=value,...`` adds a census variant (the preset with ``photometric=census`` and those fields),
 timed in the same rounds: an A/B of a census change against the preset's census and grey values in one run.
 ``--clock cpu`` times with the process's CPU time (time.process_time) instead of the wall clock: on a machine
@@ -23,6 +25,7 @@ which lands on whichever term runs then; CPU time does not (it still sees their 
 from __future__ import annotations
 
 import argparse
+import gc
 import statistics
 import time
 from collections.abc import Callable, Iterator
@@ -30,29 +33,36 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from flow_node.core import engine, numba_census, refine
+from flow_node.core import engine, fusion, initialise, numba_census, refine
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
 from flow_node.core.config import FlowConfig
 
 from .common import md_table, run_record, write_result
-from .suite.data import middlebury
+from .suite.data import Sample, large, middlebury
 
 PRESETS = ("realtime", "fastest", "quality")
 TERMS = ("normalise", "census")  # the grey-value baseline first: every ratio is against it
 # backend fields timed (the backend's own functions, whatever module they live in)
 BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "fuse", "consistent", "gradient", "sample",
-                 "reliability", "census_reliability")
+                 "reliability", "census_reliability", "cost_planes", "ranks")
 # (module, function) timed where the engine calls it through that module's global name (the tree before the
 # fused census kernel had more: `git show 9fd09d8:bench/census_cost.py`, which made `before.md`; frame 0's
 # level signature was `signature_numba` before round censt: `signature/signature_numba` in older results)
 SPANS: tuple[tuple[Any, str], ...] = (
     (engine, "photometric_stage"), (engine, "pair_noise"), (engine, "initialise"), (engine, "make_pyramid"),
     (refine, "median_filter"),
-    (refine, "warp_source"), (numba_census, "factor_numba"), (numba_census, "census_kernel"))
+    (refine, "warp_source"), (numba_census, "factor_numba"), (numba_census, "census_kernel"),
+    (engine, "candidates_on_level"), (initialise, "equalised"), (initialise, "dis_candidates"),
+    (fusion, "planes"), (fusion, "census_planes"))
+DATA: dict[str, Callable[[bool], list[Sample]]] = {"middlebury": middlebury, "large": large}
 
 
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
+# After the warm-up every object is frozen (gc.freeze): a full collection of the cyclic collector walks every object
+# of the process -- numba's and the modules', ~35 ms here -- and lands in whichever call allocates the container
+# that triggers it; a run of one round per process (an A/B of two trees) then charged it to one term of one
+# preset in 11 of 12 rounds (bench/results/census_cost/fusecens/summary.md). What remains is each call's own.
 
 
 class Spans:
@@ -84,7 +94,7 @@ class Spans:
 @contextmanager
 def patched(spans: Spans) -> Iterator[None]:
     """The module functions of :data:`SPANS` wrapped for the block."""
-    saved = [(m, n, getattr(m, n)) for m, n in SPANS]
+    saved = [(m, n, getattr(m, n)) for m, n in SPANS if hasattr(m, n)]  # (an older tree may lack some)
     for m, n, fn in saved:
         setattr(m, n, spans.wrap(n, fn))
     try:
@@ -98,7 +108,7 @@ def timed_estimator(cfg: FlowConfig, spans: Spans) -> FlowEstimator:
     """An estimator for ``cfg`` whose backend's :data:`BACKEND_SPANS` fields and B-spline prefilter are timed into
     ``spans``."""
     backend = select_backend(cfg.backend, cfg.threads, cfg.parallel_min_pixels).resolved()
-    fields = {f: spans.wrap(f, getattr(backend, f)) for f in BACKEND_SPANS}
+    fields = {f: spans.wrap(f, getattr(backend, f)) for f in BACKEND_SPANS if hasattr(backend, f)}
     warper = backend.warper._replace(prefilter=spans.wrap("prefilter", backend.warper.prefilter))
     return FlowEstimator(cfg, backend=backend._replace(warper=warper, **fields))
 
@@ -116,13 +126,16 @@ def parse_terms(specs: list[str]) -> dict[str, dict[str, str]]:
 
 
 def run(presets: list[str], rounds: int, terms: dict[str, dict[str, str]] | None = None,
-        clock: str = "wall") -> dict[str, Any]:
+        clock: str = "wall", data: str = "middlebury", pairs: list[str] | None = None) -> dict[str, Any]:
     """Per preset and data term (:func:`parse_terms`; default :data:`TERMS`), per round: {stage: seconds summed over
-    the pairs, 'total': seconds} on ``clock`` (:data:`CLOCKS`)."""
+    the pairs, 'total': seconds} on ``clock`` (:data:`CLOCKS`); the pairs of ``data`` (:data:`DATA`), those named in
+    ``pairs`` when given."""
     tick = CLOCKS[clock]
     terms = parse_terms([]) if terms is None else terms
     names = tuple(terms)
-    samples = middlebury(False)
+    samples = [s for s in DATA[data](False) if not pairs or s.name in pairs]
+    if not samples:
+        raise SystemExit(f"no {data} pair named {pairs}")
     out: dict[str, Any] = {}
     for preset in presets:
         spans = {t: Spans(tick) for t in names}
@@ -133,6 +146,8 @@ def run(presets: list[str], rounds: int, terms: dict[str, dict[str, str]] | None
             for s in samples:
                 for t in names:
                     ests[t].estimate(s.f0, s.f1)
+        gc.collect()  # every object so far (numba's, the modules') out of the cyclic collector's reach (CLOCKS)
+        gc.freeze()
         for r in range(rounds):
             totals = dict.fromkeys(names, 0.0)
             for t in names:
@@ -169,7 +184,8 @@ def ratio(rows: dict[str, list[dict[str, float]]], term: str) -> tuple[float, fl
 
 def markdown(result: dict[str, Any], record: dict[str, Any]) -> str:
     lines = [f"# Census vs grey values, per stage (`{record['command']}`)", "",
-             f"{record['started']}, load {record['load_average_start']}; ms summed over the 8 Middlebury pairs, "
+             f"{record['started']}, load {record['load_average_start']}; ms summed over the "
+             f"{record.get('pairs', '8 Middlebury')} pairs, "
              "one thread, median over rounds; exclusive times (bench/census_cost.py), clock "
              f"{record.get('clock', 'wall')}.", ""]
     for preset, rows in result.items():
@@ -197,9 +213,13 @@ def main(argv: list[str] | None = None) -> None:
                     help="also time census with these fields (repeatable)")
     ap.add_argument("--clock", choices=tuple(CLOCKS), default="wall",
                     help="wall clock, or the process's CPU time (robust to other jobs' load)")
+    ap.add_argument("--data", choices=tuple(DATA), default="middlebury")
+    ap.add_argument("--pairs", default="", help="comma-separated pair names of --data (default: all)")
     args = ap.parse_args(argv)
-    record = {**run_record("bench.census_cost", argv), "clock": args.clock}
-    result = run(args.presets.split(","), args.rounds, parse_terms(args.term), args.clock)
+    pairs = [p for p in args.pairs.split(",") if p]
+    record = {**run_record("bench.census_cost", argv), "clock": args.clock,
+              "pairs": ", ".join(pairs) if pairs else ("8 Middlebury" if args.data == "middlebury" else args.data)}
+    result = run(args.presets.split(","), args.rounds, parse_terms(args.term), args.clock, args.data, pairs)
     write_result(args.out, {**record, "rounds": result}, markdown(result, record))
 
 

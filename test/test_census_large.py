@@ -14,6 +14,7 @@ import small_frames
 from test_core_large import shifted_pair
 from test_fusion_numba import candidates, jump_scene
 
+from flow_node.core import numba_sort
 from flow_node.core.fusion import cost_planes, fuse, planes
 from flow_node.core.initialise import equalised, initialise
 from flow_node.core.photometric import normalise_frames
@@ -36,6 +37,22 @@ def test_equalised_frames_do_not_see_a_tone_curve(curve) -> None:
     affine = normalise_frames((i1, changed))
     assert np.mean(np.abs(affine[1] - affine[0])) > 0.04
     assert equalised(i1).dtype == np.float32 and equalised(i1).shape == i1.shape
+
+
+def test_numba_ranks_equal_the_reference() -> None:
+    """The numba backend's ranks (numba_sort.ranks_numba) equal initialise.equalised bit for bit: a rendered frame,
+    noise beyond [0, 1] on both sides (clipped), values on the quantisation's half-way points (rounded half to
+    even), a flat frame and one pixel."""
+    _, i1, _ = shifted_pair()
+    rng = np.random.default_rng(3)
+    halves = ((np.arange(i1.size) % 8191) * 0.5 / 4095).astype(np.float32).reshape(i1.shape)
+    frames = (i1, rng.random(i1.shape, dtype=np.float32) * 1.4 - 0.2, halves, np.full((7, 9), 0.37, np.float32),
+              i1[:1, :1])
+    for frame in frames:
+        out = numba_sort.ranks_numba(frame)
+        assert out.dtype == np.float32 and out.shape == frame.shape
+        assert np.array_equal(out, equalised(frame))
+    assert len(np.unique(numba_sort.ranks_numba(i1))) > 100  # not trivially constant
 
 
 @pytest.mark.parametrize("curve", list(CURVES))

@@ -25,7 +25,7 @@ import pytest
 import flow_node
 from flow_node import numba_patch
 from flow_node.bag import dask_worker
-from flow_node.core import FlowConfig, FlowEstimator, numba_confidence, numba_fusion
+from flow_node.core import FlowConfig, FlowEstimator, numba_confidence, numba_fusion, numba_sort
 
 # One process: every preset on a 240x180 pan moving (40, 12) px -- DIS initialises, the fusion runs on
 # two levels -- then numba's statistics of every flow_node dispatcher alive, as JSON.
@@ -241,11 +241,12 @@ def test_the_dask_workers_preload_lets_idle_threads_sleep(monkeypatch: pytest.Mo
     assert deferred == [True]
 
 
-def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("photometric", ["normalise", "census"])
+def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch, photometric: str) -> None:
     """FlowEstimator.warmup (the node's start-up, flow_bag eval's first bag) reaches the fusion's kernels
     too, which its small solve does not, and the confidence's: the first frame that moves far (or the
     first subscriber of ~/confidence or a derived output) then neither compiles them (a new install) nor
-    reads them from the cache."""
+    reads them from the cache. With the census data term also its cost planes and the initialisation's ranks."""
     called: set[str] = set()
 
     def counting(module: Any, name: str) -> Callable[..., Any]:
@@ -260,10 +261,13 @@ def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch) -> Non
     kernels = {numba_fusion: ("residual_kernel", "choose_kernel", "settle_kernel", "consistent_kernel"),
                numba_confidence: ("planes_kernel", "terms_kernel", "confidence_kernel", "confidence_at_kernel",
                                   "ratio_at_kernel")}
+    if photometric == "census":
+        kernels = {**kernels, numba_fusion: (*kernels[numba_fusion], "census_planes_kernel"),
+                   numba_sort: ("ranks_kernel",)}
     for module, names in kernels.items():
         for name in names:
             monkeypatch.setattr(module, name, counting(module, name))
-    FlowEstimator(FlowConfig.preset("fastest").replace(backend="numba")).warmup()
+    FlowEstimator(FlowConfig.preset("fastest").replace(backend="numba", photometric=photometric)).warmup()
     assert called == {name for names in kernels.values() for name in names}
 
 

@@ -17,7 +17,7 @@ import small_frames
 
 from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowEstimator
-from flow_node.core.backends import NUMPY
+from flow_node.core.backends import NUMPY, select_backend
 from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
 from flow_node.core.densify import densify, forward_propagate, push_pull
@@ -173,6 +173,28 @@ def test_warm_start_enters_at_the_trusted_level_not_the_coarsest(pair) -> None:
     assert start_level(pyr, SHORT.replace(init_scale=0.01)) == pyr.coarsest
     assert res.stats.init == "initial_flow" and res.stats.init_share > 0.6  # measured 0.83
     assert vis_aee(res.flow, gt) < 0.3
+
+
+@pytest.mark.parametrize("photometric", ["normalise", "census"])
+def test_a_level_s_cost_planes_are_built_once(pair, photometric) -> None:
+    """The fusion's cost planes (the backend's ``cost_planes``, each frame's) are built once per fused level: when the
+    start level is the finest solved one (both fusions there, as with realtime's and fastest's
+    init_finest_level on a pair DIS moves far) the second fusion reuses the first's, two calls per pair, not four;
+    on two levels (start level 1, then the finest, 0) two each."""
+    i0, i1, gt = pair
+    backend = select_backend("auto")
+    calls: list[tuple[int, ...]] = []
+
+    def counting(img: np.ndarray, mode: str, eps: float) -> np.ndarray:
+        calls.append(img.shape)
+        return backend.cost_planes(img, mode, eps)
+
+    for init_scale, shapes in ((1.0, [(120, 160)] * 2), (0.5, [(60, 80)] * 2 + [(120, 160)] * 2)):
+        calls.clear()
+        cfg = SHORT.replace(init_scale=init_scale, photometric=photometric)
+        res = FlowEstimator(cfg, backend=backend._replace(cost_planes=counting)).estimate_grey(i0, i1, initial_flow=gt)
+        assert res.stats.init == "initial_flow" and res.stats.start_level == (0 if init_scale == 1.0 else 1)
+        assert calls == shapes
 
 
 # ------------------------------------------------------------------------------------------ temporal

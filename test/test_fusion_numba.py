@@ -20,9 +20,9 @@ from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture
 from flow_node.core import FlowEstimator, numba_backend
 from flow_node.core.backends import select_backend
 from flow_node.core.config import FlowConfig
-from flow_node.core.fusion import FINAL_MARGIN, cost_planes, fuse, planes
+from flow_node.core.fusion import FINAL_MARGIN, cost_planes, fuse, level_planes, planes
 from flow_node.core.initialise import forward_backward_consistent
-from flow_node.core.numba_fusion import _rows_on, consistent_numba, fuse_numba, residual_kernel
+from flow_node.core.numba_fusion import _rows_on, consistent_numba, fuse_numba, planes_numba, residual_kernel
 
 W, H = 200, 160
 
@@ -150,6 +150,22 @@ def test_fusion_equals_the_reference(count, margin, only_consistent, propagate, 
     assert_same_fusion(ref, fuse_numba(i0, i1, cands, masks, margin, only_consistent, propagate, planes_of=planes_of))
 
 
+@pytest.mark.parametrize("eps", [0.0, 0.03, 0.2])
+def test_cost_planes_equal_the_reference(eps, rows) -> None:
+    """The numba backend's cost planes (numba_fusion.planes_numba) equal fusion.level_planes bit for bit: the census
+    signature (8 planes; EPS the default or a level's floor above it) of a textured frame, a flat one (RMS 0: EPS
+    alone), and frames of one row, one column and 2 x 3 px (neighbours clamped on every side); the grey-value planes
+    are OpenCV's in both backends."""
+    i0, _, _ = jump_scene()
+    flat = np.full((9, 7), 0.4, np.float32)
+    for img in (i0, flat, i0[:1], i0[:, :1], i0[:2, :3]):
+        out = planes_numba(img, "census", eps)
+        assert out.shape == img.shape + (8,) and out.dtype == np.float32
+        assert np.array_equal(out, level_planes(img, "census", eps))
+    assert np.abs(planes_numba(i0, "census", eps)).max() > 0.05  # not trivially zero
+    assert np.array_equal(planes_numba(i0, "normalise", eps), level_planes(i0, "normalise", eps))
+
+
 def test_fusion_without_masks_and_with_undecided_pixels_equals_the_reference(rows) -> None:
     """No forward-backward masks, and a candidate that leaves the image in a wide stripe (no support: those
     pixels are undecided and continue their decided neighbours' flow)."""
@@ -181,19 +197,22 @@ def test_numba_fusion_keeps_the_background_where_it_is_occluded() -> None:
     assert err[62:99, 32:69].max() == 0.0 and np.all(choice[62:99, 32:69] == 1)
 
 
-def test_engine_with_the_numba_fusion_equals_the_numpy_fusion() -> None:
+@pytest.mark.parametrize("photometric", ["normalise", "census"])
+def test_engine_with_the_numba_fusion_equals_the_numpy_fusion(photometric) -> None:
     """A 40 px pan (DIS fused on two levels, forward-backward checked): the numba backend with its own
-    fusion and with the numpy reference's gives the same flow (bit for bit with OpenCV 5's remap)."""
+    fusion and cost planes and with the numpy reference's gives the same flow (bit for bit with OpenCV 5's remap),
+    with grey values and with census signatures as the cost."""
     rng = np.random.default_rng(4)
     pan = Layer(Texture.random(rng, fmin=1 / 100), AffineMotion((119.5, 89.5), (40.0, 12.0)))
     scene = Scene("pan", (240, 180), (pan,))
     i0, i1 = grey(scene.render(0)), grey(scene.render(1))
-    cfg = FlowConfig.preset("realtime").replace(backend="numba")
+    cfg = FlowConfig.preset("realtime").replace(backend="numba", photometric=photometric)
     est = FlowEstimator(cfg)
     res = est.estimate_grey(i0, i1)
     assert res.stats.init == "dis_ultrafast" and res.stats.start_level > 0
     backend = select_backend("numba")
-    mixed = FlowEstimator(cfg, backend=backend._replace(fuse=fuse, consistent=forward_backward_consistent))
+    mixed = FlowEstimator(cfg, backend=backend._replace(fuse=fuse, consistent=forward_backward_consistent,
+                                                        cost_planes=level_planes))
     ref = mixed.estimate_grey(i0, i1).flow
     if REMAP_EXACT:
         assert np.array_equal(ref, res.flow)

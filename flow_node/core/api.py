@@ -152,7 +152,7 @@ class FlowEstimator:
         start = time.perf_counter()
         self.estimate(f0, f1)
         with self._backend.running():
-            warm_fusion(self._backend)
+            warm_fusion(self._backend, self._config.photometric)
             self._backend.splat(np.zeros((2,) + shape, np.float32), np.zeros((4,) + shape, np.float32))  # stream
             holes = np.ones(shape, np.float32)
             holes[0, 0] = 0.0  # one hole: the fill's pull steps run

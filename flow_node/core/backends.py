@@ -17,8 +17,8 @@ from .census import reliability as census_reliability
 from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .densify import push_pull, splat_forward
 from .errors import ConfigError
-from .fusion import Fuse, fuse
-from .initialise import Consistent, forward_backward_consistent
+from .fusion import Fuse, LevelPlanes, fuse, level_planes
+from .initialise import Consistent, equalised, forward_backward_consistent
 from .operators import ImageGradient, Linearise, image_gradient, linearise
 from .photometric import Reliability, reliability, sorted_sample
 from .solver import LevelSolver, solve_numpy
@@ -38,10 +38,11 @@ class Backend(NamedTuple):
     signature and per-warp form (grey or colour channels alike), the per-pixel confidence of
     a flow, the stream stage's forward splat (temporal.predict), the photometric stage's sorted sample of a
     frame (photometric.sorted_sample; the same array in every backend), the data term's image gradient
-    (operators.image_gradient), the stream stage's hole fill (densify.push_pull) and the census data term's
-    reliability figure (census.reliability) (same semantics in every backend; the defaults are the numpy
-    references, the linearisation on ``warper``); the threads its kernels run on and the context that binds
-    them (:meth:`running`).
+    (operators.image_gradient), the stream stage's hole fill (densify.push_pull), the census data term's
+    reliability figure (census.reliability), the fusion's cost planes of a level's frame (fusion.level_planes)
+    and the census initialisation's mid-ranks of a frame (initialise.equalised) (same semantics in every backend;
+    the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on and the
+    context that binds them (:meth:`running`).
     """
 
     name: str
@@ -62,6 +63,8 @@ class Backend(NamedTuple):
     gradient: ImageGradient = image_gradient  # the data term's image gradient (operators.image_gradient)
     fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull  # the stream stage's hole fill (densify.push_pull)
     census_reliability: Reliability = census_reliability  # the reliability figure of the census data term
+    cost_planes: LevelPlanes = level_planes  # what the fusion compares of a level's frame (fusion.level_planes)
+    ranks: Callable[[np.ndarray], np.ndarray] = equalised  # a frame's mid-ranks for census's sources (equalised)
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -189,4 +192,5 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    confidence_at=Deferred(_numba_confidence, "confidence_at_numba"),
                    sample=Deferred(_numba_sort, "sorted_sample_numba"), gradient=numba_backend.image_gradient_numba,
                    fill=Deferred(_numba_temporal, "push_pull_numba"),
-                   census_reliability=Deferred(_numba_census, "reliability_numba"))
+                   census_reliability=Deferred(_numba_census, "reliability_numba"),
+                   cost_planes=numba_fusion.planes_numba, ranks=Deferred(_numba_sort, "ranks_numba"))

@@ -36,7 +36,7 @@ from .backends import Backend
 from .census_noise import PairNoise, channel_noise, pair_noise
 from .colour import normalise_channel_pair
 from .config import FlowConfig
-from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT, cost_planes
+from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
@@ -152,14 +152,17 @@ def refine_from(pyr: Pyramid, cfg: FlowConfig, backend: Backend, candidates: lis
     if start < pyr.coarsest:
         state = refine_levels(pyr, cfg, backend, state, pyr.coarsest, start + 1, stats, finest)
         state = resize_state(state, pyr.shapes[start])
-    on_start = candidates_on_level(pyr, start, candidates, backend)
-    state.v, choice = fuse_on_level(pyr, start, state.v, on_start, backend, photometric=cfg.photometric)
+    on_level = candidates_on_level(pyr, start, candidates, backend)
+    stacks = level_stacks(pyr, start, backend, cfg.photometric)
+    state.v, choice = fuse_on_level(pyr, start, state.v, on_level, backend, stacks=stacks)
     stats.init = "+".join(c.name for c in candidates)
     stats.start_level = start
     stats.init_share = float(np.mean(choice > 0))
     state = refine_levels(pyr, cfg, backend, state, start, finest, stats, finest)
-    on_finest = on_start if finest == start else candidates_on_level(pyr, finest, candidates, backend)
-    state.v, choice = fuse_on_level(pyr, finest, state.v, on_finest, backend, final=True, photometric=cfg.photometric)
+    if finest != start:  # else the second fusion reuses the start level's candidates and planes
+        on_level, stacks = (candidates_on_level(pyr, finest, candidates, backend),
+                            level_stacks(pyr, finest, backend, cfg.photometric))
+    state.v, choice = fuse_on_level(pyr, finest, state.v, on_level, backend, final=True, stacks=stacks)
     stats.final_init_share = float(np.mean(choice > 0))
     return state
 
@@ -179,35 +182,47 @@ def candidates_on_level(pyr: Pyramid, level: int, candidates: list[Candidate], b
     return flows, trusted
 
 
+def level_stacks(pyr: Pyramid, level: int, backend: Backend, photometric: str) -> tuple[np.ndarray, np.ndarray]:
+    """Both frames' cost planes (h, w, P) on ``level`` (the backend's fusion.level_planes: census signatures with
+    the level's EPS floor, or grey values and their gradient, as the data term of ``photometric`` compares);
+    computed once per level, also when both fusions are on the same level (the speed presets': their start level
+    is their finest solved level)."""
+    eps = pyr.eps_floor(level)
+    return backend.cost_planes(pyr.i0[level], photometric, eps), backend.cost_planes(pyr.i1[level], photometric, eps)
+
+
 def fuse_on_level(pyr: Pyramid, level: int, flow: np.ndarray, on_level: OnLevel, backend: Backend,
-                  final: bool = False, photometric: str = "normalise") -> tuple[np.ndarray, np.ndarray]:
+                  final: bool = False, stacks: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Fuse the refinement's ``flow`` (2, h, w) on ``level`` with the candidates there (``on_level``, from
     :func:`candidates_on_level`); returns the fused flow and the per-pixel choice (0 = ``flow``). On the
     start level (``final`` False) candidates are preferred (FUSION_MARGIN) and forward-backward consistent
     pixels trusted more; after the refinement (``final``) the same with FINAL_MARGIN (a candidate is taken
     where it costs less than that times the refined flow, a consistent one at CONSISTENT_COST of its cost:
     BENCHMARKS.md, "Large motions at a bounded cost", measures what that keeps of the refinement). The
-    backend's fusion (numpy reference or numba kernels, same results). The cost compares what the data term of
-    ``photometric`` compares (fusion.cost_planes: census signatures, with the level's EPS floor, or grey values
-    and their gradient), so with the census term the choice is as invariant as the term (docs/engine.md,
-    "Large displacements")."""
+    backend's fusion (numpy reference or numba kernels, same results). The cost compares the level's ``stacks``
+    (:func:`level_stacks`; default: grey values and their gradient): with the census term its signatures, so the
+    choice is as invariant as the term (docs/engine.md, "Large displacements")."""
     flows, trusted = [flow, *on_level[0]], [None, *on_level[1]]
-    planes_of = cost_planes(photometric, pyr.eps_floor(level))
     if final:
         return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted, FINAL_MARGIN,
-                            only_consistent=FINAL_ONLY_CONSISTENT, planes_of=planes_of)
-    return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted, planes_of=planes_of)
+                            only_consistent=FINAL_ONLY_CONSISTENT, stacks=stacks)
+    return backend.fuse(pyr.i0[level], pyr.i1[level], flows, trusted, stacks=stacks)
 
 
-def warm_fusion(backend: Backend) -> None:
-    """Run the backend's fusion and forward-backward check once on a small synthetic level, so that a
-    warm-up compiles them, or loads them from numba's cache, before the first frame that moves far (a
-    warm-up solve does not reach them: only such pairs are fused). Two candidates leave the 32 x 128 level
-    on opposite sides, so a stripe between them is undecided and every pass of the fusion runs."""
+def warm_fusion(backend: Backend, photometric: str = "normalise") -> None:
+    """Run the backend's fusion, its cost planes for ``photometric`` and forward-backward check once on a small
+    synthetic level (and, when ``photometric``'s data term compares signatures, the initialisation's ranks), so that
+    a warm-up compiles them, or loads them from numba's cache, before the first frame that moves far (a warm-up
+    solve does not reach them: only such pairs are fused, and DIS skips its small frames). Two candidates leave the
+    32 x 128 level on opposite sides, so a stripe between them is undecided and every pass of the fusion runs."""
     i0 = np.random.default_rng(0).random((32, 128), dtype=np.float32)
     left = np.zeros((2, 32, 128), np.float32)
     left[0] = -100.0
-    backend.fuse(i0, i0, [left, -left], [None, backend.consistent(-left, left)])
+    if compares_signatures(photometric):
+        backend.ranks(i0)
+    s0 = backend.cost_planes(i0, photometric, 0.0)
+    backend.fuse(i0, i0, [left, -left], [None, backend.consistent(-left, left)], stacks=(s0, s0))
 
 
 def on_grid(flow: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -254,7 +269,7 @@ def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend
     raw, channels = channels, colour_stage(i0.shape, channels, cfg)
     colour = None if raw is None or channels is None else (raw, channels)
     (i0, i1), judged = photometric_stage(i0, i1, cfg, backend, sample0, colour=colour)
-    candidates = initialise(i0, i1, cfg, initial_flow, previous_flow)
+    candidates = initialise(i0, i1, cfg, initial_flow, previous_flow, backend.ranks)
     pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid, noise=judged.noise)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     return refine_from(pyr, cfg, backend, candidates, stats), stats, judged

@@ -63,12 +63,28 @@ def census_planes(img: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
 CostPlanes = Callable[[np.ndarray], np.ndarray]
 
 
+def cost_census(eps: float = 0.0) -> CensusParams:
+    """The census constants of the fusion's cost: :data:`census.CENSUS` with EPS at least ``eps`` (a pyramid
+    level's noise floor)."""
+    return CENSUS if eps <= CENSUS.eps else replace(CENSUS, eps=eps)
+
+
 def cost_planes(photometric: str, eps: float = 0.0) -> CostPlanes:
-    """The cost planes of photometric mode ``photometric``: :func:`census_planes` (EPS at least ``eps``, a pyramid
-    level's noise floor) when its data term compares census signatures, else :func:`planes`."""
+    """The cost planes of photometric mode ``photometric``: :func:`census_planes` (:func:`cost_census`'s constants)
+    when its data term compares census signatures, else :func:`planes`."""
     if not compares_signatures(photometric):
         return planes
-    return partial(census_planes, params=CENSUS if eps <= CENSUS.eps else replace(CENSUS, eps=eps))
+    return partial(census_planes, params=cost_census(eps))
+
+
+def level_planes(img: np.ndarray, photometric: str, eps: float = 0.0) -> np.ndarray:
+    """A pyramid level's frame (h, w) -> its cost planes (h, w, P) float32 in photometric mode ``photometric``, EPS
+    floor ``eps`` (:func:`cost_planes`; the numpy reference of the backend field ``cost_planes``)."""
+    return cost_planes(photometric, eps)(img)
+
+
+# level_planes(img, photometric, eps) -> (h, w, P): :func:`level_planes` or a backend's (numba_fusion.planes_numba)
+LevelPlanes = Callable[[np.ndarray, str, float], np.ndarray]
 
 
 REMAP_CHANNELS = 4  # OpenCV's remap samples up to 4 interleaved channels exactly; more go in groups of 4
@@ -110,7 +126,8 @@ def data_cost(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, window: int | No
 def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
          consistent: list[np.ndarray | None] | None = None,
          margin: float = FUSION_MARGIN, only_consistent: bool = False,
-         propagate: bool = PROPAGATE_INCONSISTENT, planes_of: CostPlanes = planes) -> tuple[np.ndarray, np.ndarray]:
+         propagate: bool = PROPAGATE_INCONSISTENT, planes_of: CostPlanes = planes,
+         stacks: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per-pixel fusion of flow candidates (each (2, h, w)); candidates[0] is the reference (the pyramid's
     own flow); another candidate is taken where it costs less than ``margin`` times the reference.
     ``consistent`` (per candidate, (h, w) bool or None) marks pixels where a forward-backward check
@@ -122,9 +139,10 @@ def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     an occluded pixel favours any wrong flow that lands on similar grey values; its neighbours' flow is
     the better guess.
     ``planes_of``: what the cost compares (:func:`cost_planes`: grey values and their gradient, or census
-    signatures). Returns the fused flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w)
-    int."""
-    stacks = (planes_of(i0), planes_of(i1))
+    signatures); ``stacks``: the frames' cost planes (h, w, P) each when already computed (then ``planes_of`` is not
+    used: the engine builds a level's planes once for both of its fusions, engine.level_stacks). Returns the fused
+    flow (2, h, w) float32 and the index of the chosen candidate per pixel (h, w) int."""
+    stacks = stacks if stacks is not None else (planes_of(i0), planes_of(i1))
     costs = np.stack([data_cost(i0, i1, c, stacks=stacks) for c in candidates])
     costs[0] *= margin
     for k, ok in enumerate(consistent or []):
@@ -143,8 +161,8 @@ def fuse(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
     return fused.astype(np.float32, copy=False), choice
 
 
-# fuse(i0, i1, candidates, consistent, margin, only_consistent, planes_of=) -> (flow, choice): :func:`fuse` or a
-# backend's kernels (numba_fusion.fuse_numba)
+# fuse(i0, i1, candidates, consistent, margin, only_consistent, planes_of=, stacks=) -> (flow, choice): :func:`fuse`
+# or a backend's kernels (numba_fusion.fuse_numba)
 Fuse = Callable[..., tuple[np.ndarray, np.ndarray]]
 
 

@@ -282,17 +282,19 @@ def equalised(img: np.ndarray) -> np.ndarray:
 
 
 def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: np.ndarray | None = None,
-               previous_flow: np.ndarray | None = None) -> list[Candidate]:
+               previous_flow: np.ndarray | None = None,
+               ranks: Callable[[np.ndarray], np.ndarray] = equalised) -> list[Candidate]:
     """Every candidate for this pair: the caller's ``initial_flow`` (2, H, W), the carried-forward
     ``previous_flow`` (2, H, W, on the previous pair's first frame; used only with ``cfg.temporal_init``)
     and the source ``cfg.initialisation`` computes. Empty: the pyramid alone. With the census data term
-    (``cfg.photometric``) every source sees each frame :func:`equalised` on its own, not the photometric
-    stage's per-frame affine map (docs/engine.md, "Large displacements", With the census data term)."""
+    (``cfg.photometric``) every source sees each frame :func:`equalised` on its own (by ``ranks``: that function
+    or a backend's, the same bits), not the photometric stage's per-frame affine map (docs/engine.md, "Large
+    displacements", With the census data term)."""
     source = cfg.initialisation
     propagate = previous_flow is not None and bool(cfg.temporal_init)
     dis = source in DIS_PRESETS and min(i0.shape) >= DIS_MIN_SIDE
     if compares_signatures(cfg.photometric) and (propagate or dis or source in MATCHERS):  # only if a source reads them
-        i0, i1 = equalised(i0), equalised(i1)
+        i0, i1 = ranks(i0), ranks(i1)
     out = []
     if initial_flow is not None:
         out.append(Candidate(INITIAL_FLOW, initial_flow.astype(np.float32, copy=False)))

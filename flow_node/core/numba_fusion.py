@@ -1,5 +1,5 @@
-"""The fusion stage with numba kernels: :func:`fuse_numba` (fusion.fuse) and :func:`consistent_numba`
-(initialise.forward_backward_consistent), the numba backend's fields.
+"""The fusion stage with numba kernels: :func:`fuse_numba` (fusion.fuse), :func:`consistent_numba`
+(initialise.forward_backward_consistent) and :func:`planes_numba` (fusion.level_planes), the numba backend's fields.
 
 The numpy references chain a dozen whole-image passes with temporaries per candidate (maps, an OpenCV
 remap of the (h, w, 3) planes, masks, the difference summed over its last axis, a (K, h, w) stack of
@@ -23,6 +23,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import numba_backend as nb
+from .census import offsets
 from .fusion import (
     CONSISTENT_COST,
     FUSION_MARGIN,
@@ -30,9 +31,11 @@ from .fusion import (
     PROPAGATE_INCONSISTENT,
     REMAP_CHANNELS,
     CostPlanes,
+    cost_census,
     planes,
 )
 from .initialise import FB_TOLERANCE_PX
+from .photometric import compares_signatures
 
 _F32 = np.float32
 # no fastmath: the costs are inf where no data decides, and fastmath may assume there is no inf
@@ -230,6 +233,44 @@ def consistent_kernel(out, forward, backward, tolerance):  # noqa: ANN001, ANN20
         _consistent_row(out, forward, backward, tolerance, i)
 
 
+@njit(parallel=True, **_JIT)
+def census_planes_kernel(img, dy, dx, gain, eps, out):  # noqa: ANN001, ANN201
+    """fusion.census_planes: out (h, w, K) = the soft census signature of img (h, w) (census.signature) for the K
+    neighbour offsets (dy, dx), interleaved; neighbours clamped to the image (edge values, census.shifted). The
+    reference's float32 arithmetic in its order -- the squares summed neighbour by neighbour and divided by K, each
+    difference divided by RMS + EPS, then times GAIN; no fastmath, so no fused multiply-add -- so the planes equal
+    the reference's bit for bit (numba_census's factor kernel scales by GAIN / (RMS + EPS), which rounds otherwise:
+    the fusion's choice, and DIS-rescued flows with it, would move). Rows in parallel."""
+    h, w = img.shape
+    k_n = dy.shape[0]
+    count = _F32(k_n)
+    for i in prange(h):
+        for j in range(w):
+            centre = img[i, j]
+            ss = _F32(0)
+            for k in range(k_n):
+                d = img[min(max(i + dy[k], 0), h - 1), min(max(j + dx[k], 0), w - 1)] - centre
+                out[i, j, k] = d
+                ss += d * d
+            rms = np.sqrt(ss / count) + eps
+            for k in range(k_n):
+                out[i, j, k] = out[i, j, k] / rms * gain
+
+
+def planes_numba(img: np.ndarray, photometric: str, eps: float = 0.0) -> np.ndarray:
+    """fusion.level_planes with :func:`census_planes_kernel` for a census data term (the grey-value planes are
+    OpenCV's in either backend): (h, w) -> (h, w, P) float32, the reference's bits."""
+    if not compares_signatures(photometric):
+        return planes(img)
+    params = cost_census(eps)
+    src = np.ascontiguousarray(img, dtype=_F32)
+    dy, dx = (np.array(d, np.int64) for d in zip(*offsets(params.radius), strict=True))
+    out = np.empty(src.shape + (len(dy),), _F32)
+    with _rows_on(*src.shape):
+        census_planes_kernel(src, dy, dx, _F32(params.gain), _F32(params.eps), out)
+    return out
+
+
 def _rows_on(h: int, w: int) -> AbstractContextManager[int]:
     """The threads the kernels run an (h, w) level's rows on: the calling thread's numba threads from
     numba_backend.PARALLEL_MIN_PIXELS pixels, one below (thread start-up dominates on small levels)."""
@@ -248,11 +289,13 @@ def consistent_numba(forward: np.ndarray, backward: np.ndarray) -> np.ndarray:
 def fuse_numba(i0: np.ndarray, i1: np.ndarray, candidates: list[np.ndarray],
                consistent: list[np.ndarray | None] | None = None, margin: float = FUSION_MARGIN,
                only_consistent: bool = False, propagate: bool = PROPAGATE_INCONSISTENT,
-               planes_of: CostPlanes = planes) -> tuple[np.ndarray, np.ndarray]:
+               planes_of: CostPlanes = planes, stacks: tuple[np.ndarray, np.ndarray] | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """fusion.fuse with the kernels above: same arguments, same result (with OpenCV 5)."""
     stack = np.stack([np.asarray(c, dtype=_F32) for c in candidates])
+    s0, s1 = stacks if stacks is not None else (planes_of(i0), planes_of(i1))
     with _rows_on(*stack.shape[2:]):
-        return _fuse(planes_of(i0), planes_of(i1), stack, consistent, margin, only_consistent, propagate)
+        return _fuse(s0, s1, stack, consistent, margin, only_consistent, propagate)
 
 
 def _fuse(s0: np.ndarray, s1: np.ndarray, stack: np.ndarray, consistent: list[np.ndarray | None] | None,

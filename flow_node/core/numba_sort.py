@@ -1,5 +1,6 @@
 """The photometric stage's sorted sample with a numba kernel: :func:`sorted_sample_numba`
-(photometric.sorted_sample), the numba backend's ``sample`` field.
+(photometric.sorted_sample), the numba backend's ``sample`` field; and the census initialisation's mid-ranks of a
+frame, :func:`ranks_numba` (initialise.equalised), its ``ranks`` field.
 
 np.sort takes ~18 ns an element here (0.6 ms for the 34,000 samples of a 640x480 frame, twice a pair); an LSD
 radix sort on the floats' bit patterns -- mapped to unsigned keys that order as the floats do -- takes three
@@ -13,9 +14,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .initialise import RANK_LEVELS
 from .photometric import subsample
 
 _BITS = 11
+_ROUND = np.float32(2**23)
 _DIGITS = 1 << _BITS
 
 
@@ -56,4 +59,37 @@ def sorted_sample_numba(img: np.ndarray) -> np.ndarray:
     sample = np.ascontiguousarray(subsample(img), dtype=np.float32).ravel()
     out = np.empty_like(sample)
     radix_sort_kernel(sample, out)
+    return out
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def ranks_kernel(img, levels, out):  # noqa: ANN001, ANN201
+    """initialise.equalised into out (n,) float32 from img (n,) float32 (finite, C-contiguous) on ``levels`` grey
+    levels: each pixel quantised (rounded half to even, clipped) and counted in one pass, the levels' mid-ranks
+    (float64, then float32) and a look-up in a second. The reference's arithmetic in its order (no fastmath):
+    equal to it bit for bit."""
+    n = img.size
+    top = np.float32(levels - 1)
+    q = np.empty(n, np.uint16)
+    counts = np.zeros(levels, np.int64)
+    for k in range(n):  # clipped first, then rounded: the same level (the bounds are whole); + and - 2^23 rounds
+        v = min(max(img[k] * top, np.float32(0)), top)  # a float32 in [0, 2^22] half to even, as np.rint
+        q[k] = np.uint16((v + _ROUND) - _ROUND)
+    for k in range(n):
+        counts[q[k]] += 1
+    table = np.empty(levels, np.float32)
+    inv = 1.0 / n
+    total = 0
+    for d in range(levels):
+        total += counts[d]
+        table[d] = np.float32((np.float64(total) - 0.5 * counts[d]) * inv)
+    for k in range(n):
+        out[k] = table[q[k]]
+
+
+def ranks_numba(img: np.ndarray) -> np.ndarray:
+    """initialise.equalised with :func:`ranks_kernel`: (H, W) float32 -> (H, W) float32, the same bits."""
+    src = np.ascontiguousarray(img, dtype=np.float32)
+    out = np.empty(src.shape, np.float32)
+    ranks_kernel(src.reshape(-1), RANK_LEVELS, out.reshape(-1))
     return out
