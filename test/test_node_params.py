@@ -266,7 +266,9 @@ def check_pfile_node(proc: subprocess.Popen) -> str:
         assert cli.wait_for_service(timeout_sec=20.0), "node did not come up"
         future = cli.call_async(GetParameters.Request(names=["preset", "warps", "iterations", "backend",
                                                              "input_scale"]))
-        executor.spin_until_future_complete(future, timeout_sec=10.0)
+        # the executor answers parameter services while the worker thread warms up; 30 s for a loaded machine
+        executor.spin_until_future_complete(future, timeout_sec=30.0)
+        assert future.done(), "no answer to get_parameters"
         got = [parameter_value_to_python(v) for v in future.result().values]
         assert got == ["realtime", PRESETS["realtime"]["warps"], 20, "numpy", 0.5]
         received: list[Image] = []
