@@ -82,9 +82,6 @@ class FlowConfig:
                                   "(0 = none; quality and realtime set 50: for them the contrast rule, "
                                   "census_empty_contrast, was worse on the tune split, docs/engine.md 'Presets')",
                                   lo=0, hi=100000)
-    census_coarse_scale: float = _f(0.0, "photometric census: levels narrower than this fraction of the input width "
-                                    "also use census_coarse_eps, so the damped levels follow the pyramid at any "
-                                    "input size (0 = none; docs/engine.md 'Presets', eighth round)", lo=0.0, hi=1.0)
     census_empty_contrast: float = _f(0.0, "photometric census: a pyramid level whose median 3x3 contrast (RMS of the "
                                       "neighbour differences, of the frame's robust range; the smaller of the two "
                                       "frames') is below this is empty -- the anti-alias blur took its texture -- and "

@@ -113,8 +113,7 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         colour = pyr.c0 is not None and pyr.c1 is not None
         frames = (pyr.c0[level], pyr.c1[level]) if colour else (pyr.i0[level][None], pyr.i1[level][None])
         radius = cfg.census_finest_radius if on_finest else 1  # the signature's neighbours' distance here
-        linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level, radius), on_finest,
-                                    pyr.scale(level))
+        linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level, radius), on_finest)
     else:
         linearised = problem_source(cfg)(pyr.i0[level], pyr.i1[level], cfg, backend, robust)
     if pyr.valid(level) is not None:
@@ -191,21 +190,20 @@ def problem_source(cfg: FlowConfig) -> Callable[..., Linearisation]:
 
 
 def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: float = math.inf,
-                 finest: bool = False, scale: float = 1.0) -> CensusParams:
+                 finest: bool = False) -> CensusParams:
     """The census constants of a pyramid level ``width`` px wide: CENSUS, with EPS ``cfg.census_coarse_eps`` on
     levels narrower than ``cfg.census_coarse_width`` or whose ``contrast`` (the smaller of both frames'
     census.median_contrast) is below ``cfg.census_empty_contrast`` (docs/engine.md, "Presets"), raised to
     ``eps_floor`` (the pair's noise on that level, Pyramid.census_eps) where that is larger; on the ``finest``
     solved level the neighbours at distance ``cfg.census_finest_radius``."""
-    coarse = (width < cfg.census_coarse_width or scale < cfg.census_coarse_scale
-              or contrast < cfg.census_empty_contrast)
+    coarse = width < cfg.census_coarse_width or contrast < cfg.census_empty_contrast
     params = replace(CENSUS, eps=cfg.census_coarse_eps) if coarse else CENSUS
     params = replace(params, radius=cfg.census_finest_radius) if finest and cfg.census_finest_radius != 1 else params
     return replace(params, eps=eps_floor) if eps_floor > params.eps else params
 
 
 def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
-                   eps_floor: float = 0.0, finest: bool = False, scale: float = 1.0) -> Linearisation:
+                   eps_floor: float = 0.0, finest: bool = False) -> Linearisation:
     """The census data term (census.py) on the frames' channels c0, c1 (C, h, w): the grey frames (C = 1) or
     colour channels (colour.py). Once per level frame 0's (stacked) signatures and frame 1's interpolation
     coefficients; per warp the backend's form around v0 (frame 1 sampled at x + v0, its signatures, the
@@ -214,7 +212,7 @@ def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
     (:func:`level_census`; the level's contrast is measured only where ``cfg.census_empty_contrast`` asks for it)."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
     contrast = min(median_contrast(c0), median_contrast(c1)) if cfg.census_empty_contrast > 0 else math.inf
-    params = level_census(cfg, c0.shape[2], eps_floor, contrast, finest, scale)
+    params = level_census(cfg, c0.shape[2], eps_floor, contrast, finest)
     f0, g0 = backend.signature(c0, params)
     h, w = c0.shape[1:]
     a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
