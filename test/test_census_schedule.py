@@ -248,3 +248,40 @@ def test_fastest_census_damps_the_empty_coarsest_level(monkeypatch: pytest.Monke
     assert aee(without) > 0.3
     grey = [FlowEstimator(c.replace(threads=1)).estimate(f0, f1).flow for c in (fastest, without)]
     np.testing.assert_array_equal(*grey)
+
+
+def test_realtime_census_damps_the_empty_80px_level_at_640(monkeypatch: pytest.MonkeyPatch) -> None:
+    """realtime with census damps texture-free levels too (census_empty_contrast beside the 50 px width rule;
+    task zoom640, chosen on the tune split): on a tune-seed zoomed finest-band texture at 640x480 (seed 62 of the
+    suite's fine_640 kind, 8 bit) the anti-alias blur leaves no texture on the 80 px level (median contrast
+    ~4e-5), which the 50 px rule does not reach; undamped, it locked the flow into a wrong minimum (0.195 px),
+    damped it is 0.012 px. The textured finer levels keep EPS 0.01, and grey values are bit-identical."""
+    from bench.suite import synthetic
+    from flow_node.bag.scenes import render_grey_pair
+
+    scene, label = synthetic.scene_for(62, 62, (640, 480))
+    assert label == "zoom/band3"
+    i0, i1, gt = render_grey_pair(scene)
+    f0, f1 = synthetic.quantise(i0, 8), synthetic.quantise(i1, 8)
+    realtime = FlowConfig.preset("realtime")
+    assert (realtime.census_coarse_width, realtime.census_empty_contrast) == (50, 0.002)
+    without = realtime.replace(census_empty_contrast=0.0)
+
+    def aee(cfg: FlowConfig) -> float:
+        flow = FlowEstimator(cfg.replace(photometric="census", threads=1)).estimate(f0, f1).flow
+        return float(np.hypot(*np.moveaxis(flow - gt, -1, 0)).mean())
+
+    seen: list[tuple[int, float]] = []  # (level width, its EPS) as the refinement took them
+
+    def spy(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: float = np.inf,
+            finest: bool = False) -> CensusParams:
+        params = level_census(cfg, width, eps_floor, contrast, finest)
+        seen.append((width, params.eps))
+        return params
+
+    monkeypatch.setattr(refine, "level_census", spy)
+    assert aee(realtime) < 0.03
+    assert {w for w, eps in seen if eps == 0.03} == {80, 40}, seen  # 160 px and finer: textured
+    assert aee(without) > 0.1
+    grey = [FlowEstimator(c.replace(threads=1)).estimate(f0, f1).flow for c in (realtime, without)]
+    np.testing.assert_array_equal(*grey)
