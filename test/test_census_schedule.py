@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from synth import texture
 
+from flow_node.bag.scenes import Scene, render_grey_pair
 from flow_node.core import engine, refine
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import select_backend
@@ -214,37 +215,62 @@ def test_empty_levels_get_the_coarse_eps() -> None:
     assert level_census(cfg.replace(census_empty_contrast=0.0), 400, 0.0, 0.0) is CENSUS  # 0: off
 
 
+def check_empty_level_damping(monkeypatch: pytest.MonkeyPatch, scene: Scene, cfg: FlowConfig,
+                              damped: set[int], good: float, bad: float) -> None:
+    """Census ``cfg`` on ``scene`` (8 bit): AEE below ``good`` px with exactly the levels ``damped`` (widths, px)
+    given EPS 0.03, above ``bad`` px without the contrast rule (census_empty_contrast 0), and the grey-value
+    flows of both bit-identical (census fields only)."""
+    from bench.suite import synthetic
+
+    i0, i1, gt = render_grey_pair(scene)
+    f0, f1 = synthetic.quantise(i0, 8), synthetic.quantise(i1, 8)
+    without = cfg.replace(census_empty_contrast=0.0)
+
+    def aee(c: FlowConfig) -> float:
+        flow = FlowEstimator(c.replace(photometric="census", threads=1)).estimate(f0, f1).flow
+        return float(np.hypot(*np.moveaxis(flow - gt, -1, 0)).mean())
+
+    seen: list[tuple[int, float]] = []  # (level width, its EPS) as the refinement took them
+
+    def spy(c: FlowConfig, width: int, eps_floor: float = 0.0, contrast: float = np.inf,
+            finest: bool = False) -> CensusParams:
+        params = level_census(c, width, eps_floor, contrast, finest)
+        seen.append((width, params.eps))
+        return params
+
+    monkeypatch.setattr(refine, "level_census", spy)
+    assert aee(cfg) < good
+    assert {w for w, eps in seen if eps == 0.03} == damped, seen
+    assert aee(without) > bad
+    grey = [FlowEstimator(c.replace(threads=1)).estimate(f0, f1).flow for c in (cfg, without)]
+    np.testing.assert_array_equal(*grey)
+
+
 def test_fastest_census_damps_the_empty_coarsest_level(monkeypatch: pytest.MonkeyPatch) -> None:
     """fastest with census damps texture-free levels (census_empty_contrast; task blob, chosen on the tune split):
     on a tune-seed zoomed finest-band texture (seed 62 of the suite's photometric regime, 320x240, 8 bit) the
     40 px coarsest level holds no texture after the anti-alias blur (median contrast ~1e-4), and its undamped
     signature locked the flow into a wrong minimum the half-size level never left (0.68 px); with EPS 0.03 there
-    it is 0.05 px. The finer levels are not empty (unchanged), and grey values are bit-identical."""
+    it is 0.05 px. The finer levels are not empty (unchanged: 80, 160 px), and grey values are bit-identical."""
     from bench.suite import photometric, synthetic
-    from flow_node.bag.scenes import render_grey_pair
 
     scene, _ = synthetic.scene_for(62, 62, photometric.SIZE, span=photometric.SPAN)
-    i0, i1, gt = render_grey_pair(scene)
-    f0, f1 = synthetic.quantise(i0, 8), synthetic.quantise(i1, 8)
     fastest = FlowConfig.preset("fastest")
     assert (fastest.census_coarse_eps, fastest.census_empty_contrast) == (0.03, 0.005)
-    without = fastest.replace(census_empty_contrast=0.0)
+    check_empty_level_damping(monkeypatch, scene, fastest, {40}, good=0.1, bad=0.3)
 
-    def aee(cfg: FlowConfig) -> float:
-        flow = FlowEstimator(cfg.replace(photometric="census", threads=1)).estimate(f0, f1).flow
-        return float(np.hypot(*np.moveaxis(flow - gt, -1, 0)).mean())
 
-    seen: list[tuple[int, float]] = []  # (level width, its EPS) as the refinement took them
+def test_realtime_census_damps_the_empty_80px_level_at_640(monkeypatch: pytest.MonkeyPatch) -> None:
+    """realtime with census damps texture-free levels too (census_empty_contrast beside the 50 px width rule;
+    task zoom640, chosen on the tune split): on a tune-seed zoomed finest-band texture at 640x480 (seed 62 of the
+    suite's fine_640 kind, 8 bit) the anti-alias blur leaves no texture on the 80 px level (median contrast
+    ~4e-5), which the 50 px rule does not reach; undamped, it locked the flow into a wrong minimum (0.195 px),
+    damped it is 0.012 px. The textured finer levels (160 px and up) keep EPS 0.01, and grey values are
+    bit-identical."""
+    from bench.suite import synthetic
 
-    def spy(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: float = np.inf,
-            finest: bool = False) -> CensusParams:
-        params = level_census(cfg, width, eps_floor, contrast, finest)
-        seen.append((width, params.eps))
-        return params
-
-    monkeypatch.setattr(refine, "level_census", spy)
-    assert aee(fastest) < 0.1
-    assert {w for w, eps in seen if eps == 0.03} == {40}, seen  # the coarsest level only (80, 160 px: textured)
-    assert aee(without) > 0.3
-    grey = [FlowEstimator(c.replace(threads=1)).estimate(f0, f1).flow for c in (fastest, without)]
-    np.testing.assert_array_equal(*grey)
+    scene, label = synthetic.scene_for(62, 62, (640, 480))
+    assert label == "zoom/band3"
+    realtime = FlowConfig.preset("realtime")
+    assert (realtime.census_coarse_width, realtime.census_empty_contrast) == (50, 0.002)
+    check_empty_level_damping(monkeypatch, scene, realtime, {80, 40}, good=0.03, bad=0.1)

@@ -86,8 +86,9 @@ class FlowConfig:
                                       "neighbour differences, of the frame's robust range; the smaller of the two "
                                       "frames') is below this is empty -- the anti-alias blur took its texture -- and "
                                       "uses census_coarse_eps: undamped, its signature is whatever faint remnant or "
-                                      "illumination is left (0 = off; fastest sets 0.005, chosen on the suite's tune "
-                                      "split, docs/engine.md 'Presets')", lo=0.0, hi=1.0)
+                                      "illumination is left (0 = off; fastest sets 0.005, realtime 0.002 beside its "
+                                      "width rule, chosen on the suite's tune split, docs/engine.md 'Presets')",
+                                      lo=0.0, hi=1.0)
     census_noise_k: float = _f(2.0, "photometric census: the signature's EPS is at least this many times the pair's "
                                "noise std (estimated once per frame at full resolution, the larger of the two, "
                                "used in both frames, carried down the pyramid by its filters' noise gain; 0 = "

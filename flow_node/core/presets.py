@@ -37,6 +37,11 @@ from typing import Any
 #   worse at every threshold tried (0.001-0.02; geomean 1.003-1.22): the median contrast of a faint texture at
 #   full resolution is ~0.004 (thresholds >= 0.005: low_contrast 1.3-4.6x), and below that damping the faint but
 #   textured < 50 px levels the width rule damps helps them (low_contrast +5 %, real_exact +1.7 % without it).
+#   realtime adds the contrast rule at 0.002 beside its width rule (issue 25, task zoom640, tune split): at 640x480
+#   its 80 px level holds no texture of the finest band (contrast ~4e-5) but is over 50 px wide; undamped it locked
+#   zoomed/shifted finest-band pairs into wrong minima (tune seed 62: 0.195 -> 0.012 px; 68 tune seeds 0.0143 ->
+#   0.0081 mean; other tune regimes within 0.6 %). A width fraction instead (damp under 16 % of the input width)
+#   cost Middlebury 3.3 %. quality keeps the width rule alone (its 640x480 failure is another one: engine.md).
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
@@ -54,7 +59,8 @@ PRESETS: dict[str, dict[str, Any]] = {
                      finest_level=0, initialisation="dis_fast", init_finest_level=0),
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                     initialisation="dis_ultrafast", init_finest_level=2, **CENSUS_SCHEDULE),
+                     initialisation="dis_ultrafast", init_finest_level=2, **CENSUS_SCHEDULE,
+                     census_empty_contrast=0.002),
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2, census_median_filter=3,
