@@ -215,7 +215,9 @@ def test_census_flow_holds_under_tone_curves_and_gain_fields(flow_kind: str) -> 
     base = errors["unchanged"]
     assert base < 0.05
     for name, err in errors.items():
-        assert err < max(1.5 * base, base + 0.02), (name, errors)
+        # +0.025 px: since realtime's census DELTA 0.07 (task smoothbags) the unchanged rotation is at 0.009 px (was
+        # 0.014) while gamma 0.5 stayed at 0.030 (0.0297 before); every other variant is as good or better than before
+        assert err < max(1.5 * base, base + 0.025), (name, errors)
     # the grey-value data term is thrown by the same gamma curve
     assert aee(interior(est_grey.estimate(i0, tone_variants(i1)["gamma 2"]).flow), interior(gt)) > 3 * base
 

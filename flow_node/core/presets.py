@@ -42,6 +42,11 @@ from typing import Any
 #   zoomed/shifted finest-band pairs into wrong minima (tune seed 62: 0.195 -> 0.012 px; 68 tune seeds 0.0143 ->
 #   0.0081 mean; other tune regimes within 0.6 %). A width fraction instead (damp under 16 % of the input width)
 #   cost Middlebury 3.3 %. quality keeps the width rule alone (its 640x480 failure is another one: engine.md).
+#   realtime's census term is L1 in earnest (issue 25, task smoothbags, tune data only): with DELTA 0.2 nearly every
+#   signature residual lay in the majoriser's quadratic zone, a quadratic term pulls less than TV near the solution
+#   and the flow's gradient shrank (rendered 128x96 rotation/zoom/deformation tune scenes 0.044 against grey 0.029).
+#   DELTA 0.07 with alpha 0.08 (the stronger pull balanced): tune scenes 0.044 -> 0.037, suite tune split geomean
+#   0.969 (fine_640 +1.4 %, the worst regime; Middlebury -5 %).
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
@@ -60,7 +65,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                      initialisation="dis_ultrafast", init_finest_level=2, **CENSUS_SCHEDULE,
-                     census_empty_contrast=0.002),
+                     census_empty_contrast=0.002, census_delta=0.07, census_alpha=0.08),
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2, census_median_filter=3,

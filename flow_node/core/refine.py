@@ -88,10 +88,11 @@ def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
 
 
 def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
-    """The solver settings of one level: alpha scaled by ``level_alpha_factor**level``, ``iterations`` per
-    warp (:func:`level_schedule`)."""
+    """The solver settings of one level: alpha (``cfg.census_alpha`` instead with the census data term where set)
+    scaled by ``level_alpha_factor**level``, ``iterations`` per warp (:func:`level_schedule`)."""
     gamma = cfg.image_gamma if cfg.reconstruction == "joint" else 0.0  # the joint model's data term (joint.py)
-    return SolveParams(MODEL_SPECS[cfg.model], cfg.alpha * cfg.level_alpha_factor**level, cfg.alpha1,
+    alpha = (cfg.census_alpha or cfg.alpha) if compares_signatures(cfg.photometric) else cfg.alpha
+    return SolveParams(MODEL_SPECS[cfg.model], alpha * cfg.level_alpha_factor**level, cfg.alpha1,
                        cfg.tv_norm, iterations, cfg.tolerance, gamma)
 
 
@@ -195,9 +196,11 @@ def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: 
     levels narrower than ``cfg.census_coarse_width`` or whose ``contrast`` (the smaller of both frames'
     census.median_contrast) is below ``cfg.census_empty_contrast`` (docs/engine.md, "Presets"), raised to
     ``eps_floor`` (the pair's noise on that level, Pyramid.census_eps) where that is larger; on the ``finest``
-    solved level the neighbours at distance ``cfg.census_finest_radius``."""
+    solved level the neighbours at distance ``cfg.census_finest_radius``; the L1 majoriser's DELTA
+    ``cfg.census_delta``."""
     coarse = width < cfg.census_coarse_width or contrast < cfg.census_empty_contrast
-    params = replace(CENSUS, eps=cfg.census_coarse_eps) if coarse else CENSUS
+    base = CENSUS if cfg.census_delta == CENSUS.delta else replace(CENSUS, delta=cfg.census_delta)
+    params = replace(base, eps=cfg.census_coarse_eps) if coarse else base
     params = replace(params, radius=cfg.census_finest_radius) if finest and cfg.census_finest_radius != 1 else params
     return replace(params, eps=eps_floor) if eps_floor > params.eps else params
 
