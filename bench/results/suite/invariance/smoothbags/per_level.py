@@ -18,17 +18,11 @@ from flow_node.core import refine
 from flow_node.core.api import FlowEstimator
 from flow_node.core.pyramid import resize_flow
 
-records: list[tuple[int, tuple[int, int], np.ndarray]] = []
-_orig = refine.solve_level
-
-
-def _spy(pyr, level, cfg, backend, state, on_finest, *args, **kw):  # type: ignore[no-untyped-def]
-    out = _orig(pyr, level, cfg, backend, state, on_finest, *args, **kw)
-    records.append((level, pyr.shapes[level], state.v.copy()))
-    return out
-
-
-refine.solve_level = _spy
+records: list[tuple[int, tuple[int, int], np.ndarray]] = []  # (level, shape, flow after it) of the last pair
+solve_level = refine.solve_level
+refine.solve_level = lambda pyr, level, cfg, backend, state, *a, **kw: (  # noqa: E731 - record, then return
+    solve_level(pyr, level, cfg, backend, state, *a, **kw),
+    records.append((level, pyr.shapes[level], state.v.copy())))[0]
 name = sys.argv[1]
 add(name)
 scenes = sys.argv[2].split(",") if len(sys.argv) > 2 else ["deformation", "rotation", "zoom"]
