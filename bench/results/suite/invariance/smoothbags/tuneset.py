@@ -9,7 +9,8 @@ use 1-5). Frames are delivered as decoded (mono8, mono16, rgb8 arrays), as bench
 
 NAMES: comma list of candidates (keys of CHANGES); ``grey`` is realtime with its default photometric stage,
 every other key realtime census as before this task
-(DELTA 0.2, alpha 0.04; the preset now sets census_delta 0.07, census_alpha 0.08) with the change. Prints mean AEE per scene kind and overall.
+(DELTA 0.2, alpha 0.04; the preset now sets census_delta 0.07, census_alpha 0.08) with the change.
+Prints mean AEE per scene kind and overall.
 """
 
 from __future__ import annotations
