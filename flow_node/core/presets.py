@@ -42,6 +42,10 @@ from typing import Any
 #   zoomed/shifted finest-band pairs into wrong minima (tune seed 62: 0.195 -> 0.012 px; 68 tune seeds 0.0143 ->
 #   0.0081 mean; other tune regimes within 0.6 %). A width fraction instead (damp under 16 % of the input width)
 #   cost Middlebury 3.3 %. quality keeps the width rule alone (its 640x480 failure is another one: engine.md).
+#   fastest adds realtime's width rule beside its contrast rule (issue 25, task flatcensus, tune split): damping
+#   the 40 px coarsest level even where it still holds a faint texture took the flat regime 0.0672 -> 0.0632
+#   (grey values 0.0634), tune geomean 0.988 over nine regimes (real_exact +2.1 %, the worst); the width rule
+#   alone (contrast rule off) failed a 640x480 tune pair whose 80 px level is empty (0.115 -> 0.435 px).
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
@@ -64,7 +68,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2, census_median_filter=3,
-                    census_coarse_eps=0.03, census_empty_contrast=0.005),
+                    census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005),
     # the paper's joint model (issue 27; docs/engine.md, "Joint model"): realtime's schedule with the images
     # eliminated (J_gamma data term); gamma and alpha chosen on the suite's noise regime, tune seeds
     "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
