@@ -42,6 +42,8 @@ from typing import Any
 #   zoomed/shifted finest-band pairs into wrong minima (tune seed 62: 0.195 -> 0.012 px; 68 tune seeds 0.0143 ->
 #   0.0081 mean; other tune regimes within 0.6 %). A width fraction instead (damp under 16 % of the input width)
 #   cost Middlebury 3.3 %. quality keeps the width rule alone (its 640x480 failure is another one: engine.md).
+#   That one is aliasing (issue 25, task q640, tune split): anti-aliasing every step fixes tune seed 62 (0.98 ->
+#   0.007 px) but costs real_exact 15 % (from the fifth step on), so quality keeps 3 steps (engine.md, ninth round).
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
