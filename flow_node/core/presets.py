@@ -43,6 +43,8 @@ from typing import Any
 #   zoomed/shifted finest-band pairs into wrong minima (tune seed 62: 0.195 -> 0.012 px; 68 tune seeds 0.0143 ->
 #   0.0081 mean; other tune regimes within 0.6 %). A width fraction instead (damp under 16 % of the input width)
 #   cost Middlebury 3.3 %. quality keeps the width rule alone (its 640x480 failure is another one: engine.md).
+#   That one is aliasing (issue 25, task q640, tune split): anti-aliasing every step fixes tune seed 62 (0.98 ->
+#   0.007 px) but costs real_exact 15 % (from the fifth step on), so quality keeps 3 steps (engine.md, ninth round).
 #   fastest adds realtime's width rule beside its contrast rule (issue 25, task flatcensus, tune split): damping
 #   the 40 px coarsest level even where it still holds a faint texture took the flat regime 0.0672 -> 0.0632
 #   (grey values 0.0634), tune geomean 0.988 over nine regimes (real_exact +2.1 %, the worst); the width rule
