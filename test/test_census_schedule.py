@@ -218,15 +218,15 @@ def test_empty_levels_get_the_coarse_eps() -> None:
 
 
 def check_empty_level_damping(monkeypatch: pytest.MonkeyPatch, scene: Scene, cfg: FlowConfig,
-                              damped: set[int], good: float, bad: float) -> None:
+                              damped: set[int], good: float, bad: float, without: FlowConfig | None = None) -> None:
     """Census ``cfg`` on ``scene`` (8 bit): AEE below ``good`` px with exactly the levels ``damped`` (widths, px)
-    given EPS 0.03, above ``bad`` px without the contrast rule (census_empty_contrast 0), and the grey-value
-    flows of both bit-identical (census fields only)."""
+    given EPS 0.03, above ``bad`` px with ``without`` (default: ``cfg`` without the contrast rule,
+    census_empty_contrast 0), and the grey-value flows of both bit-identical (census fields only)."""
     from bench.suite import synthetic
 
     i0, i1, gt = render_grey_pair(scene)
     f0, f1 = synthetic.quantise(i0, 8), synthetic.quantise(i1, 8)
-    without = cfg.replace(census_empty_contrast=0.0)
+    without = cfg.replace(census_empty_contrast=0.0) if without is None else without
 
     def aee(c: FlowConfig) -> float:
         flow = FlowEstimator(c.replace(photometric="census", threads=1)).estimate(f0, f1).flow
@@ -253,13 +253,42 @@ def test_fastest_census_damps_the_empty_coarsest_level(monkeypatch: pytest.Monke
     on a tune-seed zoomed finest-band texture (seed 62 of the suite's photometric regime, 320x240, 8 bit) the
     40 px coarsest level holds no texture after the anti-alias blur (median contrast ~1e-4), and its undamped
     signature locked the flow into a wrong minimum the half-size level never left (0.68 px); with EPS 0.03 there
-    it is 0.05 px. The finer levels are not empty (unchanged: 80, 160 px), and grey values are bit-identical."""
+    it is 0.05 px. The finer levels are not empty (unchanged: 80, 160 px), and grey values are bit-identical.
+    Since task flatcensus the 50 px width rule damps that level too, so 'without' is neither rule."""
     from bench.suite import photometric, synthetic
 
     scene, _ = synthetic.scene_for(62, 62, photometric.SIZE, span=photometric.SPAN)
     fastest = FlowConfig.preset("fastest")
     assert (fastest.census_coarse_eps, fastest.census_empty_contrast) == (0.03, 0.005)
-    check_empty_level_damping(monkeypatch, scene, fastest, {40}, good=0.1, bad=0.3)
+    check_empty_level_damping(monkeypatch, scene, fastest, {40}, good=0.1, bad=0.3,
+                              without=fastest.replace(census_empty_contrast=0.0, census_coarse_width=0))
+
+
+def test_fastest_census_damps_the_textured_coarsest_level_on_flat_areas(monkeypatch: pytest.MonkeyPatch) -> None:
+    """fastest with census also damps levels under 50 px (realtime's width rule; task flatcensus, tune split):
+    on a tune flat-areas pair (seed 4 of the suite's flat regime: a shifted texture with ~40 % flat grey, 320x240,
+    8 bit) the 40 px level still holds texture (median contrast 0.0051, above the contrast rule's 0.005), and
+    undamped it gives 0.076 px; with EPS 0.03 there 0.043 px. Grey values are bit-identical."""
+    from bench.suite import synthetic
+
+    scene, label = synthetic.scene_for(4, 4, (320, 240), flat=True)
+    assert label == "shift/band4"
+    fastest = FlowConfig.preset("fastest")
+    assert fastest.census_coarse_width == 50
+    check_empty_level_damping(monkeypatch, scene, fastest, {40}, good=0.05, bad=0.065,
+                              without=fastest.replace(census_coarse_width=0))
+
+
+def test_fastest_census_keeps_the_contrast_rule_at_640(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The width rule alone is not enough for fastest (task flatcensus): at 640x480 its 80 px level can be empty
+    after the anti-alias blur (tune seed 32 of the fine_640 kind, a shifted finest-band texture): with both rules
+    0.10 px, with the width rule alone (census_empty_contrast 0) 0.44 px. Grey values are bit-identical."""
+    from bench.suite import synthetic
+
+    scene, label = synthetic.scene_for(32, 32, (640, 480))
+    assert label == "shift/band3"
+    fastest = FlowConfig.preset("fastest")
+    check_empty_level_damping(monkeypatch, scene, fastest, {80, 40}, good=0.13, bad=0.3)
 
 
 def test_realtime_census_damps_the_empty_80px_level_at_640(monkeypatch: pytest.MonkeyPatch) -> None:

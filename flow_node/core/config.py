@@ -75,19 +75,19 @@ class FlowConfig:
                                "(chosen on the suite's tune split, docs/engine.md 'Presets')", lo=-1, hi=30)
     census_coarse_eps: float = _f(0.01, "photometric census: the signature's EPS (of the frame's robust range) on "
                                   "pyramid levels narrower than census_coarse_width (still invariant: EPS only damps "
-                                  "flat areas; the finer levels' EPS is 0.01; quality, realtime and fastest set 0.03, "
-                                  "fastest for empty levels only: census_empty_contrast)",
+                                  "flat areas; the finer levels' EPS is 0.01; quality, realtime and fastest set 0.03)",
                                   lo=0.0, hi=1.0, lo_open=True)
     census_coarse_width: int = _f(0, "photometric census: levels narrower than this (px) use census_coarse_eps "
-                                  "(0 = none; quality and realtime set 50: for them the contrast rule, "
-                                  "census_empty_contrast, was worse on the tune split, docs/engine.md 'Presets')",
+                                  "(0 = none; quality, realtime and fastest set 50: for quality and realtime the "
+                                  "contrast rule alone, census_empty_contrast, was worse on the tune split, "
+                                  "docs/engine.md 'Presets')",
                                   lo=0, hi=100000)
     census_empty_contrast: float = _f(0.0, "photometric census: a pyramid level whose median 3x3 contrast (RMS of the "
                                       "neighbour differences, of the frame's robust range; the smaller of the two "
                                       "frames') is below this is empty -- the anti-alias blur took its texture -- and "
                                       "uses census_coarse_eps: undamped, its signature is whatever faint remnant or "
-                                      "illumination is left (0 = off; fastest sets 0.005, realtime 0.002 beside its "
-                                      "width rule, chosen on the suite's tune split, docs/engine.md 'Presets')",
+                                      "illumination is left (0 = off; fastest sets 0.005, realtime 0.002, both beside "
+                                      "the width rule, chosen on the suite's tune split, docs/engine.md 'Presets')",
                                       lo=0.0, hi=1.0)
     census_noise_k: float = _f(2.0, "photometric census: the signature's EPS is at least this many times the pair's "
                                "noise std (estimated once per frame at full resolution, the larger of the two, "

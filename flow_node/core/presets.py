@@ -31,8 +31,9 @@ from typing import Any
 #   anti-alias only the three finest pyramid steps and use EPS 0.03 on levels under 50 px wide (chosen on the
 #   suite's tune split); balanced keeps every step anti-aliased (3 steps broke its fine textures on tune: 0.010 ->
 #   0.057), fastest solves at half size (every step anti-aliased anyway) and uses the coarse EPS on empty levels
-#   only (census_empty_contrast; issue 25, task blob: on zoomed finest-band textures the texture-free 40 px coarsest
-#   level locked its flow into a wrong minimum, tune seed 62 0.68 px; a width rule cost real_exact 2 %). The two
+#   (census_empty_contrast; issue 25, task blob: on zoomed finest-band textures the texture-free 40 px coarsest
+#   level locked its flow into a wrong minimum, tune seed 62 0.68 px; a width rule cost real_exact 2 %; since task
+#   flatcensus fastest has both rules, below). The two
 #   rules stay two (issue 25, task dampunify, tune split): for quality and realtime the contrast rule alone is
 #   worse at every threshold tried (0.001-0.02; geomean 1.003-1.22): the median contrast of a faint texture at
 #   full resolution is ~0.004 (thresholds >= 0.005: low_contrast 1.3-4.6x), and below that damping the faint but
@@ -42,6 +43,13 @@ from typing import Any
 #   zoomed/shifted finest-band pairs into wrong minima (tune seed 62: 0.195 -> 0.012 px; 68 tune seeds 0.0143 ->
 #   0.0081 mean; other tune regimes within 0.6 %). A width fraction instead (damp under 16 % of the input width)
 #   cost Middlebury 3.3 %. quality keeps the width rule alone (its 640x480 failure is another one: engine.md).
+#   That one is aliasing (issue 25, task q640, tune split): anti-aliasing every step fixes tune seed 62 (0.98 ->
+#   0.007 px) but costs real_exact 15 % (from the fifth step on), so quality keeps 3 steps (engine.md, ninth round).
+#   fastest adds realtime's width rule beside its contrast rule (issue 25, task flatcensus, tune split): damping
+#   the 40 px coarsest level even where it still holds a faint texture took the flat regime 0.0672 -> 0.0632
+#   (grey values 0.0634), tune geomean 0.988 over nine regimes (real_exact +2.1 %, the worst); the width rule
+#   alone (contrast rule off) failed a 640x480 tune pair whose 80 px level is empty (0.115 -> 0.435 px). Report
+#   split once: every regime within 1 % (flat +1.0 %: the tune gain did not carry over), large set 10.70 -> 10.65.
 #   realtime's census term is L1 in earnest (issue 25, task smoothbags, tune data only): with DELTA 0.2 nearly every
 #   signature residual lay in the majoriser's quadratic zone, a quadratic term pulls less than TV near the solution
 #   and the flow's gradient shrank (rendered 128x96 rotation/zoom/deformation tune scenes 0.044 against grey 0.029).
@@ -69,7 +77,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2, census_median_filter=3,
-                    census_coarse_eps=0.03, census_empty_contrast=0.005),
+                    census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005),
     # the paper's joint model (issue 27; docs/engine.md, "Joint model"): realtime's schedule with the images
     # eliminated (J_gamma data term); gamma and alpha chosen on the suite's noise regime, tune seeds
     "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
