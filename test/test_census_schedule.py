@@ -24,7 +24,7 @@ from flow_node.core.census import (
 )
 from flow_node.core.config import FlowConfig
 from flow_node.core.pyramid import build_pyramid, make_pyramid, pyramid_shapes
-from flow_node.core.refine import census_problem, level_census, level_schedule, warp_medians
+from flow_node.core.refine import census_problem, level_census, level_contrast, level_schedule, warp_medians
 from flow_node.core.temporal import stream_schedule
 from flow_node.core.warping import NUMPY_WARPER
 
@@ -207,6 +207,22 @@ def test_median_contrast_is_the_median_neighbour_rms_of_the_richest_channel() ->
                                                    axis=0))[1:-1:stride, 1:-1:stride])) for ch in frames)
         assert median_contrast(frames) == pytest.approx(want, rel=1e-6)
     assert median_contrast(np.full((1, 30, 40), 0.5, np.float32)) == 0.0
+
+
+def test_level_contrast_decides_as_both_frames_full_contrast() -> None:
+    """refine.level_contrast measures only what the decision needs (nothing on a level the width rule damps, frame 1
+    not when frame 0 is already empty) and gives level_census the same constants as both frames' contrast would."""
+    rng = np.random.default_rng(3)
+    flat = np.full((1, 30, 80), 0.5, np.float32)
+    faint = (0.5 + 0.002 * rng.standard_normal((1, 30, 80))).astype(np.float32)
+    rich = rng.random((1, 30, 80), dtype=np.float32)
+    for cfg in (CENSUS_RT, CENSUS_RT.replace(census_coarse_width=0), CENSUS_RT.replace(census_empty_contrast=0.0),
+                CENSUS_RT.replace(census_coarse_width=100), CENSUS_RT.replace(census_empty_contrast=0.005)):
+        for c0 in (flat, faint, rich):
+            for c1 in (flat, faint, rich):
+                full = min(median_contrast(c0), median_contrast(c1)) if cfg.census_empty_contrast > 0 else np.inf
+                assert level_census(cfg, 80, 0.0, level_contrast(c0, c1, cfg)) == level_census(cfg, 80, 0.0, full)
+    assert level_contrast(rich, rich, CENSUS_RT.replace(census_coarse_width=100)) == np.inf  # damped by width
 
 
 def test_empty_levels_get_the_coarse_eps() -> None:

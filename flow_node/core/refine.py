@@ -205,6 +205,17 @@ def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: 
     return replace(params, eps=eps_floor) if eps_floor > params.eps else params
 
 
+def level_contrast(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig) -> float:
+    """What :func:`level_census` needs of a level's contrast (census.median_contrast of the channels c0, c1
+    (C, h, w)): the smaller of both frames', measured only where it decides -- inf when ``cfg.census_empty_contrast``
+    is off or the level is narrower than ``cfg.census_coarse_width`` (damped by width anyway), and frame 0's alone
+    when that is already below the threshold (the level is empty whatever frame 1's is)."""
+    if cfg.census_empty_contrast <= 0 or c0.shape[2] < cfg.census_coarse_width:
+        return math.inf
+    first = median_contrast(c0)
+    return first if first < cfg.census_empty_contrast else min(first, median_contrast(c1))
+
+
 def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
                    eps_floor: float = 0.0, finest: bool = False) -> Linearisation:
     """The census data term (census.py) on the frames' channels c0, c1 (C, h, w): the grey frames (C = 1) or
@@ -212,10 +223,9 @@ def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
     coefficients; per warp the backend's form around v0 (frame 1 sampled at x + v0, its signatures, the
     quadratic form: census.census_form). The form replaces (a, c) in the solve: they are zeros. ``eps_floor``:
     the least EPS of both frames' signatures on this level; ``finest``: this is the finest solved level
-    (:func:`level_census`; the level's contrast is measured only where ``cfg.census_empty_contrast`` asks for it)."""
+    (:func:`level_census`, with :func:`level_contrast`)."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
-    contrast = min(median_contrast(c0), median_contrast(c1)) if cfg.census_empty_contrast > 0 else math.inf
-    params = level_census(cfg, c0.shape[2], eps_floor, contrast, finest)
+    params = level_census(cfg, c0.shape[2], eps_floor, level_contrast(c0, c1, cfg), finest)
     f0, g0 = backend.signature(c0, params)
     h, w = c0.shape[1:]
     a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
