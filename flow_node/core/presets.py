@@ -55,6 +55,12 @@ from typing import Any
 #   and the flow's gradient shrank (rendered 128x96 rotation/zoom/deformation tune scenes 0.044 against grey 0.029).
 #   DELTA 0.07 with alpha 0.08 (the stronger pull balanced): tune scenes 0.044 -> 0.037, suite tune split geomean
 #   0.969 (fine_640 +1.4 %, the worst regime; Middlebury -5 %).
+#   fastest's too (issue 25, task fastdelta, tune data only): on the same rendered tune scenes fastest census lost
+#   more (0.124 against grey 0.091, deformation 0.126 against 0.056). DELTA 0.01-0.03 with alpha 0.1-0.14 beat
+#   grey there but broke the suite's tune split (low_contrast +37-64 %, fine-texture pairs into wrong minima at
+#   lower alpha); the smaller DELTA must come with a much larger alpha. DELTA 0.05 with alpha 0.2: tune scenes
+#   0.124 -> 0.108, suite tune split geomean 0.928 over 8 regimes (low_contrast +2.1 %, the worst; Middlebury
+#   -5 %, real_exact -7 %, fine 320 -17 %).
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
@@ -77,7 +83,8 @@ PRESETS: dict[str, dict[str, Any]] = {
     "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
                     finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     initialisation="dis_ultrafast", init_finest_level=2, census_median_filter=3,
-                    census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005),
+                    census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005,
+                    census_delta=0.05, census_alpha=0.2),
     # the paper's joint model (issue 27; docs/engine.md, "Joint model"): realtime's schedule with the images
     # eliminated (J_gamma data term); gamma and alpha chosen on the suite's noise regime, tune seeds
     "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
