@@ -2,14 +2,14 @@
 
 :func:`factor_kernel` computes the factor GAIN / (RMS + EPS) that turns an image's neighbour differences into
 its soft census signature (frame 0's, once per level: the level's signatures are frame 0 and that one plane,
-:func:`level_signature_numba`); :func:`census_kernel` one warp's quadratic form in one pass over the level
-(census.census_form): frame 1's channels sampled at x + v0 (a value-only warp, numba_warp.sample_row), both
-frames' signatures and the form, row by row, the warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept
-in per-thread rings (cache-resident) instead of level-sized arrays; :func:`unexplained_kernel` the counts behind
-census.reliability. Grey and colour input are the same kernel (C = 1 or 3 channels of K signatures each), and so
-are the neighbours at distance 1 and 2 (CensusParams.radius: the warped rows' ring holds 2 radius + 1 rows; the
-reliability figure compares the 3 x 3 signature either way). Rows run as whole-row loops (1-D views of
-C-contiguous arrays, so they vectorise). The same
+:func:`level_signature_numba`), and on request the signature planes (the fusion's cost, :func:`census_planes_numba`);
+:func:`census_kernel` one warp's quadratic form in one pass over the level (census.census_form): frame 1's channels
+sampled at x + v0 (a value-only warp, numba_warp.sample_row), both frames' signatures and the form, row by row, the
+warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings (cache-resident) instead of
+level-sized arrays; :func:`unexplained_kernel` the counts behind census.reliability. Grey and colour input are the
+same kernel (C = 1 or 3 channels of K signatures each), and so are the neighbours at distance 1 and 2
+(CensusParams.radius: the warped rows' ring holds 2 radius + 1 rows; the reliability figure compares the 3 x 3
+signature either way). Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same
 quantities as the reference, the form's sums rearranged (:func:`_form_finish`): equal to float32 rounding
 (test_census, 1e-5 of the form's largest value).
 
@@ -51,11 +51,12 @@ def _make_diff_row(edge: bool):  # noqa: ANN202
     """dst = neighbour - centre and, unless ``ss`` is None (a compile-time case), ss += dst^2 over one row (1-D
     views; vectorises); with ``edge`` one neighbour value, neighbour[0], for every pixel (the columns whose
     neighbour is clamped to the row's end). ``edge`` is a compile-time constant: one source, two kernels
-    (:data:`_diff_row`, :data:`_diff_edge`), each as fast as its loop written out."""
+    (:data:`_diff_row`, :data:`_diff_edge`), each as fast as its loop written out (the factor kernel's time within
+    1-2 %; bench/results/census_cost/onesig/summary.md)."""
 
     def diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN202
         for j in range(dst.shape[0]):
-            d = neighbour[0 if edge else j] - centre[j]
+            d = (neighbour[0] if edge else neighbour[j]) - centre[j]  # (neighbour[0 if edge else j]: 15 % slower)
             dst[j] = d
             if ss is not None:
                 ss[j] += d * d
@@ -106,11 +107,9 @@ def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noq
 @njit(parallel=True, **_JIT)
 def factor_kernel(img, dy, dx, rad, gain, eps, out, planes):  # noqa: ANN001, ANN201
     """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`) for the offsets (dy, dx)
-    at distance ``rad``, neighbours clamped to the image (edge values); and, unless ``planes`` is None (a
-    compile-time case), the soft census signature itself -- the neighbour differences times the factor, value for
-    value as :func:`census_kernel` forms it -- into planes (H, W, K), interleaved (the fusion's cost planes,
-    fusion.census_planes). census.signature divides by RMS + EPS, then multiplies by GAIN: equal to float32
-    rounding (test_census). Rows in parallel."""
+    at distance ``rad``, neighbours clamped to the image (edge values); unless ``planes`` is None (a compile-time
+    case), also the signature -- the differences times the factor, as :func:`census_kernel` forms it; census.signature
+    to float32 rounding -- into planes (H, W, K), interleaved (fusion.census_planes). Rows in parallel."""
     h, w = img.shape
     k_n = dy.shape[0]
     for i in prange(h):
