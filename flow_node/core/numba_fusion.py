@@ -10,7 +10,9 @@ choice and the gather of the fused flow; the forward-backward check is one pass 
 remap computes it (two lerps along x, one along y, each a fused multiply-add) and the rest of the
 arithmetic is the references' float32 in the same order, so with OpenCV 5 the results equal the
 references' bit for bit; OpenCV 4.x snaps remap positions to 1/32 px, so there the references differ
-slightly and these kernels are the exact ones (test_fusion_numba.py). Rows run in parallel on levels of
+slightly and these kernels are the exact ones (test_fusion_numba.py). The census cost planes are the census
+term's signature kernel's (numba_census.factor_kernel): the reference's to float32 rounding, which moved no fusion
+choice on the large set (docs/engine.md, round onesig). Rows run in parallel on levels of
 numba_backend.PARALLEL_MIN_PIXELS or more.
 """
 
