@@ -1,6 +1,7 @@
-"""One-off (round onesig): numba_census.factor_numba's CPU time per call on a 640x480 level, one thread, in one
-process: main's module (a worktree of main at /work/wt-onesig-base), this tree's, and variants (copies of this
-tree's numba_census.py with one line changed, given as paths), interleaved, N blocks of 50 calls, medians (us).
+"""One-off (round onesig): numba_census.factor_numba's and census_form_numba's (a warp's form, bspline, L1) CPU
+time per call on a 640x480 level, one thread, in one process: main's module (a worktree of main at
+/work/wt-onesig-base), this tree's, and variants (copies of this tree's numba_census.py with one line changed, given
+as paths), interleaved, N blocks of 50 calls, medians (us).
 
     PYTHONPATH=$PWD NUMBA_CACHE_DIR=/tmp/cache python bench/results/census_cost/onesig/factor_ab/factor_ab.py 8 [path]
 """
@@ -15,7 +16,7 @@ from types import ModuleType
 import numba
 import numpy as np
 
-from flow_node.core import numba_census
+from flow_node.core import numba_backend, numba_census
 from flow_node.core.census import CENSUS
 
 MAIN = "/work/wt-onesig-base/flow_node/core/numba_census.py"
@@ -37,7 +38,13 @@ def main() -> None:
     rng = np.random.default_rng(0)
     img = rng.random((480, 640), dtype=np.float32) * 0.3 + np.sin(np.arange(640, dtype=np.float32) / 7)[None] * 0.3
     out = np.empty_like(img)
-    fns = {k: (lambda m=m: m.factor_numba(img, CENSUS, out=out)) for k, m in mods.items()}
+    img1 = np.roll(img, 3, axis=1)
+    coefs = numba_backend.WARPER.coefficients(img1[None], "bspline")
+    v0 = np.full((2, 480, 640), 0.4, np.float32)
+    fns = {f"factor {k}": (lambda m=m: m.factor_numba(img, CENSUS, out=out)) for k, m in mods.items()}
+    levels = {k: m.level_signature_numba(img, CENSUS)[0].copy() for k, m in mods.items()}
+    fns.update({f"form {k}": (lambda m=m, k=k: m.census_form_numba(levels[k], None, coefs, img1[None], v0, "bspline",
+                                                                   True, CENSUS)) for k, m in mods.items()})
     res: dict[str, list[float]] = {k: [] for k in fns}
     for f in fns.values():
         f()
