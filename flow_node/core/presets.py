@@ -66,7 +66,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0, initialisation="dis_fine", init_finest_level=0, **CENSUS_SCHEDULE,
-                    census_iterations=8),
+                    census_iterations=8, census_alpha=0.045),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0, initialisation="dis_fast", init_finest_level=0),
