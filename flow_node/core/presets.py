@@ -55,6 +55,10 @@ from typing import Any
 #   and the flow's gradient shrank (rendered 128x96 rotation/zoom/deformation tune scenes 0.044 against grey 0.029).
 #   DELTA 0.07 with alpha 0.08 (the stronger pull balanced): tune scenes 0.044 -> 0.037, suite tune split geomean
 #   0.969 (fine_640 +1.4 %, the worst regime; Middlebury -5 %).
+#   quality's too (issue 25, task qdelta, tune split): census_alpha 0.045 (what users set by hand before: the same
+#   flows), then DELTA 0.03 with census alpha 0.16: tune geomean 0.920 over eight regimes against DELTA 0.2 / 0.045
+#   (low_contrast -19 %, Middlebury -4 %, fine_640 -0.4 %: none worse); DELTA 0.07 / 0.1 0.951, 0.03 / 0.13 0.929
+#   but fine_640 +3 %; a lower alpha costs real_exact (0.03 / 0.10: +9 %).
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
@@ -66,7 +70,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0, initialisation="dis_fine", init_finest_level=0, **CENSUS_SCHEDULE,
-                    census_iterations=8),
+                    census_iterations=8, census_delta=0.03, census_alpha=0.16),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0, initialisation="dis_fast", init_finest_level=0),
