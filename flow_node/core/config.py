@@ -97,8 +97,8 @@ class FlowConfig:
     census_finest_radius: int = _f(1, "photometric census: the distance (px) of the signature's eight neighbours "
                                    "on the finest solved level: 1 = the 3 x 3 neighbourhood, as on every coarser "
                                    "level; 2 = the ring at distance 2 (the 5 x 5 window's corners and edge "
-                                   "midpoints), which sees more of a smooth texture's curvature; no preset sets it "
-                                   "(docs/engine.md, 'The census data term')", choices=(1, 2))
+                                   "midpoints), which sees more of a smooth texture's curvature; quality sets 2 (issue 25, eleventh round; "
+                                   "docs/engine.md, 'The census data term')", choices=(1, 2))
     census_median_filter: int = _f(-1, "photometric census: median filter size after each warp of a level but its "
                                    "last (-1 = median_filter; the last warp's is median_filter's). The earlier "
                                    "medians only move the next warp's linearisation point, and a 3 x 3 median costs "
@@ -110,14 +110,14 @@ class FlowConfig:
                                        "level (0 = finest_iterations, else census_iterations or iterations; no preset "
                                        "sets it: issue 25's time round, docs/engine.md)", lo=0, hi=100000)
     census_alpha: float = _f(0.0, "photometric census: the regularisation weight alpha with the census data term "
-                             "(0 = alpha); realtime sets 0.08 beside census_delta 0.07, quality 0.16 beside 0.03: "
+                             "(0 = alpha); realtime sets 0.08 beside census_delta 0.07, quality 0.10 beside 0.05: "
                              "the smaller quadratic zone makes the term pull harder (issue 25, tasks smoothbags and "
                              "qdelta, docs/engine.md 'Presets')",
                              lo=0.0, hi=1000.0)
     census_delta: float = _f(0.2, "photometric census: the residual (signature units) below which the L1 term's "
                              "majoriser is quadratic (its weight 1/sqrt(rho^2 + delta^2) flat). A quadratic data term "
                              "pulls less than TV near the solution and shrinks a flow's gradient (rotation, zoom, "
-                             "deformation; realtime sets 0.07, quality 0.03: issue 25, tasks smoothbags and qdelta, "
+                             "deformation; realtime sets 0.07, quality 0.05: issue 25, tasks smoothbags and qdelta, "
                              "docs/engine.md 'Presets')",
                              lo=0.0, hi=10.0, lo_open=True)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
