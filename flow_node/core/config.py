@@ -97,8 +97,8 @@ class FlowConfig:
     census_finest_radius: int = _f(1, "photometric census: the distance (px) of the signature's eight neighbours "
                                    "on the finest solved level: 1 = the 3 x 3 neighbourhood, as on every coarser "
                                    "level; 2 = the ring at distance 2 (the 5 x 5 window's corners and edge "
-                                   "midpoints), which sees more of a smooth texture's curvature; quality sets 2 (issue 25, eleventh round; "
-                                   "docs/engine.md, 'The census data term')", choices=(1, 2))
+                                   "midpoints), which sees more of a smooth texture's curvature; quality sets 2 "
+                                   "(issue 25, eleventh round; docs/engine.md, 'The census data term')", choices=(1, 2))
     census_median_filter: int = _f(-1, "photometric census: median filter size after each warp of a level but its "
                                    "last (-1 = median_filter; the last warp's is median_filter's). The earlier "
                                    "medians only move the next warp's linearisation point, and a 3 x 3 median costs "
@@ -286,7 +286,7 @@ class FlowConfig:
 
     def replace(self, **changes: Any) -> FlowConfig:
         """A validated copy with ``changes`` applied; a change of ``model`` without ``alpha``/``alpha1``
-        also sets them to the new model's calibrated weights (:func:`implied_weights`)."""
+        also sets them to the new model's calibrated weights and ``census_alpha`` to 0 (:func:`implied_weights`)."""
         unknown = sorted(set(changes) - set(field_names()))
         if unknown:
             raise ConfigError(f"unknown parameter(s) {', '.join(unknown)}")
@@ -341,14 +341,16 @@ def implied_by_constraint(current_constraint: str, changes: Mapping[str, Any]) -
 
 def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str, float]:
     """The weights a change implies: when ``changes`` switches the model away from ``current_model`` and does
-    not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS); else {}.
+    not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS), and
+    ``census_alpha`` 0 (the census term then weighs with the new model's alpha: a preset's census alpha is
+    chosen for its own model, and an ``l2_*`` model's alpha is ~100x smaller); else {}.
 
     The one rule for every entry point (API ``replace``, CLI ``--model``, the node's ``model`` parameter):
     re-selecting the current model, or giving a weight with it, keeps what was given."""
     model = changes.get("model", current_model)
     if model == current_model or model not in MODEL_WEIGHTS:
         return {}
-    return {k: v for k, v in MODEL_WEIGHTS[model].items() if k not in changes}
+    return {k: v for k, v in {**MODEL_WEIGHTS[model], "census_alpha": 0.0}.items() if k not in changes}
 
 
 def field_names() -> tuple[str, ...]:

@@ -1,12 +1,21 @@
-import json, math, sys
-d = json.load(open(sys.argv[1])); base = sys.argv[2]
-R = d['regimes']; ms = list(next(iter(R.values()))['methods'])
-print('| regime | ' + ' | '.join(ms) + ' |')
-g = {m: [] for m in ms}
-for r, v in R.items():
-    b = v['methods'][base]['aee']
+"""Per regime, each method's mean AEE and its ratio to a base method; their geomean (a bench.suite JSON)."""
+import json
+import math
+import sys
+
+data = json.load(open(sys.argv[1]))
+base = sys.argv[2]
+regimes = data["regimes"]
+methods = list(next(iter(regimes.values()))["methods"])
+print("| regime | " + " | ".join(methods) + " |")
+ratios: dict[str, list[float]] = {m: [] for m in methods}
+for name, regime in regimes.items():
+    b = regime["methods"][base]["aee"]
     row = []
-    for m in ms:
-        a = v['methods'][m]['aee']; g[m].append(a / b); row.append(f'{a:.4f} ({a/b:.3f})')
-    print(f'| {r} | ' + ' | '.join(row) + ' |')
-print('| geomean | ' + ' | '.join(f'{math.exp(sum(map(math.log,g[m]))/len(g[m])):.4f} / worst {max(g[m]):.3f}' for m in ms) + ' |')
+    for m in methods:
+        a = regime["methods"][m]["aee"]
+        ratios[m].append(a / b)
+        row.append(f"{a:.4f} ({a / b:.3f})")
+    print(f"| {name} | " + " | ".join(row) + " |")
+cells = [f"{math.exp(sum(map(math.log, r)) / len(r)):.4f} / worst {max(r):.3f}" for r in ratios.values()]
+print("| geomean | " + " | ".join(cells) + " |")
