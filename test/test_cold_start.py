@@ -25,7 +25,7 @@ import pytest
 import flow_node
 from flow_node import numba_patch
 from flow_node.bag import dask_worker
-from flow_node.core import FlowConfig, FlowEstimator, numba_confidence, numba_fusion, numba_sort
+from flow_node.core import FlowConfig, FlowEstimator, numba_census, numba_confidence, numba_fusion, numba_sort
 
 # One process: every preset on a 240x180 pan moving (40, 12) px -- DIS initialises, the fusion runs on
 # two levels -- then numba's statistics of every flow_node dispatcher alive, as JSON.
@@ -104,8 +104,8 @@ def test_a_process_first_solve_equals_its_later_ones() -> None:
     assert diffs == {"fastest": 0.0, "realtime": 0.0, "census": 0.0}, diffs
 
 
-# One process: the census term's quadratic form (numba_census.census_form_numba) of one warp of a 120 x 160 pair,
-# as JSON (the form's bytes as hex).
+# One process: the census term's quadratic form (numba_census.census_form_numba) of one warp of a 120 x 160 pair
+# and frame 1's signature planes (numba_census.census_planes_numba, the fusion's), as JSON (their bytes as hex).
 CENSUS_FORM = """
 import json
 import numpy as np
@@ -121,7 +121,8 @@ f0, _ = numba_census.level_signature_numba(frame(0.0), CENSUS)
 v0 = np.zeros((2, h, w), np.float32)
 v0[0] = 0.6 + 0.1 * np.sin(y / 9)
 form = numba_census.census_form_numba(f0, None, frame(0.7), frame(0.7), v0, "keys", True, CENSUS)
-print(json.dumps(form.tobytes().hex()))
+planes = numba_census.census_planes_numba(frame(0.7)[0], CENSUS)
+print(json.dumps([form.tobytes().hex(), planes.tobytes().hex()]))
 """
 
 
@@ -261,9 +262,8 @@ def test_warmup_runs_every_fusion_kernel(monkeypatch: pytest.MonkeyPatch, photom
     kernels = {numba_fusion: ("residual_kernel", "choose_kernel", "settle_kernel", "consistent_kernel"),
                numba_confidence: ("planes_kernel", "terms_kernel", "confidence_kernel", "confidence_at_kernel",
                                   "ratio_at_kernel")}
-    if photometric == "census":
-        kernels = {**kernels, numba_fusion: (*kernels[numba_fusion], "census_planes_kernel"),
-                   numba_sort: ("ranks_kernel",)}
+    if photometric == "census":  # the cost planes: the census term's factor kernel with its planes (numba_census)
+        kernels = {**kernels, numba_census: ("census_planes_numba",), numba_sort: ("ranks_kernel",)}
     for module, names in kernels.items():
         for name in names:
             monkeypatch.setattr(module, name, counting(module, name))

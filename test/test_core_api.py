@@ -299,6 +299,13 @@ def test_choosing_a_model_brings_its_calibrated_weights() -> None:
             FlowConfig.preset("quality").alpha if model == "l1_tv" else w["alpha"])  # same model: kept
         assert FlowConfig.from_mapping({"preset": "realtime", "model": model, "alpha": 0.7}).alpha == 0.7
     assert FlowConfig(model="l2_tv", alpha=0.3).alpha == 0.3
+    # a preset's census alpha is chosen for its model: another model's census term weighs with that one's alpha
+    census = FlowConfig.preset("realtime").replace(photometric="census")
+    assert census.census_alpha > 0 and census.replace(model="l1_tv").census_alpha == census.census_alpha
+    assert census.replace(model="l2_tv").census_alpha == 0.0
+    assert census.with_overrides(["model=l2_l2"]).census_alpha == 0.0
+    assert FlowConfig.from_mapping({"preset": "quality", "model": "l1_tv_tv"}).census_alpha == 0.0
+    assert census.replace(model="l2_tv", census_alpha=0.01).census_alpha == 0.01  # given wins
     assert FlowConfig().with_overrides(["model=l2_l2"]).alpha == MODEL_WEIGHTS["l2_l2"]["alpha"]
     with pytest.raises(ConfigError, match="alpha: must be finite"):
         FlowConfig(alpha=float("nan"))  # the 'calibrated' default is a marker, not NaN

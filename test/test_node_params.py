@@ -99,10 +99,13 @@ def test_preset_sets_its_group(harness: Harness) -> None:
 
 
 def test_model_brings_its_calibrated_weights(harness: Harness) -> None:
-    """Setting `model` alone also sets alpha/alpha1 (config.MODEL_WEIGHTS); a weight given with it wins."""
+    """Setting `model` alone also sets alpha/alpha1 (config.MODEL_WEIGHTS) and census_alpha 0 (a preset's census
+    alpha is its own model's); a weight given with it wins."""
+    assert all(r.successful for r in harness.set_params(census_alpha=0.08))
     results = harness.set_params(model="l2_tv")
     assert all(r.successful for r in results), [r.reason for r in results]
-    assert get_values(harness, ["model", "alpha"]) == {"model": "l2_tv", "alpha": MODEL_WEIGHTS["l2_tv"]["alpha"]}
+    assert get_values(harness, ["model", "alpha", "census_alpha"]) == {
+        "model": "l2_tv", "alpha": MODEL_WEIGHTS["l2_tv"]["alpha"], "census_alpha": 0.0}
     results = harness.set_params(model="l1_tv_tv", alpha=0.04)
     assert all(r.successful for r in results), [r.reason for r in results]
     assert get_values(harness, ["model", "alpha", "alpha1"]) == {

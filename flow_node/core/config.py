@@ -97,8 +97,8 @@ class FlowConfig:
     census_finest_radius: int = _f(1, "photometric census: the distance (px) of the signature's eight neighbours "
                                    "on the finest solved level: 1 = the 3 x 3 neighbourhood, as on every coarser "
                                    "level; 2 = the ring at distance 2 (the 5 x 5 window's corners and edge "
-                                   "midpoints), which sees more of a smooth texture's curvature; no preset sets it "
-                                   "(docs/engine.md, 'The census data term')", choices=(1, 2))
+                                   "midpoints), which sees more of a smooth texture's curvature; quality sets 2 "
+                                   "(issue 25, eleventh round; docs/engine.md, 'The census data term')", choices=(1, 2))
     census_median_filter: int = _f(-1, "photometric census: median filter size after each warp of a level but its "
                                    "last (-1 = median_filter; the last warp's is median_filter's). The earlier "
                                    "medians only move the next warp's linearisation point, and a 3 x 3 median costs "
@@ -110,15 +110,15 @@ class FlowConfig:
                                        "level (0 = finest_iterations, else census_iterations or iterations; no preset "
                                        "sets it: issue 25's time round, docs/engine.md)", lo=0, hi=100000)
     census_alpha: float = _f(0.0, "photometric census: the regularisation weight alpha with the census data term "
-                             "(0 = alpha); realtime sets 0.08 beside census_delta 0.07 and fastest 0.2 beside 0.05, "
-                             "whose smaller quadratic zone makes the term pull harder (issue 25, tasks smoothbags "
-                             "and fastdelta, docs/engine.md 'Presets')",
+                             "(0 = alpha); realtime sets 0.08 beside census_delta 0.07, quality 0.10 beside 0.05, "
+                             "fastest 0.2 beside 0.05: the smaller quadratic zone makes the term pull harder (issue "
+                             "25, tasks smoothbags, qdelta and fastdelta, docs/engine.md 'Presets')",
                              lo=0.0, hi=1000.0)
     census_delta: float = _f(0.2, "photometric census: the residual (signature units) below which the L1 term's "
                              "majoriser is quadratic (its weight 1/sqrt(rho^2 + delta^2) flat). A quadratic data term "
                              "pulls less than TV near the solution and shrinks a flow's gradient (rotation, zoom, "
-                             "deformation; realtime sets 0.07, fastest 0.05: issue 25, tasks smoothbags and fastdelta, "
-                             "docs/engine.md 'Presets')",
+                             "deformation; realtime sets 0.07, quality and fastest 0.05: issue 25, tasks smoothbags, "
+                             "qdelta and fastdelta, docs/engine.md 'Presets')",
                              lo=0.0, hi=10.0, lo_open=True)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
@@ -286,7 +286,7 @@ class FlowConfig:
 
     def replace(self, **changes: Any) -> FlowConfig:
         """A validated copy with ``changes`` applied; a change of ``model`` without ``alpha``/``alpha1``
-        also sets them to the new model's calibrated weights (:func:`implied_weights`)."""
+        also sets them to the new model's calibrated weights and ``census_alpha`` to 0 (:func:`implied_weights`)."""
         unknown = sorted(set(changes) - set(field_names()))
         if unknown:
             raise ConfigError(f"unknown parameter(s) {', '.join(unknown)}")
@@ -341,14 +341,16 @@ def implied_by_constraint(current_constraint: str, changes: Mapping[str, Any]) -
 
 def implied_weights(current_model: str, changes: Mapping[str, Any]) -> dict[str, float]:
     """The weights a change implies: when ``changes`` switches the model away from ``current_model`` and does
-    not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS); else {}.
+    not give ``alpha`` / ``alpha1``, the new model's calibrated values of those (MODEL_WEIGHTS), and
+    ``census_alpha`` 0 (the census term then weighs with the new model's alpha: a preset's census alpha is
+    chosen for its own model, and an ``l2_*`` model's alpha is ~100x smaller); else {}.
 
     The one rule for every entry point (API ``replace``, CLI ``--model``, the node's ``model`` parameter):
     re-selecting the current model, or giving a weight with it, keeps what was given."""
     model = changes.get("model", current_model)
     if model == current_model or model not in MODEL_WEIGHTS:
         return {}
-    return {k: v for k, v in MODEL_WEIGHTS[model].items() if k not in changes}
+    return {k: v for k, v in {**MODEL_WEIGHTS[model], "census_alpha": 0.0}.items() if k not in changes}
 
 
 def field_names() -> tuple[str, ...]:

@@ -2,14 +2,14 @@
 
 :func:`factor_kernel` computes the factor GAIN / (RMS + EPS) that turns an image's neighbour differences into
 its soft census signature (frame 0's, once per level: the level's signatures are frame 0 and that one plane,
-:func:`level_signature_numba`); :func:`census_kernel` one warp's quadratic form in one pass over the level
-(census.census_form): frame 1's channels sampled at x + v0 (a value-only warp, numba_warp.sample_row), both
-frames' signatures and the form, row by row, the warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept
-in per-thread rings (cache-resident) instead of level-sized arrays; :func:`unexplained_kernel` the counts behind
-census.reliability. Grey and colour input are the same kernel (C = 1 or 3 channels of K signatures each), and so
-are the neighbours at distance 1 and 2 (CensusParams.radius: the warped rows' ring holds 2 radius + 1 rows; the
-reliability figure compares the 3 x 3 signature either way). Rows run as whole-row loops (1-D views of
-C-contiguous arrays, so they vectorise). The same
+:func:`level_signature_numba`), and on request the signature planes (the fusion's cost, :func:`census_planes_numba`);
+:func:`census_kernel` one warp's quadratic form in one pass over the level (census.census_form): frame 1's channels
+sampled at x + v0 (a value-only warp, numba_warp.sample_row), both frames' signatures and the form, row by row, the
+warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings (cache-resident) instead of
+level-sized arrays; :func:`unexplained_kernel` the counts behind census.reliability. Grey and colour input are the
+same kernel (C = 1 or 3 channels of K signatures each), and so are the neighbours at distance 1 and 2
+(CensusParams.radius: the warped rows' ring holds 2 radius + 1 rows; the reliability figure compares the 3 x 3
+signature either way). Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same
 quantities as the reference, the form's sums rearranged (:func:`_form_finish`): equal to float32 rounding
 (test_census, 1e-5 of the form's largest value).
 
@@ -47,27 +47,25 @@ def _offset_arrays(radius: int) -> tuple[np.ndarray, np.ndarray]:
     return (_DY, _DX) if radius == 1 else (_DY * radius, _DX * radius)
 
 
-@njit(**_JIT)
-def _diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN201
-    """dst = neighbour - centre and, unless ``ss`` is None (a compile-time case), ss += dst^2 over one row
-    (1-D views; vectorises)."""
-    for j in range(dst.shape[0]):
-        d = neighbour[j] - centre[j]
-        dst[j] = d
-        if ss is not None:
-            ss[j] += d * d
+def _make_diff_row(edge: bool):  # noqa: ANN202
+    """dst = neighbour - centre and, unless ``ss`` is None (a compile-time case), ss += dst^2 over one row (1-D
+    views; vectorises); with ``edge`` one neighbour value, neighbour[0], for every pixel (the columns whose
+    neighbour is clamped to the row's end). ``edge`` is a compile-time constant: one source, two kernels
+    (:data:`_diff_row`, :data:`_diff_edge`), each as fast as its loop written out (the factor kernel's time within
+    1-2 %; bench/results/census_cost/onesig/summary.md)."""
+
+    def diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN202
+        for j in range(dst.shape[0]):
+            d = (neighbour[0] if edge else neighbour[j]) - centre[j]  # (neighbour[0 if edge else j]: 15 % slower)
+            dst[j] = d
+            if ss is not None:
+                ss[j] += d * d
+
+    diff_row.__name__ = diff_row.__qualname__ = "diff_edge" if edge else "diff_row"
+    return njit(**_JIT)(diff_row)
 
 
-@njit(**_JIT)
-def _diff_edge(neighbour, centre, dst, ss):  # noqa: ANN001, ANN201
-    """dst = neighbour[0] - centre (one neighbour value for every pixel: the columns whose neighbour is clamped
-    to the row's end) and, unless ``ss`` is None, ss += dst^2 (1-D views)."""
-    v = neighbour[0]
-    for j in range(dst.shape[0]):
-        d = v - centre[j]
-        dst[j] = d
-        if ss is not None:
-            ss[j] += d * d
+_diff_row, _diff_edge = _make_diff_row(False), _make_diff_row(True)
 
 
 @njit(**_JIT)
@@ -107,14 +105,20 @@ def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noq
 
 
 @njit(parallel=True, **_JIT)
-def factor_kernel(img, dy, dx, rad, gain, eps, out):  # noqa: ANN001, ANN201
-    """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`; census.signature is
-    the neighbour differences times it) for the offsets (dy, dx) at distance ``rad``; neighbours clamped to the
-    image (edge values). Rows in parallel."""
+def factor_kernel(img, dy, dx, rad, gain, eps, out, planes):  # noqa: ANN001, ANN201
+    """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`) for the offsets (dy, dx)
+    at distance ``rad``, neighbours clamped to the image (edge values); unless ``planes`` is None (a compile-time
+    case), also the signature -- the differences times the factor, as :func:`census_kernel` forms it; census.signature
+    to float32 rounding -- into planes (H, W, K), interleaved (fusion.census_planes). Rows in parallel."""
     h, w = img.shape
+    k_n = dy.shape[0]
     for i in prange(h):
-        tmp = np.empty((dy.shape[0], 1, w), np.float32)
+        tmp = np.empty((k_n, 1, w), np.float32)
         _differences(img[max(i - rad, 0)], img[i], img[min(i + rad, h - 1)], dy, dx, gain, eps, tmp, 0, 0, out[i])
+        if planes is not None:
+            for j in range(w):
+                for k in range(k_n):
+                    planes[i, j, k] = tmp[k, 0, j] * out[i, j]
 
 
 @njit(**_JIT)
@@ -292,7 +296,17 @@ def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None =
     given); census.signature = the neighbour differences (census.shifted) times it."""
     src = np.ascontiguousarray(img, dtype=_F32)
     out = np.empty(src.shape, _F32) if out is None else out
-    factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps), out)
+    factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps), out, None)
+    return out
+
+
+def census_planes_numba(img: np.ndarray, params: CensusParams) -> np.ndarray:
+    """fusion.census_planes with :func:`factor_kernel`: an image's (H, W) soft census signature, interleaved
+    (H, W, K) float32 (census.signature's to float32 rounding)."""
+    src = np.ascontiguousarray(img, dtype=_F32)
+    out = np.empty(src.shape + (_K,), _F32)
+    factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps),
+                  np.empty(src.shape, _F32), out)
     return out
 
 

@@ -10,7 +10,9 @@ choice and the gather of the fused flow; the forward-backward check is one pass 
 remap computes it (two lerps along x, one along y, each a fused multiply-add) and the rest of the
 arithmetic is the references' float32 in the same order, so with OpenCV 5 the results equal the
 references' bit for bit; OpenCV 4.x snaps remap positions to 1/32 px, so there the references differ
-slightly and these kernels are the exact ones (test_fusion_numba.py). Rows run in parallel on levels of
+slightly and these kernels are the exact ones (test_fusion_numba.py). The census cost planes are the census
+term's signature kernel's (numba_census.factor_kernel): the reference's to float32 rounding, which moved no fusion
+choice on the large set (docs/engine.md, round onesig). Rows run in parallel on levels of
 numba_backend.PARALLEL_MIN_PIXELS or more.
 """
 
@@ -23,7 +25,6 @@ import numpy as np
 from numba import njit, prange
 
 from . import numba_backend as nb
-from .census import offsets
 from .fusion import (
     CONSISTENT_COST,
     FUSION_MARGIN,
@@ -233,42 +234,17 @@ def consistent_kernel(out, forward, backward, tolerance):  # noqa: ANN001, ANN20
         _consistent_row(out, forward, backward, tolerance, i)
 
 
-@njit(parallel=True, **_JIT)
-def census_planes_kernel(img, dy, dx, gain, eps, out):  # noqa: ANN001, ANN201
-    """fusion.census_planes: out (h, w, K) = the soft census signature of img (h, w) (census.signature) for the K
-    neighbour offsets (dy, dx), interleaved; neighbours clamped to the image (edge values, census.shifted). The
-    reference's float32 arithmetic in its order -- the squares summed neighbour by neighbour and divided by K, each
-    difference divided by RMS + EPS, then times GAIN; no fastmath, so no fused multiply-add -- so the planes equal
-    the reference's bit for bit (numba_census's factor kernel scales by GAIN / (RMS + EPS), which rounds otherwise:
-    the fusion's choice, and DIS-rescued flows with it, would move). Rows in parallel."""
-    h, w = img.shape
-    k_n = dy.shape[0]
-    count = _F32(k_n)
-    for i in prange(h):
-        for j in range(w):
-            centre = img[i, j]
-            ss = _F32(0)
-            for k in range(k_n):
-                d = img[min(max(i + dy[k], 0), h - 1), min(max(j + dx[k], 0), w - 1)] - centre
-                out[i, j, k] = d
-                ss += d * d
-            rms = np.sqrt(ss / count) + eps
-            for k in range(k_n):
-                out[i, j, k] = out[i, j, k] / rms * gain
-
-
 def planes_numba(img: np.ndarray, photometric: str, eps: float = 0.0) -> np.ndarray:
-    """fusion.level_planes with :func:`census_planes_kernel` for a census data term (the grey-value planes are
-    OpenCV's in either backend): (h, w) -> (h, w, P) float32, the reference's bits."""
+    """fusion.level_planes for the numba backend: (h, w) -> (h, w, P) float32. A census data term's signature is
+    numba_census.census_planes_numba's (the census term's own factor kernel: census.signature's to float32 rounding;
+    imported on the first census call, as backends.Deferred imports numba_census); the grey-value planes are
+    OpenCV's in either backend."""
     if not compares_signatures(photometric):
         return planes(img)
-    params = cost_census(eps)
-    src = np.ascontiguousarray(img, dtype=_F32)
-    dy, dx = (np.array(d, np.int64) for d in zip(*offsets(params.radius), strict=True))
-    out = np.empty(src.shape + (len(dy),), _F32)
-    with _rows_on(*src.shape):
-        census_planes_kernel(src, dy, dx, _F32(params.gain), _F32(params.eps), out)
-    return out
+    from .numba_census import census_planes_numba
+
+    with _rows_on(*img.shape):
+        return census_planes_numba(img, cost_census(eps))
 
 
 def _rows_on(h: int, w: int) -> AbstractContextManager[int]:
