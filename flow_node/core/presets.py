@@ -71,6 +71,11 @@ from typing import Any
 #   0.124 -> 0.108, suite tune split geomean 0.928 over 8 regimes (low_contrast +2.1 %, the worst; Middlebury
 #   -5 %, real_exact -7 %, fine 320 -17 %). Report split once: every regime better (bags 0.133 -> 0.118, grey 0.107;
 #   flat 0.063 -> 0.055, grey 0.055; large 10.65 -> 10.58), geomean 0.904.
+# - quality compares census signatures by default (photometric=census; issue 25: invariant by construction, no
+#   detection): with the eleventh round's setting its report split beat its grey-value data term on every regime
+#   but real_exact (+1.7 %, 0.239 against 0.235; Middlebury 0.290 against 0.295, bags 0.057 / 0.066, large 8.12 /
+#   8.46, noise 0.024 / 0.055, the tone and illumination families 0.315 / 5.26 px) at 1.1x its CPU time
+#   (bench/results/suite/invariance/qr2/flip.md). photometric=normalise gives the grey-value term back.
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
@@ -82,7 +87,8 @@ PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0, initialisation="dis_fine", init_finest_level=0, **CENSUS_SCHEDULE,
-                    census_iterations=8, census_finest_radius=2, census_delta=0.05, census_alpha=0.10),
+                    census_iterations=8, census_finest_radius=2, census_delta=0.05, census_alpha=0.10,
+                    photometric="census"),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0, initialisation="dis_fast", init_finest_level=0),
