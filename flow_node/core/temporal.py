@@ -123,13 +123,13 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
     of ``cfg.stream_iterations`` iterations -- the finest solved level at ``cfg.stream_finest_warps`` x
     ``cfg.stream_finest_iterations`` where those are set (0: the same as the others) --, the regularisation
     weight ``cfg.stream_alpha`` where set (0: ``cfg.alpha``, or ``cfg.census_alpha`` with the census term; the
-    census term's own iteration counts do not apply here) and the pyramid cut
+    census term's own iteration and warp counts do not apply here) and the pyramid cut
     below the levels it visits (the shapes of the levels kept are the same). Derived, never written back;
     cached per config."""
     levels = min(cfg.levels, cfg.finest_level + max(cfg.stream_levels, 1))
     return cfg.replace(warps=cfg.stream_warps, iterations=cfg.stream_iterations,
                        finest_warps=cfg.stream_finest_warps, finest_iterations=cfg.stream_finest_iterations,
-                       census_iterations=0, census_finest_iterations=0,
+                       census_iterations=0, census_finest_iterations=0, census_finest_warps=0,
                        levels=levels, alpha=cfg.stream_alpha or cfg.alpha,
                        census_alpha=0.0 if cfg.stream_alpha else cfg.census_alpha)
 
