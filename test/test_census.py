@@ -208,18 +208,20 @@ def test_census_flow_holds_under_tone_curves_and_gain_fields(flow_kind: str) -> 
     i0, i1 = pair_from_flow(tex, gt)
     cfg = FlowConfig.preset("realtime").replace(photometric="census", initialisation="none")
     grey = FlowConfig.preset("realtime").replace(photometric="normalise", initialisation="none")
-    est, est_grey = FlowEstimator(cfg), FlowEstimator(grey)
-    errors = {}
-    for name, frame in tone_variants(i1).items():
-        result = est.estimate(i0, frame.astype(np.float32))
-        errors[name] = aee(interior(result.flow), interior(gt))
-        assert result.unexplained < 0.3, (name, result.unexplained)  # the flow explains the pair
-    base = errors["unchanged"]
-    assert base < 0.05
-    for name, err in errors.items():
-        # +0.025 px: since realtime's census DELTA 0.07 (task smoothbags) the unchanged rotation is at 0.009 px (was
-        # 0.014) while gamma 0.5 stayed at 0.030 (0.0297 before); every other variant is as good or better than before
-        assert err < max(1.5 * base, base + 0.025), (name, errors)
+    est_grey = FlowEstimator(grey)
+    # +0.025 px with the 3 x 3 signature: since realtime's census DELTA 0.07 (task smoothbags) the unchanged rotation
+    # is at 0.009-0.011 px (was 0.014) while gamma 0.5 stayed at 0.030; the preset's ring at distance 2 on the finest
+    # level (task cschedule) trades some of that for real images, as quality's does: gamma 0.5 0.040 (+0.031)
+    for est, margin in ((FlowEstimator(cfg.replace(census_finest_radius=1)), 0.025), (FlowEstimator(cfg), 0.035)):
+        errors = {}
+        for name, frame in tone_variants(i1).items():
+            result = est.estimate(i0, frame.astype(np.float32))
+            errors[name] = aee(interior(result.flow), interior(gt))
+            assert result.unexplained < 0.3, (name, result.unexplained)  # the flow explains the pair
+        base = errors["unchanged"]
+        assert base < 0.05
+        for name, err in errors.items():
+            assert err < max(1.5 * base, base + margin), (name, margin, errors)
     # the grey-value data term is thrown by the same gamma curve
     assert aee(interior(est_grey.estimate(i0, tone_variants(i1)["gamma 2"]).flow), interior(gt)) > 3 * base
 

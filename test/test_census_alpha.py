@@ -42,11 +42,11 @@ def test_census_delta_reaches_every_level() -> None:
     cfg = CENSUS_RT.replace(census_delta=0.05)
     for width, finest in ((20, False), (64, False), (128, True)):
         assert level_census(cfg, width, finest=finest).delta == 0.05
-    assert level_census(cfg.replace(census_delta=CENSUS.delta), 128, finest=True) == CENSUS
+    assert level_census(cfg.replace(census_delta=CENSUS.delta, census_finest_radius=1), 128, finest=True) == CENSUS
 
 
 # each preset's census DELTA and census alpha (tune data only): realtime task smoothbags, fastest task fastdelta
-TUNED = {"realtime": (0.07, 0.08), "fastest": (0.05, 0.2)}
+TUNED = {"realtime": (0.07, 0.10), "fastest": (0.05, 0.2)}  # realtime's alpha 0.08 until task cschedule
 
 
 @pytest.mark.parametrize("preset", sorted(TUNED))
@@ -56,7 +56,7 @@ def test_census_on_a_smooth_deformation_and_grey_flows_unchanged(preset: str) ->
     0.2, the grey values' alpha): realtime 0.0557 -> 0.0444 px (seeds 101-105 0.79-0.81x), fastest 0.182 -> 0.150 px
     (0.82-0.85x); grey-value flows do not depend on either field."""
     frames, gts = render_frames(SynthSpec(scene="deformation", frames=3, size=(128, 96), encoding="mono16", seed=103))
-    grey_cfg = FlowConfig.preset(preset).replace(threads=1)
+    grey_cfg = FlowConfig.preset(preset).replace(threads=1, photometric="normalise")
     census = grey_cfg.replace(photometric="census")
     assert (census.census_delta, census.census_alpha) == TUNED[preset]
     today = FlowEstimator(census.replace(census_alpha=0.0, census_delta=CENSUS.delta))

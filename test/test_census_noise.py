@@ -104,7 +104,7 @@ def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
     span1 = float(np.subtract(*quantiles(s1, (98.0, 2.0))))
     assert noise.sigma == pytest.approx(4.0 / 255.0 / span1 * STEP_REF / rels[1], rel=0.15)
     assert noise_sigma(n1) < 0.3 * noise.sigma  # the blurred frame reads as far less noisy than it is
-    cfg = CENSUS_RT.replace(census_noise_k=2.0)
+    cfg = CENSUS_RT.replace(census_noise_k=2.0, census_finest_radius=1)  # the 3 x 3 signature; the ring below
     pyr = make_pyramid(n0, n1, cfg, noise=noise)
     assert pyr.census_eps is not None
     gains = difference_noise_gains(pyr.shapes, step_sigmas(len(pyr.shapes) - 1, 0.5, 3), QUANT_SIGMA)
@@ -133,7 +133,7 @@ def test_a_clean_pair_without_coarse_quantisation_is_not_presmoothed() -> None:
 @pytest.mark.parametrize("preset", ["realtime", "fastest"])
 def test_grey_value_flows_do_not_see_the_noise_floor(preset: str) -> None:
     f0, f1 = low_light_pair(64, 80)
-    cfg = FlowConfig.preset(preset).replace(threads=1)
+    cfg = FlowConfig.preset(preset).replace(threads=1, photometric="normalise")  # realtime: census by default
     assert make_pyramid(f0, f1, cfg.replace(census_noise_k=3.0)).census_eps is None
     flows = [FlowEstimator(cfg.replace(census_noise_k=k)).estimate(f0, f1).flow for k in (0.0, 3.0)]
     np.testing.assert_array_equal(*flows)

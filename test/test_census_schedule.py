@@ -29,8 +29,11 @@ from flow_node.core.temporal import stream_schedule
 from flow_node.core.warping import NUMPY_WARPER
 
 # realtime census with the census term's default DELTA (realtime sets its own: test_census_alpha), so the rules
-# tested here leave the constants CENSUS itself
-CENSUS_RT = FlowConfig.preset("realtime").replace(photometric="census", census_delta=CENSUS.delta)
+# tested here leave the constants CENSUS itself, and with the grey schedule's finest level (2 warps, the 3 x 3
+# signature; realtime's own finest census level, one warp of 28 on the ring, is set by fields tested below)
+CENSUS_RT = FlowConfig.preset("realtime").replace(photometric="census", census_delta=CENSUS.delta,
+                                                  census_finest_radius=1, census_finest_warps=0,
+                                                  census_finest_iterations=0)
 
 
 def test_antialias_steps_follow_the_config() -> None:
@@ -285,7 +288,7 @@ def check_empty_level_damping(monkeypatch: pytest.MonkeyPatch, scene: Scene, cfg
     assert aee(cfg) < good
     assert {w for w, eps in seen if eps == 0.03} == damped, seen
     assert aee(without) > bad
-    grey = [FlowEstimator(c.replace(threads=1)).estimate(f0, f1).flow for c in (cfg, without)]
+    grey = [FlowEstimator(c.replace(threads=1, photometric="normalise")).estimate(f0, f1).flow for c in (cfg, without)]
     np.testing.assert_array_equal(*grey)
 
 

@@ -201,7 +201,7 @@ import numpy as np
 from flow_node.core import FlowConfig, FlowEstimator
 rng = np.random.default_rng(3)
 i0 = rng.random((60, 80), dtype=np.float32)
-est = FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba"))
+est = FlowEstimator(FlowConfig.preset("realtime").replace(backend="numba", photometric="normalise"))
 est.estimate_grey(i0, np.roll(i0, 2, axis=1))
 kernels = lambda: sorted(m for m in sys.modules if m.startswith("flow_node.core.numba_"))
 solved = kernels()

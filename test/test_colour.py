@@ -125,7 +125,7 @@ def test_grey_input_and_grey_value_terms_ignore_the_colour_setting() -> None:
     grey0, grey1 = to_grey(c0), to_grey(c1)
     np.testing.assert_array_equal(FlowEstimator(COLOUR_CFG).estimate(grey0, grey1).flow,
                                   FlowEstimator(CENSUS_CFG).estimate(grey0, grey1).flow)
-    normalise = small_frames.CONFIG
+    normalise = small_frames.CONFIG.replace(photometric="normalise")
     np.testing.assert_array_equal(FlowEstimator(normalise.with_overrides(["colour=channels"])).estimate(c0, c1).flow,
                                   FlowEstimator(normalise).estimate(c0, c1).flow)
 
@@ -155,13 +155,17 @@ def test_mismatched_planes_are_rejected() -> None:
 def test_stream_uses_colour_planes(scale: float) -> None:
     c0, c1, gt = isoluminant_pair(70)
     u8 = [(c * 255).round().astype(np.uint8) for c in (c0, c1)]
-    for cfg, good in ((COLOUR_CFG, True), (CENSUS_CFG, False)):
+    errors = []
+    for cfg in (COLOUR_CFG, CENSUS_CFG):
         s = FlowStream(StreamSettings(config=cfg, input_scale=scale))
         s.process(u8[0], 0, "rgb8")
         out = s.process(u8[1], 1, "rgb8")
         h, w = out.flow.shape[:2]
-        err = aee(interior(out.flow, 4), interior(constant_flow(h, w, gt[0, 0, 0] * scale, gt[0, 0, 1] * scale), 4))
-        assert (err < 0.3 * scale) == good, err
+        errors.append(aee(interior(out.flow, 4), interior(constant_flow(h, w, gt[0, 0, 0] * scale, gt[0, 0, 1] * scale),
+                                                          4)))
+    # the luma cannot see the isoluminant texture (1.5 / 0.72 px); the planes can (0.024 / 0.17 px: at 0.5 the
+    # frames are 40 x 30 px, where realtime's one finest census warp leaves more than its two warps did, 0.07)
+    assert errors[1] > 0.3 * scale and errors[0] < 0.35 * errors[1], errors
 
 
 def test_cli_reads_colour_planes(tmp_path: pytest.TempPathFactory) -> None:

@@ -97,8 +97,9 @@ class FlowConfig:
     census_finest_radius: int = _f(1, "photometric census: the distance (px) of the signature's eight neighbours "
                                    "on the finest solved level: 1 = the 3 x 3 neighbourhood, as on every coarser "
                                    "level; 2 = the ring at distance 2 (the 5 x 5 window's corners and edge "
-                                   "midpoints), which sees more of a smooth texture's curvature; quality sets 2 "
-                                   "(issue 25, eleventh round; docs/engine.md, 'The census data term')", choices=(1, 2))
+                                   "midpoints), which sees more of a smooth texture's curvature; quality and realtime "
+                                   "set 2 (issue 25, eleventh and twelfth rounds; docs/engine.md, 'The census data "
+                                   "term')", choices=(1, 2))
     census_median_filter: int = _f(-1, "photometric census: median filter size after each warp of a level but its "
                                    "last (-1 = median_filter; the last warp's is median_filter's). The earlier "
                                    "medians only move the next warp's linearisation point, and a 3 x 3 median costs "
@@ -107,16 +108,16 @@ class FlowConfig:
     census_iterations: int = _f(0, "photometric census: primal-dual iterations per warp (0 = iterations; quality sets "
                                 "8: issue 25's time round, docs/engine.md)", lo=0, hi=100000)
     census_finest_iterations: int = _f(0, "photometric census: primal-dual iterations per warp on the finest solved "
-                                       "level (0 = finest_iterations, else census_iterations or iterations; no preset "
-                                       "sets it: issue 25's time round, docs/engine.md)", lo=0, hi=100000)
+                                       "level (0 = finest_iterations, else census_iterations or iterations; realtime "
+                                       "sets 28 beside census_finest_warps 1: issue 25, task cschedule, "
+                                       "docs/engine.md)", lo=0, hi=100000)
     census_finest_warps: int = _f(0, "photometric census: warps on the finest solved level (0 = finest_warps, else "
                                   "warps). Each costs the census kernel once at that level's size: realtime census "
-                                  "with 1 x 28 there takes ~1.14x its grey-value time (2 x 16: ~1.36x) but loses on "
-                                  "faint textures; no preset sets it (issue 25, task cschedule, docs/engine.md "
-                                  "'Presets')",
+                                  "with 1 x 28 there (its preset's) takes ~1.14x its grey-value time (2 x 16: ~1.36x) "
+                                  "(issue 25, task cschedule, docs/engine.md 'Presets')",
                                   lo=0, hi=100)
     census_alpha: float = _f(0.0, "photometric census: the regularisation weight alpha with the census data term "
-                             "(0 = alpha); realtime sets 0.08 beside census_delta 0.07, quality 0.10 beside 0.05, "
+                             "(0 = alpha); realtime sets 0.10 beside census_delta 0.07, quality 0.10 beside 0.05, "
                              "fastest 0.2 beside 0.05: the smaller quadratic zone makes the term pull harder (issue "
                              "25, tasks smoothbags, qdelta and fastdelta, docs/engine.md 'Presets')",
                              lo=0.0, hi=1000.0)
