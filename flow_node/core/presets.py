@@ -93,6 +93,12 @@ from typing import Any
 #   0.029 against grey 0.044); docs/engine.md "Presets". photometric=normalise gives the grey-value term back.
 CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, census_coarse_eps=0.03,
                                                            census_coarse_width=50))
+# fastest, and the stream presets' base (below)
+FASTEST: Mapping[str, Any] = MappingProxyType(dict(
+    model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5, finest_level=1, median_filter=5,
+    gradient_scheme="interpolated", tolerance=0.0, initialisation="dis_ultrafast", init_finest_level=2,
+    census_median_filter=3, census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005,
+    census_delta=0.05, census_alpha=0.2))
 PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
@@ -107,32 +113,23 @@ PRESETS: dict[str, dict[str, Any]] = {
                      initialisation="dis_ultrafast", init_finest_level=2, **CENSUS_SCHEDULE,
                      census_empty_contrast=0.002, census_delta=0.07, census_alpha=0.10, census_finest_radius=2,
                      census_finest_warps=1, census_finest_iterations=28, photometric="census"),
-    "fastest": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
-                    finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                    initialisation="dis_ultrafast", init_finest_level=2, census_median_filter=3,
-                    census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005,
-                    census_delta=0.05, census_alpha=0.2),
+    "fastest": dict(FASTEST),
     # the paper's joint model (issue 27; docs/engine.md, "Joint model"): realtime's schedule with the images
     # eliminated (J_gamma data term); gamma and alpha chosen on the suite's noise regime, tune seeds
     "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                   levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                   initialisation="dis_ultrafast", init_finest_level=2, reconstruction="joint", image_gamma=0.02),
-    # stream presets (issue 26, docs/engine.md "The stream mode"): a single pair, and a stream's fallback, is
+    # stream presets (issue 26, docs/engine.md "The stream mode"): fastest's fields (its census fields too, since
+    # 2026-12-06) and the stream stage's: a single pair, and a stream's fallback, is
     # solved as fastest (stream_fast) or as fastest at quarter size (stream_lite) does; while the previous flow
     # predicts the next, only the finest two solved levels (stream_lite: one, 8 warps: DIS medium's AEE on the
     # tune split) run, from the carried state (tuned on the suite's stream regime, tune split:
     # bench/results/suite/stream/; docs/engine.md "The stream mode"; stream_fast's coarser level 2 x 10 and its
     # finest 3 x 10 since issue 26's round 4; round 6: finest 3 x 8, a 3x3 median after a level's warps but its
     # last, the result check on ~5,000 pixels)
-    "stream_fast": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
-                        finest_level=1, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=2, stream_warps=2,
-                        stream_iterations=10, stream_finest_warps=3, stream_finest_iterations=8,
-                        stream_inner_median=3, stream_check_samples=5000),
-    "stream_lite": dict(model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5,
-                        finest_level=2, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
-                        initialisation="dis_ultrafast", init_finest_level=2, stream_levels=1, stream_warps=8,
-                        stream_iterations=10),
+    "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=2, stream_iterations=10, stream_finest_warps=3,
+                        stream_finest_iterations=8, stream_inner_median=3, stream_check_samples=5000),
+    "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=8, stream_iterations=10),
 }
 
 # The general-purpose presets, in order of cost: what the suite judges against the peers on every regime. The
