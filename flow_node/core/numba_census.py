@@ -25,7 +25,7 @@ import numba
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams
+from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams, contrast_stride
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_kernels import FASTMATH
 from .numba_warp import cubic_weights4, sample_row, tap_indices, tap_sum
@@ -364,6 +364,44 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
                   _F32(params.delta),
                   _F32(1.0 / n_c), out, *rings, blocks)
     return out
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def contrast_kernel(frames, dy, dx, st, ny, nx):  # noqa: ANN001, ANN201
+    """census.median_contrast of frames (C, H, W) on the grid of pixels (1 + st i, 1 + st j), i < ny, j < nx:
+    s(x) with the reference's float32 operations in its order (no fastmath: no contraction of sq + d d), and
+    np.median's value (the middle one, or the float32 mean of the middle two), the largest over channels -- the
+    same value bit for bit."""
+    n_c = frames.shape[0]
+    k_n = dy.shape[0]
+    n = ny * nx
+    values = np.empty(n, np.float32)
+    best = _F32(-1.0)
+    for c in range(n_c):
+        for i in range(ny):
+            y = 1 + st * i
+            for j in range(nx):
+                x = 1 + st * j
+                centre = frames[c, y, x]
+                sq = _F32(0.0)
+                for k in range(k_n):
+                    d = frames[c, y + dy[k], x + dx[k]] - centre
+                    sq += d * d
+                values[i * nx + j] = math.sqrt(sq / _F32(k_n))
+        part = np.partition(values, n // 2)  # as np.median: the middle value, or the float32 mean of the middle two
+        mid = part[n // 2] if n % 2 else (part[:n // 2].max() + part[n // 2]) / _F32(2.0)
+        best = max(best, mid)
+    return best
+
+
+def median_contrast_numba(frames: np.ndarray) -> float:
+    """census.median_contrast with :func:`contrast_kernel`: the same value bit for bit."""
+    h, w = frames.shape[1:]
+    if h < 3 or w < 3:
+        return 0.0
+    st = contrast_stride(h, w)
+    return float(contrast_kernel(np.ascontiguousarray(frames, dtype=_F32), _DY, _DX, st, len(range(1, h - 1, st)),
+                                 len(range(1, w - 1, st))))
 
 
 @njit(**_JIT)
