@@ -45,7 +45,7 @@ PRESETS = ("realtime", "fastest", "quality")
 TERMS = ("normalise", "census")  # the grey-value baseline first: every ratio is against it
 # backend fields timed (the backend's own functions, whatever module they live in)
 BACKEND_SPANS = ("solve", "linearise", "signature", "census_form", "fuse", "consistent", "gradient", "sample",
-                 "reliability", "census_reliability", "cost_planes", "ranks")
+                 "reliability", "cost_planes", "ranks")
 # (module, function) timed where the engine calls it through that module's global name (the tree before the
 # fused census kernel had more: `git show 9fd09d8:bench/census_cost.py`, which made `before.md`; frame 0's
 # level signature was `signature_numba` before round censt: `signature/signature_numba` in older results)

@@ -58,8 +58,7 @@ import flow_node.cli.estimate
 from flow_node import process
 from flow_node.core import numba_backend, numba_fusion
 process.defer_kernel_bitcode()
-numba_backend.reliability_numba(np.zeros((4, 4), np.float32), np.zeros((4, 4), np.float32),
-                                np.zeros((4, 4, 2), np.float32))
+numba_backend.image_gradient_numba(np.zeros((4, 4), np.float32), "central")
 process.skip_final_collection()"""
 
 

@@ -16,7 +16,7 @@ from flow_node.core.metrics import aee
 from flow_node.core.models import MODEL_SPECS, prox_data_quadratic, quadratic_data
 from flow_node.core.numba_backend import WARPER, solve_numba, thread_count
 from flow_node.core.numba_census import census_form_numba, census_planes_numba, level_signature_numba, level_signatures
-from flow_node.core.numba_census import reliability_numba as census_reliability_numba
+from flow_node.core.numba_judge import reliability_numba as census_reliability_numba
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.warping import NUMPY_WARPER
 

@@ -197,6 +197,31 @@ def test_census_iterations_change_the_census_mode_only() -> None:
     assert level_schedule(stream, False)[1] == cfg.stream_iterations
 
 
+def test_census_finest_warps_change_the_census_finest_level_only() -> None:
+    """census_finest_warps (task cschedule): the census term's warps on the finest solved level, before
+    finest_warps; coarser levels, grey values and the stream mode's refinement keep theirs. The census flow is the
+    one finest_warps would give, and a grey-value flow does not depend on the field."""
+    cfg = CENSUS_RT.replace(census_finest_warps=1, census_finest_iterations=28)
+    assert cfg.finest_warps == 2 and level_schedule(cfg, True) == (1, 28)
+    assert level_schedule(cfg, False) == (cfg.warps, cfg.iterations)
+    assert level_schedule(cfg.replace(photometric="normalise"), True) == (2, cfg.finest_iterations)
+    assert level_schedule(cfg.replace(census_finest_warps=0), True) == (2, 28)  # unset: finest_warps
+    assert level_schedule(cfg.replace(finest_warps=0, census_finest_warps=0), True) == (cfg.warps, 28)
+    stream = stream_schedule(cfg.replace(stream_finest_warps=3))
+    assert level_schedule(stream, True)[0] == 3
+    tex = texture(64, 80, seed=5).image
+    moved = np.roll(tex, (1, 2), axis=(0, 1))
+    run = cfg.replace(threads=1)
+    np.testing.assert_array_equal(FlowEstimator(run).estimate(tex, moved).flow,
+                                  FlowEstimator(run.replace(census_finest_warps=0, finest_warps=1))
+                                  .estimate(tex, moved).flow)
+    assert np.abs(FlowEstimator(run).estimate(tex, moved).flow
+                  - FlowEstimator(run.replace(census_finest_warps=0)).estimate(tex, moved).flow).max() > 1e-4
+    grey = run.replace(photometric="normalise")
+    np.testing.assert_array_equal(FlowEstimator(grey).estimate(tex, moved).flow,
+                                  FlowEstimator(grey.replace(census_finest_warps=0)).estimate(tex, moved).flow)
+
+
 def test_median_contrast_is_the_median_neighbour_rms_of_the_richest_channel() -> None:
     """census.median_contrast: the median of s(x) over interior pixels (strided to ~CONTRAST_SAMPLES on large levels),
     the larger over channels; 0 on a flat level."""

@@ -120,7 +120,7 @@ def test_status_values_and_window_reset() -> None:
 
 
 def test_an_unreliable_flow_warns_and_is_counted() -> None:
-    """A flow that leaves most pixels unexplained (photometric.reliability) is a WARN, not OK."""
+    """A flow that leaves most pixels unexplained (census.reliability) is a WARN, not OK."""
     from flow_node.core.photometric import UNRELIABLE
 
     s = NodeStats()

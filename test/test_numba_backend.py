@@ -32,15 +32,15 @@ from flow_node.core.fusion import fuse, level_planes
 from flow_node.core.initialise import equalised, forward_backward_consistent
 from flow_node.core.metrics import aee
 from flow_node.core.models import MODEL_SPECS
-from flow_node.core.numba_backend import WARPER, image_gradient_numba, linearise_numba, reliability_numba, solve_numba
+from flow_node.core.numba_backend import WARPER, image_gradient_numba, linearise_numba, solve_numba
 from flow_node.core.numba_census import census_form_numba, level_signature_numba, median_contrast_numba
-from flow_node.core.numba_census import reliability_numba as census_reliability_numba
 from flow_node.core.numba_confidence import confidence_at_numba, confidence_numba
 from flow_node.core.numba_fusion import consistent_numba, fuse_numba, planes_numba
+from flow_node.core.numba_judge import reliability_numba as census_reliability_numba
 from flow_node.core.numba_sort import ranks_numba, sorted_sample_numba
 from flow_node.core.numba_temporal import push_pull_numba, splat_numba
 from flow_node.core.operators import image_gradient, linearise
-from flow_node.core.photometric import reliability, sorted_sample
+from flow_node.core.photometric import sorted_sample
 from flow_node.core.solver import CHECK_EVERY, PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.warping import NUMPY_WARPER
 
@@ -318,15 +318,15 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
         logger.setLevel(old)
 
 
-NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, reliability, fuse, forward_backward_consistent,
+NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, census_reliability, fuse, forward_backward_consistent,
                 level_signature, census_form, confidence, 1, NUMPY.on_threads, splat_forward,
-                confidence_at, sorted_sample, image_gradient, push_pull, census_reliability, level_planes, equalised,
+                confidence_at, sorted_sample, image_gradient, push_pull, level_planes, equalised,
                 median_contrast)
-NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, reliability_numba, fuse_numba, consistent_numba,
+NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, census_reliability_numba, fuse_numba, consistent_numba,
                 level_signature_numba, census_form_numba, confidence_numba,
                 numba.config.NUMBA_NUM_THREADS, numba_backend.thread_count, splat_numba,
                 confidence_at_numba, sorted_sample_numba, image_gradient_numba, push_pull_numba,
-                census_reliability_numba, planes_numba, ranks_numba, median_contrast_numba)
+                planes_numba, ranks_numba, median_contrast_numba)
 
 
 def test_backend_selection_and_log() -> None:

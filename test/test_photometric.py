@@ -9,14 +9,14 @@ from synth import constant_flow, interior, pair_from_flow, rotation_flow, textur
 
 from flow_node import FlowConfig, FlowEstimator, aee
 from flow_node.core.backends import select_backend
-from flow_node.core.numba_backend import reliability_numba
+from flow_node.core.census import reliability
+from flow_node.core.numba_judge import reliability_numba
 from flow_node.core.numba_sort import sorted_sample_numba
 from flow_node.core.photometric import (
     UNRELIABLE,
     exposure_change,
     line_fit,
     preprocess,
-    reliability,
     reliability_stride,
     sorted_sample,
 )
@@ -73,7 +73,10 @@ def test_exposure_change_is_not_motion(pair, mode: str, gain: float, offset: flo
     est.config = CFG.replace(photometric="none")
     garbage = est.estimate(quantised(i0, 8), changed)
     assert aee(interior(garbage.flow), interior(GT)) > 5 * same
-    assert garbage.unexplained > max(0.3, 5 * result.unexplained)  # 0.34-0.5 here: the garbage stands out
+    # the garbage stands out: 1.4-1.9 px off, 0.25-0.32 unexplained by census signatures (the judge of every data
+    # term; the grey-value judge read 0.52-0.72 here: on a smooth texture a shift changes a 3 x 3 signature less
+    # than the grey values, the price of a judge no tone curve fools, docs/engine.md "The judge")
+    assert garbage.unexplained > max(0.2, 20 * result.unexplained)
 
 
 def test_unchanged_pairs_are_not_exposure_corrected(pair) -> None:
@@ -132,19 +135,6 @@ def test_numba_sorted_sample_is_numpys(pair) -> None:
     assert select_backend("numba").sample(pair[0]).tolist() == sorted_sample(pair[0]).tolist()
 
 
-def test_numba_reliability_matches_the_numpy_reference(pair) -> None:
-    """The fused count (numba_warp.unexplained_kernel) against photometric.reliability: flows that leave
-    the frame in parts, odd sizes (the stride's last row/column), a residual spread around the threshold."""
-    p0, p1 = preprocess(*pair, "normalise")
-    rng = np.random.default_rng(9)
-    for scale in (0.5, 3.0, 12.0):
-        flow = (GT + scale * rng.standard_normal(GT.shape)).astype(np.float32)
-        for crop in (np.s_[:, :], np.s_[1:, :-1]):
-            ref = reliability(p0[crop], p1[crop], flow[crop])
-            assert 0.0 < ref < 1.0
-            assert reliability_numba(p0[crop], p1[crop], flow[crop]) == pytest.approx(ref, abs=2e-3)
-
-
 def test_reliability_on_a_large_frame_samples_coarser_but_reads_the_same() -> None:
     """A VGA frame is sampled at a coarser stride than 2 (reliability_stride), and the unexplained fraction
     stays what stride 2 gives, for flows from good to garbage (the node's WARN threshold sits in between)."""
@@ -155,13 +145,13 @@ def test_reliability_on_a_large_frame_samples_coarser_but_reads_the_same() -> No
     rng = np.random.default_rng(3)
     for noise in (0.0, 0.4, 1.0, 3.0):
         flow = (flow0 + noise * rng.standard_normal(flow0.shape)).astype(np.float32)
-        fine = reliability(p0, p1, flow, samples=h * w)  # stride 2 everywhere
+        fine = reliability(p0, p1, flow, samples=h * w)  # the grid at stride 2 everywhere
         fine_numba = reliability_numba(p0, p1, flow, samples=h * w)
         coarse, coarse_numba = reliability(p0, p1, flow), reliability_numba(p0, p1, flow)
         assert abs(coarse - fine) < 0.01 and abs(coarse_numba - fine_numba) < 0.01, (noise, fine, coarse)
         # fewer samples (a stream's result check, FlowConfig.stream_check_samples): a coarser stride, the
         # numba count equal to the reference's on the same grid
-        sparse = reliability(p0, p1, flow, samples=5000)
+        sparse = reliability(p0, p1, flow, samples=5000)  # ~1,250 signatures (every second point each way)
         assert sparse == pytest.approx(reliability_numba(p0, p1, flow, samples=5000), abs=2e-3)
-        assert abs(sparse - fine) < 0.02, (noise, fine, sparse)
+        assert abs(sparse - fine) < 0.03, (noise, fine, sparse)  # binomial sd at 0.7 and 1,250: 0.013
     assert reliability_stride(h, w, 5000) == 8 and reliability_stride(h, w, h * w) == 2

@@ -2,7 +2,8 @@
 
 A method has two steps: ``prepare(sample)`` (untimed: what the caller hands it, e.g. the 8-bit grey image
 an OpenCV peer requires) and ``run(prepared)`` (timed), which returns the flow (H, W, 2) float32, or a
-pair (flow, confidence) with a per-pixel confidence (H, W) in [0, 1] (higher = more trustworthy).
+pair (flow, confidence) with a per-pixel confidence (H, W) in [0, 1] (higher = more trustworthy), or a triple
+(flow, confidence, unexplained) with the method's own unexplained fraction (flow_node's FlowResult.unexplained).
 
 What each method is given:
 - flow_node gets the sample's frames exactly as delivered (uint8 / uint16 / float32, grey or RGB): its own
@@ -26,7 +27,7 @@ from flow_node.core.presets import GENERAL_PRESETS
 
 from .data import Sample
 
-Output = Any  # np.ndarray flow, or (flow, confidence | None)
+Output = Any  # np.ndarray flow, or (flow, confidence | None), or (flow, confidence | None, unexplained)
 
 PRESET_NAMES = GENERAL_PRESETS  # quality, balanced, realtime, fastest (joint and stream_*: --method)
 DEFAULT_NAME = "default"  # the plain FlowConfig()
@@ -51,9 +52,10 @@ def unit_grey(frame: np.ndarray, bits: int) -> np.ndarray:
 
 
 class FlowNode:
-    """flow_node with one config; JIT warm-up at construction. Returns (flow, confidence or None): a
-    FlowResult with a ``confidence`` attribute (H, W) is reported as such. ``use_mask``: given the sample's
-    validity masks (``Sample.valid``, the regime ``missing``), else not told which pixels are garbage."""
+    """flow_node with one config; JIT warm-up at construction. Returns (flow, confidence or None, unexplained):
+    a FlowResult with a ``confidence`` attribute (H, W) is reported as such, and its unexplained fraction.
+    ``use_mask``: given the sample's validity masks (``Sample.valid``, the regime ``missing``), else not told which
+    pixels are garbage."""
 
     def __init__(self, config: FlowConfig, use_mask: bool = False) -> None:
         self.config = config
@@ -66,7 +68,7 @@ class FlowNode:
 
     def run(self, prepared: tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray] | None]) -> Output:
         res = self.estimator.estimate(prepared[0], prepared[1], mask=prepared[2])
-        return res.flow, getattr(res, "confidence", None)
+        return res.flow, getattr(res, "confidence", None), res.unexplained
 
 
 class OpenCVPeer:

@@ -55,13 +55,16 @@ def missing_data(gt: np.ndarray, valid: tuple[np.ndarray, np.ndarray]) -> np.nda
 
 def score_pair(out: Any, gt: np.ndarray, occluded: np.ndarray | None = None,
                valid: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, float]:
-    """AEE (px), AE (deg), AUSE if ``out`` = (flow, confidence) has a confidence, and with ``occluded``
+    """AEE (px), AE (deg), AUSE if ``out`` = (flow, confidence) has a confidence, ``unexplained`` if ``out`` =
+    (flow, confidence, unexplained) has the method's unexplained fraction, and with ``occluded``
     ((H, W) bool) ``aee_noc``, the AEE over the known pixels that are not occluded; with the frames'
     validity masks ``valid`` the AEE over the pixels with missing data (:func:`missing_data`),
     ``aee_masked``, and over the rest, ``aee_elsewhere``."""
-    flow, conf = (out if isinstance(out, tuple) else (out, None))
+    flow, conf, unexplained = (*out, None)[:3] if isinstance(out, tuple) else (out, None, None)
     flow = np.asarray(flow, np.float32)
     res = {"aee": aee(flow, gt), "ae": angular_error(flow, gt)}
+    if unexplained is not None:
+        res["unexplained"] = float(unexplained)
     if occluded is not None:
         res["aee_noc"] = aee(flow, np.where(occluded[..., None], np.inf, gt))
     if valid is not None:

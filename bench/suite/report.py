@@ -9,11 +9,17 @@ from typing import Any
 
 import numpy as np
 
+from flow_node.core.photometric import UNRELIABLE
+
 from ..common import md_table
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, PEER_NAMES
 from .photometric import UNCHANGED, UNCHANGED_RGB
 
 COLOUR = ("white_balance", UNCHANGED_RGB)  # against the unchanged RGB pairs
+# issue 25's reading of the unexplained fraction (photometric.UNRELIABLE, the node's WARN level): a family's pair
+# is handled when its AEE is within HANDLED x the same pair's unchanged AEE (the invariance target), wrong when it
+# is at least WRONG x that and WRONG_PX px more; a handled pair should read below the level, a wrong one above it
+HANDLED, WRONG, WRONG_PX = 1.3, 2.0, 0.5
 
 
 def _num(v: float | None, fmt: str) -> str:
@@ -50,6 +56,11 @@ def regime_table(name: str, r: dict[str, Any]) -> str:
     if any("/" in p["variant"] for p in r["pairs"]):  # photometric families: 'family/variant'
         out += ["", "Per family: mean AEE and its ratio to the same method's unchanged pairs (white balance: the "
                 "unchanged RGB pairs)", "", family_table(r)]
+        signal = signal_table(r)
+        if signal:
+            out += ["", f"The unexplained fraction as a signal (level {UNRELIABLE}): a pair is *handled* within "
+                    f"{HANDLED}x its unchanged pair's AEE, *wrong* at {WRONG}x and {WRONG_PX} px more; counts of "
+                    "pairs, and how many of them read on the wrong side of the level", "", signal]
     return "\n".join(out)
 
 
@@ -68,6 +79,50 @@ def family_table(r: dict[str, Any]) -> str:
         base = means.get(UNCHANGED_RGB if family in COLOUR else UNCHANGED, means[UNCHANGED])
         rows.append([family, *(f"{mean[n]:.3f} ({mean[n] / base[n]:.2f}x)" for n in methods)])
     return "\n".join(md_table(["family", *methods], rows, right=True))
+
+
+def _unchanged_of(r: dict[str, Any]) -> dict[str, str]:
+    """Each pair of a photometric regime -> the name of its unchanged pair (white balance: the unchanged RGB
+    one); the regimes list a frame pair's unchanged samples before its variants (photometric_samples)."""
+    base: dict[str, str] = {}
+    out = {}
+    for p in r["pairs"]:
+        v = p["variant"]
+        if v in (UNCHANGED, UNCHANGED_RGB):
+            base[v] = p["name"]
+        out[p["name"]] = base[UNCHANGED_RGB if v.split("/")[0] in COLOUR else UNCHANGED]
+    return out
+
+
+def signal_table(r: dict[str, Any]) -> str:
+    """Markdown table of how well each flow_node method's unexplained fraction (FlowResult.unexplained, per pair)
+    tells a wrong flow from a right one on a photometric regime: per method the unchanged pairs and the families'
+    pairs handled or wrong (module constants), each 'n (k)', k the pairs on the wrong side of UNRELIABLE (an
+    unchanged or handled pair at or above it, a wrong pair below it), and the range of the fraction. Empty when
+    no method recorded the fraction."""
+    base = _unchanged_of(r)
+    rows = []
+    for n, m in r["methods"].items():
+        pp = m["per_pair"]
+        if n in PEER_NAMES or not all("unexplained" in q for q in pp.values()):
+            continue
+        groups: dict[str, list[float]] = {"unchanged": [], "handled": [], "wrong": []}
+        for name, q in pp.items():
+            ref = pp[base[name]]["aee"]
+            if name == base[name]:
+                groups["unchanged"].append(q["unexplained"])
+            elif q["aee"] <= HANDLED * ref:
+                groups["handled"].append(q["unexplained"])
+            elif q["aee"] >= WRONG * ref and q["aee"] >= ref + WRONG_PX:
+                groups["wrong"].append(q["unexplained"])
+        cells = []
+        for g, vals in groups.items():
+            off = sum((u < UNRELIABLE) if g == "wrong" else (u >= UNRELIABLE) for u in vals)
+            span = f", {min(vals):.2f}-{max(vals):.2f}" if vals else ""
+            cells.append(f"{len(vals)} ({off}{span})")
+        rows.append([n, *cells, str(len(pp) - sum(len(v) for v in groups.values()))])
+    return "\n".join(md_table(["method", "unchanged (above level, range)", "handled (above level, range)",
+                                "wrong (below level, range)", "in between"], rows, right=True)) if rows else ""
 
 
 def summary_table(res: dict[str, Any]) -> str:

@@ -99,8 +99,8 @@ def ensure_finite(flow: np.ndarray) -> np.ndarray:
 class FlowResult:
     """Flow (H, W, 2) float32 px/frame plus what the solve did.
 
-    ``unexplained``: the fraction of (sampled) pixels whose photometric residual after the solve is large
-    (photometric.reliability): ~0.0-0.1 for a flow that matches the frames, near 1 for garbage.
+    ``unexplained``: the fraction of (sampled) pixels whose census signature the flow does not explain
+    (census.reliability, whatever the data term): ~0.0-0.2 for a flow that matches the frames, near 1 for garbage.
     ``frames``: the normalised pair that figure judges (photometric.stage), which the confidence
     (confidence.confidence) is computed on when asked for."""
 

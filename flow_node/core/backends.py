@@ -12,15 +12,14 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .census import CensusForm, LevelSignature, census_form, level_signature, median_contrast
-from .census import reliability as census_reliability
+from .census import CensusForm, LevelSignature, census_form, level_signature, median_contrast, reliability
 from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .densify import push_pull, splat_forward
 from .errors import ConfigError
 from .fusion import Fuse, LevelPlanes, fuse, level_planes
 from .initialise import Consistent, equalised, forward_backward_consistent
 from .operators import ImageGradient, Linearise, image_gradient, linearise
-from .photometric import Reliability, reliability, sorted_sample
+from .photometric import Reliability, sorted_sample
 from .solver import LevelSolver, solve_numpy
 from .warping import NUMPY_WARPER, Warper
 
@@ -34,16 +33,15 @@ def _single_threaded(threads: int) -> AbstractContextManager[object]:
 
 class Backend(NamedTuple):
     """A resolved backend: its name, the level solver, the warper, the linearisation of one warp, the
-    reliability figure, the fusion and its forward-backward check, the census data term's level
-    signature and per-warp form (grey or colour channels alike), the per-pixel confidence of
-    a flow, the stream stage's forward splat (temporal.predict), the photometric stage's sorted sample of a
-    frame (photometric.sorted_sample; the same array in every backend), the data term's image gradient
-    (operators.image_gradient), the stream stage's hole fill (densify.push_pull), the census data term's
-    reliability figure (census.reliability), the fusion's cost planes of a level's frame (fusion.level_planes)
-    the census initialisation's mid-ranks of a frame (initialise.equalised) and a census level's contrast
-    (census.median_contrast) (same semantics in every backend;
-    the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels run on and the
-    context that binds them (:meth:`running`).
+    reliability figure (census.reliability, whatever the data term), the fusion and its forward-backward check,
+    the census data term's level signature and per-warp form (grey or colour channels alike), the per-pixel
+    confidence of a flow, the stream stage's forward splat (temporal.predict), the photometric stage's sorted
+    sample of a frame (photometric.sorted_sample; the same array in every backend), the data term's image
+    gradient (operators.image_gradient), the stream stage's hole fill (densify.push_pull), the fusion's cost
+    planes of a level's frame (fusion.level_planes), the census initialisation's mid-ranks of a frame
+    (initialise.equalised) and a census level's contrast (census.median_contrast) (same semantics in every
+    backend; the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels
+    run on and the context that binds them (:meth:`running`).
     """
 
     name: str
@@ -63,7 +61,6 @@ class Backend(NamedTuple):
     sample: Callable[[np.ndarray], np.ndarray] = sorted_sample  # the photometric stage's sorted sample of a frame
     gradient: ImageGradient = image_gradient  # the data term's image gradient (operators.image_gradient)
     fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull  # the stream stage's hole fill (densify.push_pull)
-    census_reliability: Reliability = census_reliability  # the reliability figure of the census data term
     cost_planes: LevelPlanes = level_planes  # what the fusion compares of a level's frame (fusion.level_planes)
     ranks: Callable[[np.ndarray], np.ndarray] = equalised  # a frame's mid-ranks for census's sources (equalised)
     contrast: Callable[[np.ndarray], float] = median_contrast  # a census level's contrast (census.median_contrast)
@@ -174,7 +171,7 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
         log.info("flow_node backend: numpy (reference, requested)")
         return NUMPY
     try:
-        from . import numba_backend, numba_fusion
+        from . import numba_backend, numba_fusion, numba_judge
     except ImportError as exc:
         if name == "numba":
             raise ConfigError(f"backend 'numba' requested but numba is not importable: {exc}") from exc
@@ -187,13 +184,12 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
     if parallel_min_pixels > 0:
         solve, linearise_ = (partial(f, min_pixels=parallel_min_pixels) for f in (solve, linearise_))
     return Backend("numba", solve, numba_backend.WARPER, linearise_,
-                   numba_backend.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
+                   numba_judge.reliability_numba, numba_fusion.fuse_numba, numba_fusion.consistent_numba,
                    Deferred(_numba_census, "level_signature_numba"), Deferred(_numba_census, "census_form_numba"),
                    Deferred(_numba_confidence, "confidence_numba"), used,
                    numba_backend.thread_count, splat=Deferred(_numba_temporal, "splat_numba"),
                    confidence_at=Deferred(_numba_confidence, "confidence_at_numba"),
                    sample=Deferred(_numba_sort, "sorted_sample_numba"), gradient=numba_backend.image_gradient_numba,
                    fill=Deferred(_numba_temporal, "push_pull_numba"),
-                   census_reliability=Deferred(_numba_census, "reliability_numba"),
                    cost_planes=numba_fusion.planes_numba, ranks=Deferred(_numba_sort, "ranks_numba"),
                    contrast=Deferred(_numba_census, "median_contrast_numba"))

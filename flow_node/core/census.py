@@ -197,7 +197,7 @@ CensusForm = Callable[[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, np
                       np.ndarray]
 
 
-# reliability samples every SAMPLE_SPACING-th pixel of photometric.reliability's grid (~5,000 at any size
+# reliability samples every SAMPLE_SPACING-th point of photometric.reliability_stride's grid (~5,000 at any size
 # above ~250x250: nine interpolated samples each, and the fraction's binomial noise is still below 1 %)
 SAMPLE_SPACING = 2
 OUTLIER = 0.5  # mean |signature residual| / gain above which a pixel is unexplained (see reliability)
@@ -205,14 +205,14 @@ OUTLIER = 0.5  # mean |signature residual| / gain above which a pixel is unexpla
 
 def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients,
                 params: CensusParams = CENSUS, *, samples: int | None = None) -> float:
-    """photometric.reliability for the census data term: the fraction of sampled pixels (SAMPLE_SPACING times
+    """The judge of every data term's flow (engine.Judged): the fraction of sampled pixels (SAMPLE_SPACING times
     its stride) whose signature is not explained by the flow, i.e. whose mean |F(I1)(x + flow) - F(I0)(x)| over the K
     channels exceeds OUTLIER (in units of the gain). F(I1) at x + flow is the signature of I1 sampled (Keys)
-    at x + flow and its 8 neighbours; F(I0) is taken on the sampled pixels only. Invariant to what the data
-    term is invariant to, so a tone change the flow handles does not read as unexplained. i0, i1 (H, W) as
-    the solver saw them; flow (H, W, 2) px."""
+    at x + flow and its 8 neighbours; F(I0) is taken on the sampled pixels only. Invariant to what census is
+    invariant to, so a tone change does not read as unexplained, whatever the data term (docs/engine.md, "The
+    judge"). i0, i1 (H, W) as the photometric stage judges them; flow (H, W, 2) px."""
     h, w = i0.shape
-    s = SAMPLE_SPACING * reliability_stride(h, w, samples)  # photometric.reliability's grid for ``samples``
+    s = SAMPLE_SPACING * reliability_stride(h, w, samples)  # the reliability grid for ``samples``
     ys, xs = np.arange(0, h, s), np.arange(0, w, s)
     map_x = xs.astype(np.float32)[None, :] + flow[::s, ::s, 0]
     map_y = ys.astype(np.float32)[:, None] + flow[::s, ::s, 1]

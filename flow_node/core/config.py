@@ -109,6 +109,12 @@ class FlowConfig:
     census_finest_iterations: int = _f(0, "photometric census: primal-dual iterations per warp on the finest solved "
                                        "level (0 = finest_iterations, else census_iterations or iterations; no preset "
                                        "sets it: issue 25's time round, docs/engine.md)", lo=0, hi=100000)
+    census_finest_warps: int = _f(0, "photometric census: warps on the finest solved level (0 = finest_warps, else "
+                                  "warps). Each costs the census kernel once at that level's size: realtime census "
+                                  "with 1 x 28 there takes ~1.14x its grey-value time (2 x 16: ~1.36x) but loses on "
+                                  "faint textures; no preset sets it (issue 25, task cschedule, docs/engine.md "
+                                  "'Presets')",
+                                  lo=0, hi=100)
     census_alpha: float = _f(0.0, "photometric census: the regularisation weight alpha with the census data term "
                              "(0 = alpha); realtime sets 0.08 beside census_delta 0.07, quality 0.10 beside 0.05, "
                              "fastest 0.2 beside 0.05: the smaller quadratic zone makes the term pull harder (issue "

@@ -58,8 +58,9 @@ from .validity import fill_invalid
 @dataclass(frozen=True)
 class Judged:
     """What the photometric stage hands back besides the solver's pair: the pair a flow is judged on
-    (``frames``, (H, W) float32 each) and the reliability figure that matches the stage's data term
-    (``judge``: census signatures for ``census``, grey values otherwise); ``samples``: the input frames'
+    (``frames``, (H, W) float32 each) and the reliability figure (``judge``: the backend's census.reliability,
+    census signatures whatever the data term, so a flow is judged by what no tone change alters: a grey-value
+    flow bent by a tone curve reads as unexplained, a right one does not); ``samples``: the input frames'
     sorted samples the stage took its ranges from (photometric.frame_samples; a stream hands frame 1's to its
     next pair, temporal.Prior); ``key``: the pair's :func:`map_key` (its normalising map and noise gain; None
     outside ``normalise`` mode), computed once here for the stream stage's reuse (temporal.Seen); ``noise``: with
@@ -74,7 +75,7 @@ class Judged:
 
     def unexplained(self, flow: np.ndarray, samples: int | None = None) -> float:
         """The fraction of sampled pixels (about ``samples``) ``flow`` (H, W, 2) px does not explain
-        (photometric.reliability)."""
+        (census.reliability)."""
         return self.judge(*self.frames, flow, samples=samples)
 
 
@@ -83,9 +84,8 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
                       colour: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
                       ) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
     """The photometric stage (photometric.stage with the pyramid's noise gain) and its own judge: what the
-    solver sees of the pair (H, W) float32, and the :class:`Judged` pair. A census data term is judged on
-    signatures, a grey-value one on grey values (the backend's census.reliability or photometric.reliability),
-    so the caller never branches on the mode. ``sample0``: frame 0's sorted sample when
+    solver sees of the pair (H, W) float32, and the :class:`Judged` pair (every data term judged on census
+    signatures, the backend's census.reliability). ``sample0``: frame 0's sorted sample when
     known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1); ``known0``: frame 0
     normalised by a previous pair, with that pair's :func:`map_key`, taken when this pair's key is the same
     (the normalised frame is then the same bit for bit: temporal.Seen). ``colour``: both frames' channels as
@@ -98,7 +98,7 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     n0 = known0[1] if known0 is not None and key is not None and key == known0[0] else None
     gain = noise_gain(i0.shape, cfg)
     solver_pair, frames = stage(i0, i1, cfg.photometric, gain, samples, pmap, n0)
-    judge = backend.census_reliability if signatures else backend.reliability
+    judge = backend.reliability
     noise = None
     if signatures and cfg.census_noise_k > 0:
         noise = pair_noise((i0, i1), samples, gain, solver_pair) if colour is None else channel_noise(*colour, gain)

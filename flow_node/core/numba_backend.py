@@ -30,7 +30,6 @@ from . import numba_kernels as nk
 from . import numba_warp as nw
 from .models import mass_steps
 from .operators import image_gradient
-from .photometric import RESIDUAL_OUTLIER, reliability_stride
 from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams, shift_slow_modes
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 from .workspace import scratch, scratch_parts
@@ -252,14 +251,6 @@ def image_gradient_numba(img: np.ndarray, scheme: str, out: np.ndarray | None = 
         raise ValueError("image_gradient: out overlaps the image")
     nw.gradient_kernel(img, scheme != "forward", out)
     return out
-
-
-def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, *, samples: int | None = None) -> float:
-    """photometric.reliability with one fused kernel (same sampling, threshold and stride)."""
-    h, w = i0.shape
-    inside, bad = nw.unexplained_kernel(_f32c(i0), _f32c(i1).reshape((1, h, w)), _f32c(flow),
-                                        reliability_stride(h, w, samples), _F32(RESIDUAL_OUTLIER))
-    return bad / inside if inside else 1.0
 
 
 WARPER = Warper(sample_numba, bspline_prefilter_numba)

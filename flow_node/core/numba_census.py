@@ -7,7 +7,7 @@ neighbour differences, :func:`level_signature_numba`), and on request the signat
 :func:`census_kernel` one warp's quadratic form in one pass over the level (census.census_form): frame 1's channels
 sampled at x + v0 (a value-only warp, numba_warp.sample_row), both frames' signatures and the form, row by row, the
 warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings (cache-resident) instead of
-level-sized arrays; :func:`unexplained_kernel` the counts behind census.reliability. Grey and colour input are the
+level-sized arrays (the judge's kernel, census.reliability, is numba_judge's). Grey and colour input are the
 same kernel (C = 1 or 3 channels of K signatures each), and so are the neighbours at distance 1 and 2
 (CensusParams.radius: the warped rows' ring holds 2 radius + 1 rows; the reliability figure compares the 3 x 3
 signature either way). Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same
@@ -25,11 +25,10 @@ import numba
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams, contrast_stride
+from .census import OFFSETS, CensusParams, contrast_stride
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_kernels import FASTMATH
-from .numba_warp import cubic_weights4, sample_row, tap_indices, tap_sum
-from .photometric import reliability_stride
+from .numba_warp import sample_row
 from .warping import KERNEL_CODES
 from .workspace import scratch
 
@@ -402,58 +401,3 @@ def median_contrast_numba(frames: np.ndarray) -> float:
     st = contrast_stride(h, w)
     return float(contrast_kernel(np.ascontiguousarray(frames, dtype=_F32), _DY, _DX, st, len(range(1, h - 1, st)),
                                  len(range(1, w - 1, st))))
-
-
-@njit(**_JIT)
-def _normalised_residual(d1, d0, eps):  # noqa: ANN001, ANN201
-    """mean_k |d1_k / (RMS(d1) + eps) - d0_k / (RMS(d0) + eps)| of two pixels' K neighbour differences (K)."""
-    k_n = d1.shape[0]
-    s1, s0 = _F32(0.0), _F32(0.0)
-    for k in range(k_n):
-        s1 += d1[k] * d1[k]
-        s0 += d0[k] * d0[k]
-    n1 = _F32(1.0) / (math.sqrt(s1 / k_n) + eps)
-    n0 = _F32(1.0) / (math.sqrt(s0 / k_n) + eps)
-    total = _F32(0.0)
-    for k in range(k_n):
-        total += abs(d1[k] * n1 - d0[k] * n0)
-    return total / k_n
-
-
-@njit(**_JIT)
-def unexplained_kernel(i0, i1, flow, stride, dy, dx, eps, outlier):  # noqa: ANN001, ANN201
-    """census.reliability's counts: over every ``stride``-th pixel of i0 (H, W) whose x + flow (flow (H, W, 2))
-    lies at least one pixel inside, how many there are and how many have a mean signature residual above
-    ``outlier`` -> (inside, unexplained). I1 (1, H, W) is sampled (Keys) at x + flow and its K neighbours
-    (dy, dx): one position's fraction, so one set of tap weights for all of them."""
-    h, w = i0.shape
-    k_n = dy.shape[0]
-    d1, d0 = np.empty(k_n, np.float32), np.empty(k_n, np.float32)
-    inside, bad = 0, 0
-    for i in range(0, h, stride):
-        for j in range(0, w, stride):
-            mx, my = np.float32(j) + flow[i, j, 0], np.float32(i) + flow[i, j, 1]
-            if not (mx >= 1 and mx <= w - 2 and my >= 1 and my <= h - 2):  # (NaN: not inside either)
-                continue
-            xi, yi = np.int64(mx), np.int64(my)  # mx, my >= 1: truncation is the floor
-            wx = cubic_weights4(mx - np.float32(xi), 0)
-            wy = cubic_weights4(my - np.float32(yi), 0)
-            centre = tap_sum(i1, 0, wx, wy, tap_indices(xi, w), tap_indices(yi, h))
-            for k in range(k_n):
-                d1[k] = tap_sum(i1, 0, wx, wy, tap_indices(xi + dx[k], w), tap_indices(yi + dy[k], h)) - centre
-                d0[k] = i0[min(max(i + dy[k], 0), h - 1), min(max(j + dx[k], 0), w - 1)] - i0[i, j]
-            inside += 1
-            bad += _normalised_residual(d1, d0, eps) > outlier
-    return inside, bad
-
-
-def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, params: CensusParams = CENSUS, *,
-                      samples: int | None = None) -> float:
-    """census.reliability with :func:`unexplained_kernel` (same samples, threshold and stride; the tap weights of
-    a sample's 9 positions from its own fraction, which the reference recomputes from each position)."""
-    h, w = i0.shape
-    stride = SAMPLE_SPACING * reliability_stride(h, w, samples)
-    inside, bad = unexplained_kernel(np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32)[None],
-                                     np.ascontiguousarray(flow, dtype=_F32), stride, _DY, _DX, _F32(params.eps),
-                                     _F32(OUTLIER))
-    return bad / inside if inside else 1.0

@@ -1,6 +1,5 @@
 """numba kernels of the warp: the cubic sample (warping.sample_coefficients), the B-spline prefilter
-(warping.bspline_prefilter), the whole linearisation of one warp (operators.linearise) in one pass, and the
-count behind photometric.reliability.
+(warping.bspline_prefilter) and the whole linearisation of one warp (operators.linearise) in one pass.
 
 Same arithmetic as the numpy references (the oracles, test_warping.py / test_numba_backend.py). A sample
 position's taps and weights are computed once (:func:`taps`) and shared by every channel sampled there
@@ -269,48 +268,3 @@ def bspline_columns(img, pole, horizon):  # noqa: ANN001, ANN201
         for k in range(h - 2, -1, -1):
             for j in range(w):
                 plane[k, j] = z * (plane[k + 1, j] - plane[k, j])
-
-
-@njit(**_JIT)
-def unexplained_kernel(i0, i1, flow, stride, threshold):  # noqa: ANN001, ANN201
-    """photometric.reliability's counts in one pass: over every ``stride``-th pixel of i0 (H, W) whose target
-    x + flow (flow (H, W, 2)) stays inside, how many there are and how many have |I1(x + flow) - I0(x)| >
-    ``threshold`` (I1 (1, H, W) sampled with the Keys kernel, no prefilter). -> (inside, unexplained).
-
-    Row by row in two passes, as :func:`_linearise_row`: the sampled pixels' tap weights and inside flags (no
-    gathers, no branches: vectorised) into row scratch, then the gathers of the pixels inside (the same
-    weights, taps and sums as one pass per pixel gave: with :func:`tap_sum`'s unsigned indices 1.6x faster at
-    320x240, the same counts)."""
-    h, w = i0.shape
-    right, bottom = np.float32(w - 1), np.float32(h - 1)
-    zero = np.float32(0.0)
-    n = (w + stride - 1) // stride
-    weights = np.empty((9, n), np.float32)
-    base = np.empty((2, n), np.int64)
-    inside = 0
-    bad = 0
-    for i in range(0, h, stride):
-        for k in range(n):
-            j = k * stride
-            mx, my = np.float32(j) + flow[i, j, 0], np.float32(i) + flow[i, j, 1]
-            ok = mx >= 0 and mx <= right and my >= 0 and my <= bottom
-            mx = mx if ok else zero  # outside (or NaN): a harmless position, not counted below
-            my = my if ok else zero
-            xi, yi = np.int64(mx), np.int64(my)  # mx, my >= 0: truncation is the floor
-            weights[0, k], weights[1, k], weights[2, k], weights[3, k] = cubic_weights4(mx - np.float32(xi), 0)
-            weights[4, k], weights[5, k], weights[6, k], weights[7, k] = cubic_weights4(my - np.float32(yi), 0)
-            weights[8, k] = _ONE if ok else zero
-            base[0, k], base[1, k] = xi, yi
-        for k in range(n):
-            if weights[8, k] == zero:
-                continue
-            wx = (weights[0, k], weights[1, k], weights[2, k], weights[3, k])
-            wy = (weights[4, k], weights[5, k], weights[6, k], weights[7, k])
-            xi, yi = base[0, k], base[1, k]
-            if xi >= 1 and xi + 2 < w and yi >= 1 and yi + 2 < h:  # interior: one branch for both axes
-                cols, rows = (xi - 1, xi, xi + 1, xi + 2), (yi - 1, yi, yi + 1, yi + 2)
-            else:
-                cols, rows = tap_indices(xi, w), tap_indices(yi, h)
-            inside += 1
-            bad += abs(tap_sum(i1, 0, wx, wy, cols, rows) - i0[i, k * stride]) > threshold
-    return inside, bad

@@ -26,13 +26,12 @@ result explains them.
   (Chambolle's projection, ``ROF_ITERATIONS`` steps, weight ``ROF_THETA``), renormalised. It also removes smooth
   illumination changes (shading, vignetting), at the price of some signal on smooth image regions.
 
-``reliability`` is computed after the solve: the fraction of pixels the flow does not explain, i.e.
-whose residual |I1(x + flow(x)) - I0(x)| on the preprocessed pair exceeds RESIDUAL_OUTLIER (in units of
-the pair's robust range, on the ``normalise`` pair in every mode), sampled on every second pixel. A flow
-that matches the frames leaves only occlusions and noise: 0.005-0.13 on the 8 Middlebury pairs with
-``realtime`` (0.02-0.19 with its earlier half-size setting); garbage leaves most pixels unexplained:
-0.35-0.58 for the flow of a x1.25 exposure-changed pair without this stage, 0.70-0.90 for two unrelated
-frames. The node WARNs above UNRELIABLE (docs/node.md).
+The stage also hands back the pair a flow is judged on (the ``normalise`` pair in every mode but ``census``,
+which judges its own), and the engine judges it by census signatures whatever the data term
+(census.reliability, on :func:`reliability_stride`'s grid): the fraction of pixels the flow does not explain.
+A flow that matches the frames leaves only occlusions and noise: at most 0.15 on the 8 Middlebury pairs with
+``realtime`` and ``fastest``; garbage leaves most pixels unexplained (0.7 and more for a zero flow or two
+unrelated frames). The node WARNs above UNRELIABLE (docs/node.md).
 """
 
 from __future__ import annotations
@@ -44,7 +43,6 @@ import cv2
 import numpy as np
 
 from .operators import div, grad
-from .warping import Sample, sample_coefficients
 
 PHOTOMETRIC = ("census", "normalise", "local_contrast", "structure_texture", "density", "none")
 MASS_PHOTOMETRIC = ("density", "none")  # the modes that keep the continuity equation (constraint "mass")
@@ -63,10 +61,9 @@ LOCAL_GAIN = 0.08  # output scale: the same alpha suits it and a normalised fram
 STRUCTURE_WEIGHT = 0.95
 ROF_THETA = 0.125
 ROF_ITERATIONS = 30
-RESIDUAL_OUTLIER = 0.05
 RELIABILITY_STRIDE = 2  # the finest sampling of reliability(); coarser on large frames (reliability_stride)
 RELIABILITY_SAMPLES = 20_000  # about this many sampled pixels are enough for a fraction (binomial: +-0.35 % at 1 sigma)
-UNRELIABLE = 0.3  # unexplained fraction above which the node WARNs: Middlebury <= 0.19, garbage >= 0.35
+UNRELIABLE = 0.3  # unexplained fraction above which the node WARNs (module doc; docs/engine.md, "The judge")
 
 
 def subsample(img: np.ndarray) -> np.ndarray:
@@ -280,10 +277,10 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
 def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, samples: Samples | None = None,
           pmap: PairMap | None = None, n0: np.ndarray | None = None
           ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
-    """The engine's one call: (what the solver sees, the normalised pair :func:`reliability` judges).
-    The second is the ``normalise`` result in every mode but ``census``, so the reliability figure has one
-    meaning; ``census`` normalises each frame on its own (:func:`normalise_frames`, no exposure detection:
-    its data term needs none; both presmoothed alike) and returns that pair twice, for census.reliability.
+    """The engine's one call: (what the solver sees, the normalised pair census.reliability judges).
+    The second is the ``normalise`` result in every mode but ``census``; ``census`` normalises each frame on its
+    own (:func:`normalise_frames`, no exposure detection: its data term needs none; both presmoothed alike) and
+    returns that pair twice.
     ``noise_gain``: see :func:`normalise_pair`. ``samples``: both frames' :func:`sorted_sample` when known (a
     stream knows its new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise;
     every mode's ranges come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census``
@@ -313,32 +310,14 @@ def solver_images(n0: np.ndarray, n1: np.ndarray, mode: str) -> tuple[np.ndarray
     return n0, n1
 
 
-# reliability(i0, i1, flow[, samples=]) -> unexplained fraction: :func:`reliability` or a backend's fused kernel
-# (``samples``: about how many pixels it samples, :func:`reliability_stride`)
+# reliability(i0, i1, flow[, samples=]) -> unexplained fraction: census.reliability or a backend's kernel
+# (``samples``: about how many pixels its grid has, :func:`reliability_stride`)
 Reliability = Callable[..., float]
 
 
 def reliability_stride(h: int, w: int, samples: int | None = None) -> int:
-    """Sampling stride of :func:`reliability` on an (h, w) frame: RELIABILITY_STRIDE, or coarser so that about
-    ``samples`` pixels are sampled (None: RELIABILITY_SAMPLES, read at the call, the one place every reliability
-    function's default comes from; 640x480 at stride 4, 19,200 pixels). The fraction is a
-    mean over the samples; more of them change it by less than its own noise, and at stride 2 it cost ~7 % of a
-    VGA `fastest` call (a stream's refined prediction is checked on fewer: FlowConfig.stream_check_samples)."""
+    """The reliability figure's grid on an (h, w) frame: RELIABILITY_STRIDE, or coarser so that the grid has
+    about ``samples`` points (None: RELIABILITY_SAMPLES, read at the call, the one place every reliability
+    function's default comes from; 640x480 at stride 4, 19,200 points); census.reliability samples every
+    SAMPLE_SPACING-th of them. A stream's refined prediction is checked on fewer (FlowConfig.stream_check_samples)."""
     return max(RELIABILITY_STRIDE, round(math.sqrt(h * w / (samples or RELIABILITY_SAMPLES))))
-
-
-def reliability(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, sample: Sample = sample_coefficients, *,
-                samples: int | None = None) -> float:
-    """Fraction of pixels the flow does not explain: |I1(x + flow) - I0(x)| > RESIDUAL_OUTLIER on every
-    :func:`reliability_stride`-th pixel (about ``samples`` of them) whose target stays inside the frame (i0, i1
-    preprocessed (H, W); flow (H, W, 2) px). 0 = every sampled pixel explained, 1 = none. Uses the Keys kernel
-    (no prefilter)."""
-    h, w = i0.shape
-    s = reliability_stride(h, w, samples)
-    map_x = np.arange(0, w, s, dtype=np.float32)[None, :] + flow[::s, ::s, 0]
-    map_y = np.arange(0, h, s, dtype=np.float32)[:, None] + flow[::s, ::s, 1]
-    inside = (map_x >= 0) & (map_x <= w - 1) & (map_y >= 0) & (map_y <= h - 1)
-    if not inside.any():
-        return 1.0
-    res = np.abs(sample(i1, map_x, map_y, "keys") - i0[::s, ::s])
-    return float(np.mean(res[inside] > RESIDUAL_OUTLIER))

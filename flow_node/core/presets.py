@@ -81,6 +81,10 @@ from typing import Any
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
 #   real_exact), checked once on the report split. realtime keeps its schedule: its cuts that reach 1.15x lost
 #   accuracy (bench/results/census_cost/census5/summary.md). Grey-value flows are unchanged (census fields only).
+#   Task cschedule re-tried it with the radius-2 ring, a re-tuned census alpha and one finest warp
+#   (census_finest_warps 1 x 28: 1.14x, tune geomean 0.99-1.00) and fastest's cuts (>= 1.22x): every cut at or under
+#   1.21x lost low_contrast 8.7 % or more on the tune split, so both keep their schedules
+#   (bench/results/suite/invariance/cschedule/summary.md).
 CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, census_coarse_eps=0.03,
                                                            census_coarse_width=50))
 PRESETS: dict[str, dict[str, Any]] = {

@@ -76,15 +76,16 @@ def warp_medians(cfg: FlowConfig, inner: int = -1) -> tuple[int, int]:
 def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
     """(warps, primal-dual iterations per warp) of a level: ``cfg.finest_warps`` / ``cfg.finest_iterations``
     on the ``finest`` solved level where set (non-zero), else ``cfg.warps`` / ``cfg.iterations``; with the census
-    data term ``cfg.census_iterations`` / ``cfg.census_finest_iterations`` first where set (docs/engine.md, "The
-    census data term": its time round)."""
-    iterations, finest_iterations = cfg.iterations, cfg.finest_iterations
+    data term ``cfg.census_iterations`` / ``cfg.census_finest_iterations`` / ``cfg.census_finest_warps`` first where
+    set (docs/engine.md, "The census data term": its time round; "Presets": task cschedule)."""
+    iterations, finest_iterations, finest_warps = cfg.iterations, cfg.finest_iterations, cfg.finest_warps
     if compares_signatures(cfg.photometric):
         iterations = cfg.census_iterations or iterations
         finest_iterations = cfg.census_finest_iterations or finest_iterations
+        finest_warps = cfg.census_finest_warps or finest_warps
     if not finest:
         return cfg.warps, iterations
-    return cfg.finest_warps or cfg.warps, finest_iterations or iterations
+    return finest_warps or cfg.warps, finest_iterations or iterations
 
 
 def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:

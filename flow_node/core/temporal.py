@@ -26,8 +26,8 @@ it does not, the caller runs the full single-pair solve (engine.estimate_pair) i
   of frames: the motion no longer continues; shorter gaps scale the prediction by the ratio);
 * the photometric stage found an exposure change between the frames (``normalise`` mode: it then compares
   local contrast, a data term of another scale than the one the carried state was solved on);
-* the prediction's robust data cost on its start level -- the fraction of pixels whose warped residual
-  exceeds photometric.RESIDUAL_OUTLIER -- is above ``cfg.stream_max_predicted`` (a scene cut, a jump);
+* the prediction's robust data cost on its start level -- the fraction of pixels whose census signature it
+  does not explain (census.reliability) -- is above ``cfg.stream_max_predicted`` (a scene cut, a jump);
 * after the refinement, the result explains the pair worse than the previous pair's result by more than
   ``cfg.stream_margin``, or is unreliable (``cfg.stream_max_unexplained``).
 
@@ -123,13 +123,13 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
     of ``cfg.stream_iterations`` iterations -- the finest solved level at ``cfg.stream_finest_warps`` x
     ``cfg.stream_finest_iterations`` where those are set (0: the same as the others) --, the regularisation
     weight ``cfg.stream_alpha`` where set (0: ``cfg.alpha``, or ``cfg.census_alpha`` with the census term; the
-    census term's own iteration counts do not apply here) and the pyramid cut
+    census term's own iteration and warp counts do not apply here) and the pyramid cut
     below the levels it visits (the shapes of the levels kept are the same). Derived, never written back;
     cached per config."""
     levels = min(cfg.levels, cfg.finest_level + max(cfg.stream_levels, 1))
     return cfg.replace(warps=cfg.stream_warps, iterations=cfg.stream_iterations,
                        finest_warps=cfg.stream_finest_warps, finest_iterations=cfg.stream_finest_iterations,
-                       census_iterations=0, census_finest_iterations=0,
+                       census_iterations=0, census_finest_iterations=0, census_finest_warps=0,
                        levels=levels, alpha=cfg.stream_alpha or cfg.alpha,
                        census_alpha=0.0 if cfg.stream_alpha else cfg.census_alpha)
 
@@ -161,8 +161,8 @@ def predicted_cost(judged: Judged, predicted: np.ndarray, frames: tuple[np.ndarr
                    ) -> float:
     """The prediction's robust data cost: the fraction of sampled pixels of the judged pair (``frames``: the
     photometric stage's frames resampled to the prediction's grid by area average, :func:`judged_on`; computed
-    here when None) that the prediction (2, h, w) does not explain, by the stage's own judge (grey-value
-    residuals above photometric.RESIDUAL_OUTLIER, or census signatures with the census data term)."""
+    here when None) that the prediction (2, h, w) does not explain, by the stage's judge (census signatures,
+    census.reliability)."""
     h, w = predicted.shape[1:]
     n0, n1 = judged_on(judged, (h, w)) if frames is None else frames
     return judged.judge(n0, n1, interleaved_flow(predicted, (h, w)))

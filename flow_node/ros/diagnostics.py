@@ -188,7 +188,7 @@ def level_of(w: Window, ready: bool, backend_warning: str | None = None, lifecyc
     or every frame of the period was rejected; WARN while warming up, without input for 3 periods, with
     rejections, when the solver is slower than the input (:func:`too_slow`), drops more than half the frames,
     or when a flow of the period left more than UNRELIABLE of its pixels unexplained
-    (photometric.reliability). ``backend_warning`` (the numpy fallback: numba missing) makes any OK a WARN and
+    (census.reliability). ``backend_warning`` (the numpy fallback: numba missing) makes any OK a WARN and
     is appended to every other reason: it lasts as long as the process."""
     level, reason = lifecycle_level(lifecycle_state, failure) or _level_of(w, ready)
     if not backend_warning:
