@@ -143,8 +143,9 @@ def test_numba_signature_and_form_match_numpy(params: CensusParams, kernel: str)
     i0, i1, coefs, v0 = random_warp(7, kernel=kernel)
     f0, g0 = level_signature(i0, params)
     f0_fast, _ = level_signature_numba(i0, params)
-    np.testing.assert_array_equal(f0_fast[0], i0)  # the level: frame 0, then its factor
-    np.testing.assert_allclose(level_signatures(f0_fast, params.radius), f0, atol=AGREE)
+    diffs = np.stack([census.shifted(i0, dy, dx) - i0 for dy, dx in census.offsets(params.radius)])
+    np.testing.assert_array_equal(f0_fast[1:], diffs)  # the level: the factor, then the neighbour differences
+    np.testing.assert_allclose(level_signatures(f0_fast), f0, atol=AGREE)
     planes = census_planes_numba(i0, params)  # the same kernel's signature planes, interleaved (the fusion's)
     np.testing.assert_allclose(np.moveaxis(planes, -1, 0), f0, rtol=0, atol=AGREE)
     for robust in (False, True):

@@ -23,6 +23,7 @@ from flow_node.core.census import (
     shifted,
 )
 from flow_node.core.config import FlowConfig
+from flow_node.core.numba_census import median_contrast_numba
 from flow_node.core.pyramid import build_pyramid, make_pyramid, pyramid_shapes
 from flow_node.core.refine import census_problem, level_census, level_contrast, level_schedule, warp_medians
 from flow_node.core.temporal import stream_schedule
@@ -235,6 +236,18 @@ def test_median_contrast_is_the_median_neighbour_rms_of_the_richest_channel() ->
                                                    axis=0))[1:-1:stride, 1:-1:stride])) for ch in frames)
         assert median_contrast(frames) == pytest.approx(want, rel=1e-6)
     assert median_contrast(np.full((1, 30, 40), 0.5, np.float32)) == 0.0
+
+
+@pytest.mark.parametrize("shape", [(1, 3, 3), (1, 30, 40), (3, 90, 121), (1, 240, 320), (1, 480, 640)])
+def test_numba_median_contrast_is_the_reference_bit_for_bit(shape: tuple[int, int, int]) -> None:
+    """numba_census.median_contrast_numba computes census.median_contrast's value exactly (the same float32
+    operations in the same order, np.median's middle), so a level's empty-or-not decision is the reference's at
+    any threshold."""
+    rng = np.random.default_rng(sum(shape))
+    frames = (rng.random(shape, dtype=np.float32) * np.float32(0.02)) ** 2  # faint texture: small sums of squares
+    assert median_contrast_numba(frames) == median_contrast(frames)
+    texture_frames = np.stack([texture(shape[1], shape[2], seed=c).image for c in range(shape[0])]).astype(np.float32)
+    assert median_contrast_numba(texture_frames) == median_contrast(texture_frames)
 
 
 def test_level_contrast_decides_as_both_frames_full_contrast() -> None:

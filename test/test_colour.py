@@ -78,7 +78,7 @@ def test_numba_colour_form_matches_numpy(robust: bool, radius: int) -> None:
     np.testing.assert_array_equal(outside_n, outside)
     f0n, g0n = level_signature_numba(i0, params)
     assert g0n is None
-    np.testing.assert_allclose(level_signatures(f0n, radius), f0, atol=AGREE)
+    np.testing.assert_allclose(level_signatures(f0n), f0, atol=AGREE)
     got = census_form_numba(f0n, None, WARPER.coefficients(i1, "bspline"), i1, v0, "bspline", robust, params)
     np.testing.assert_allclose(got, want, atol=AGREE, rtol=AGREE)
     assert np.all(got[:, :4, :5] == 0.0) and np.all(got[2, 4:-4, 6:-4] > 0.0)  # no data term only outside

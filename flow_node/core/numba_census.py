@@ -1,8 +1,9 @@
 """numba kernels of the census data term (census.py, the numpy reference and test oracle).
 
 :func:`factor_kernel` computes the factor GAIN / (RMS + EPS) that turns an image's neighbour differences into
-its soft census signature (frame 0's, once per level: the level's signatures are frame 0 and that one plane,
-:func:`level_signature_numba`), and on request the signature planes (the fusion's cost, :func:`census_planes_numba`);
+its soft census signature (frame 0's, once per level: the level's signatures are that plane and the K
+neighbour differences, :func:`level_signature_numba`), and on request the signature planes (the fusion's cost,
+:func:`census_planes_numba`);
 :func:`census_kernel` one warp's quadratic form in one pass over the level (census.census_form): frame 1's channels
 sampled at x + v0 (a value-only warp, numba_warp.sample_row), both frames' signatures and the form, row by row, the
 warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings (cache-resident) instead of
@@ -24,7 +25,7 @@ import numba
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .census import OFFSETS, CensusParams, offsets, shifted
+from .census import OFFSETS, CensusParams, contrast_stride
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_kernels import FASTMATH
 from .numba_warp import sample_row
@@ -47,18 +48,16 @@ def _offset_arrays(radius: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _make_diff_row(edge: bool):  # noqa: ANN202
-    """dst = neighbour - centre and, unless ``ss`` is None (a compile-time case), ss += dst^2 over one row (1-D
-    views; vectorises); with ``edge`` one neighbour value, neighbour[0], for every pixel (the columns whose
-    neighbour is clamped to the row's end). ``edge`` is a compile-time constant: one source, two kernels
-    (:data:`_diff_row`, :data:`_diff_edge`), each as fast as its loop written out (the factor kernel's time within
-    1-2 %; bench/results/census_cost/onesig/summary.md)."""
+    """dst = neighbour - centre and ss += dst^2 over one row (1-D views; vectorises); with ``edge`` one neighbour
+    value, neighbour[0], for every pixel (the columns whose neighbour is clamped to the row's end). ``edge`` is a
+    compile-time constant: one source, two kernels (:data:`_diff_row`, :data:`_diff_edge`), each as fast as its
+    loop written out (the factor kernel's time within 1-2 %; bench/results/census_cost/onesig/summary.md)."""
 
     def diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN202
         for j in range(dst.shape[0]):
             d = (neighbour[0] if edge else neighbour[j]) - centre[j]  # (neighbour[0 if edge else j]: 15 % slower)
             dst[j] = d
-            if ss is not None:
-                ss[j] += d * d
+            ss[j] += d * d
 
     diff_row.__name__ = diff_row.__qualname__ = "diff_edge" if edge else "diff_row"
     return njit(**_JIT)(diff_row)
@@ -68,56 +67,62 @@ _diff_row, _diff_edge = _make_diff_row(False), _make_diff_row(True)
 
 
 @njit(**_JIT)
-def _neighbour_differences(up, centre, down, dy, dx, out, first, i, ss):  # noqa: ANN001, ANN201
+def _neighbour_differences(up, centre, down, dy, dx, out, i, ss):  # noqa: ANN001, ANN201
     """The K neighbour differences of one image row ``centre`` (W), whose neighbour rows are ``up`` and ``down``
     (rows y - r and y + r for offsets (dy, dx) of distance r, clamped to the image: edge values), into the rows
-    out[first + k, i] (k < K) of out (., ., W), column neighbours clamped to the row; and, unless ``ss`` is None,
-    their sum of squares added to ss (W). Channel by channel over whole rows (1-D views of C-contiguous arrays,
+    out[k, i] (k < K) of out (K, ., W), column neighbours clamped to the row; and their sum of squares added to
+    ss (W). Channel by channel over whole rows (1-D views of C-contiguous arrays,
     so that the loops vectorise)."""
     w = centre.shape[0]
     k_n = dy.shape[0]
     for k in range(k_n):
         src = up if dy[k] < 0 else (down if dy[k] > 0 else centre)
-        dst = out[first + k, i]
+        dst = out[k, i]
         d = dx[k]
         m = min(abs(d), w)  # the columns whose neighbour is clamped to the row's end
         if d == 0:
             _diff_row(src, centre, dst, ss)
         elif d > 0:  # the last d columns' neighbour is the last column
-            _diff_row(src[m:], centre[:w - m], dst[:w - m], None if ss is None else ss[:w - m])
-            _diff_edge(src[w - 1:], centre[w - m:], dst[w - m:], None if ss is None else ss[w - m:])
+            _diff_row(src[m:], centre[:w - m], dst[:w - m], ss[:w - m])
+            _diff_edge(src[w - 1:], centre[w - m:], dst[w - m:], ss[w - m:])
         else:
-            _diff_row(src[:w - m], centre[m:], dst[m:], None if ss is None else ss[m:])
-            _diff_edge(src[:1], centre[:m], dst[:m], None if ss is None else ss[:m])
+            _diff_row(src[:w - m], centre[m:], dst[m:], ss[m:])
+            _diff_edge(src[:1], centre[:m], dst[:m], ss[:m])
 
 
 @njit(**_JIT)
-def _differences(up, centre, down, dy, dx, gain, eps, out, first, i, ss):  # noqa: ANN001, ANN201
+def _differences(up, centre, down, dy, dx, gain, eps, out, i, ss):  # noqa: ANN001, ANN201
     """:func:`_neighbour_differences` and into ss (W) the factor that makes them the signature,
     GAIN / (RMS + EPS) (census.signature)."""
     k_n = dy.shape[0]
     ss[:] = 0.0
-    _neighbour_differences(up, centre, down, dy, dx, out, first, i, ss)
+    _neighbour_differences(up, centre, down, dy, dx, out, i, ss)
     inv_k = _F32(1.0) / _F32(k_n)  # float32 throughout (ss / k_n, an int, promoted the row to float64)
     for j in range(centre.shape[0]):
         ss[j] = gain / (math.sqrt(ss[j] * inv_k) + eps)
 
 
 @njit(parallel=True, **_JIT)
-def factor_kernel(img, dy, dx, rad, gain, eps, out, planes):  # noqa: ANN001, ANN201
+def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, diffs):  # noqa: ANN001, ANN201
     """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`) for the offsets (dy, dx)
-    at distance ``rad``, neighbours clamped to the image (edge values); unless ``planes`` is None (a compile-time
-    case), also the signature -- the differences times the factor, as :func:`census_kernel` forms it; census.signature
-    to float32 rounding -- into planes (H, W, K), interleaved (fusion.census_planes). Rows in parallel."""
+    at distance ``rad``, neighbours clamped to the image (edge values); unless ``diffs`` is None (a compile-time
+    case), the neighbour differences themselves into diffs (K, H, W) (a census level's, :func:`census_kernel`
+    reads them); unless ``planes`` is None (a compile-time case), also the signature -- the differences times
+    the factor, as :func:`census_kernel` forms it; census.signature to float32 rounding -- into planes (H, W, K),
+    interleaved (fusion.census_planes; read only when ``diffs`` is None). Rows in parallel."""
     h, w = img.shape
     k_n = dy.shape[0]
     for i in prange(h):
-        tmp = np.empty((k_n, 1, w), np.float32)
-        _differences(img[max(i - rad, 0)], img[i], img[min(i + rad, h - 1)], dy, dx, gain, eps, tmp, 0, 0, out[i])
-        if planes is not None:
-            for j in range(w):
-                for k in range(k_n):
-                    planes[i, j, k] = tmp[k, 0, j] * out[i, j]
+        up, centre, down = img[max(i - rad, 0)], img[i], img[min(i + rad, h - 1)]
+        if diffs is not None:
+            _differences(up, centre, down, dy, dx, gain, eps, diffs, i, out[i])
+        else:
+            tmp = np.empty((k_n, 1, w), np.float32)
+            _differences(up, centre, down, dy, dx, gain, eps, tmp, 0, out[i])
+            if planes is not None:
+                for j in range(w):
+                    for k in range(k_n):
+                        planes[i, j, k] = tmp[k, 0, j] * out[i, j]
 
 
 @njit(**_JIT)
@@ -206,8 +211,8 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
     hold rows of frame 1 warped and its weight, row r in slot r mod M (M = 2 rad + 1, rad the offsets'
     distance: 3 rows for the 3 x 3 neighbours, 5 for the ring at distance 2); pair (C K, 3, W + 2) and diff
     (C K, 3, W) rows of P = F0 + F1 (border-mirrored: :func:`_pair_row`) and D = F1 - F0 (F1 the warped frame's
-    signatures), row r in slot r mod 3; temp (2 K, 1, W) and ss (W) one channel's neighbour differences in both
-    frames and frame 1's factor (:func:`_differences`). Row r of the rings stands for the image row clamped to
+    signatures), row r in slot r mod 3; temp (K, 1, W) and ss (W) one channel's neighbour differences in the
+    warped frame and its factor (:func:`_differences`). Row r of the rings stands for the image row clamped to
     0 .. H - 1 (so the signature of the first and last rows sees edge values, as census.signature), and output
     row i needs signature rows i - 1 .. i + 1, those warped rows i - 1 - rad .. i + 1 + rad: each block warps
     its rows and 1 + rad on either side, each once. (The rings' rows -1 and H are read for the first and last
@@ -221,27 +226,24 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
         sample_row(coefs, frames, flow, min(max(r, 0), h - 1), kernel, weight, warped, s, keep[s], taps, base)
         rr = r - rad
         if rr >= r0 - 1:  # the signatures of row rr (warped rows rr - rad, rr, rr + rad) into diff, then P and D
-            _pair_rows(f0, min(max(rr, 0), h - 1), rad, warped, (rr - rad + 2 * m) % m, (rr + 2 * m) % m, s,
+            _pair_rows(f0, min(max(rr, 0), h - 1), warped, (rr - rad + 2 * m) % m, (rr + 2 * m) % m, s,
                        (rr + 3) % 3, dy, dx, gain, eps, pair, diff, temp, ss)
         if rr - 1 >= r0:  # output row i: signature rows i - 1, i, i + 1 are in the ring
             _form_rows(out, rr - 1, pair, diff, keep[(rr - 1 + 2 * m) % m], flow, d2, robust)
 
 
 @njit(**_JIT)
-def _pair_rows(f0, rr, rad, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, temp, ss):  # noqa: ANN001, ANN201
+def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, temp, ss):  # noqa: ANN001, ANN201
     """P and D of one row (image row rr) into ring slot sq of pair and diff, from the warped rows in slots sm,
-    s0, sp (rad rows above, at, rad below) and frame 0's level f0 (2 C, H, W): its channels, then their factors
-    (:func:`level_signature_numba`; its differences are taken here, from its rows rr - rad, rr, rr + rad
-    clamped) (:func:`_census_rows`)."""
+    s0, sp (rad rows above, at, rad below) and frame 0's level f0 ((1 + K) C, H, W): its channels' factors and
+    neighbour differences (:func:`level_signature_numba`) (:func:`_census_rows`)."""
     k_n = dy.shape[0]
-    n_c, h = warped.shape[0], f0.shape[1]
+    n_c = warped.shape[0]
     for c in range(n_c):
-        _differences(warped[c, sm], warped[c, s0], warped[c, sp], dy, dx, gain, eps, temp, 0, 0, ss)
-        _neighbour_differences(f0[c, max(rr - rad, 0)], f0[c, rr], f0[c, min(rr + rad, h - 1)], dy, dx, temp, k_n, 0,
-                               None)
+        _differences(warped[c, sm], warped[c, s0], warped[c, sp], dy, dx, gain, eps, temp, 0, ss)
         for k in range(k_n):
             q = c * k_n + k
-            _pair_row(temp[k_n + k, 0], f0[n_c + c, rr], temp[k, 0], ss, pair[q, sq], diff[q, sq])
+            _pair_row(f0[n_c + q, rr], f0[c, rr], temp[k, 0], ss, pair[q, sq], diff[q, sq])
 
 
 @njit(**_JIT)
@@ -269,14 +271,14 @@ def _form_rows(out, i, pair, diff, keep, flow, d2, robust):  # noqa: ANN001, ANN
 @njit(parallel=True, **_JIT)
 def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, weight, out,  # noqa: ANN001, ANN201
                   warped, keep, pair, diff, temp, ss, taps, base, blocks):
-    """census.census_form in one pass: out (5, H, W) from frame 0's level f0 (2 C, H, W) (its channels and their
-    factors, :func:`level_signature_numba`), frame 1's
-    interpolation coefficients ``coefs`` and channels ``frames`` (C, H, W) and the flow v0 (2, H, W); each
-    pixel's weight ``weight`` (1 / C) inside, 0 where x + v0 leaves the image; the signatures' offsets (dy, dx)
-    at distance rad, the warped rings' M = 2 rad + 1 rows. The rows in ``blocks``
-    contiguous blocks, in parallel when more than one (:func:`_census_rows`; per-thread rings warped
-    (T, C, M, W), keep (T, M, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, 2 K, 1, W), ss (T, W)
-    and the warp's row scratch taps (T, 9, W), base (T, 2, W) int32)."""
+    """census.census_form in one pass: out (5, H, W) from frame 0's level f0 ((1 + K) C, H, W) (its channels'
+    factors and neighbour differences, :func:`level_signature_numba`), frame 1's interpolation coefficients
+    ``coefs`` and channels ``frames`` (C, H, W) and the flow v0 (2, H, W); each pixel's weight ``weight`` (1 / C)
+    inside, 0 where x + v0 leaves the image; the signatures' offsets (dy, dx) at distance rad, the warped rings'
+    M = 2 rad + 1 rows. The rows in ``blocks`` contiguous blocks, in parallel when more than one
+    (:func:`_census_rows`; per-thread rings warped (T, C, M, W), keep (T, M, W), pair (T, C K, 3, W + 2),
+    diff (T, C K, 3, W), temp (T, K, 1, W), ss (T, W) and the warp's row scratch taps (T, 9, W), base (T, 2, W)
+    int32)."""
     h = f0.shape[1]
     d2 = delta * delta
     if blocks > 1:
@@ -290,12 +292,15 @@ def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, de
                      warped[0], keep[0], pair[0], diff[0], temp[0], ss[0], taps[0], base[0])
 
 
-def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
+def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None = None,
+                 diffs: np.ndarray | None = None) -> np.ndarray:
     """GAIN / (RMS + EPS) of an image (H, W) with :func:`factor_kernel`: (H, W) float32 (into ``out`` when
-    given); census.signature = the neighbour differences (census.shifted) times it."""
+    given); census.signature = the neighbour differences (census.shifted) times it, which go into ``diffs``
+    (K, H, W) float32 C-contiguous when given."""
     src = np.ascontiguousarray(img, dtype=_F32)
     out = np.empty(src.shape, _F32) if out is None else out
-    factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps), out, None)
+    factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps), out, None,
+                  diffs)
     return out
 
 
@@ -305,42 +310,41 @@ def census_planes_numba(img: np.ndarray, params: CensusParams) -> np.ndarray:
     src = np.ascontiguousarray(img, dtype=_F32)
     out = np.empty(src.shape + (_K,), _F32)
     factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps),
-                  np.empty(src.shape, _F32), out)
+                  np.empty(src.shape, _F32), out, None)
     return out
 
 
 def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.ndarray, None]:
     """census.level_signature for the kernel: frame 0's signatures on one level of an image (H, W) or a channel
-    stack (C, H, W) as the level (2 C, H, W) -- the channels, then their factors (:func:`factor_numba`) -- and
-    None (the gradients are taken inside :func:`census_kernel`, which reads f0's neighbours anyway).
-    :func:`census_kernel` takes each channel's neighbour differences itself and scales them by the factor (the
-    signatures as census.signature computes them, value for value): it reads two planes per channel and warp
-    instead of K, and the level writes one per channel instead of K (:func:`level_signatures` expands them, for
-    checks). Into the calling thread's scratch array (workspace.py; as the grey path's level arrays,
+    stack (C, H, W) as the level ((1 + K) C, H, W) -- the channels' factors, then their K neighbour differences
+    each (:func:`factor_numba`) -- and None (the gradients are taken inside :func:`census_kernel`, which reads
+    f0's neighbours anyway). :func:`census_kernel` scales the differences by the factor (the signatures as
+    census.signature computes them, value for value; :func:`level_signatures` expands them, for checks). The
+    differences are taken once per level, not per warp: on fastest's small levels (73 x 48 .. 320 x 240) taking
+    them in every warp made its kernel 1.1-1.35x slower per call (issue 25, task censreg; docs/engine.md, "The
+    census data term"). Into the calling thread's scratch array (workspace.py; as the grey path's level arrays,
     refine.grey_problem): valid until this thread's next level signature of that shape, i.e. for the level's
     warps."""
     stack = frames if frames.ndim == 3 else frames[None]
     n, h, w = stack.shape
-    out = scratch("census.f0", (2 * n, h, w))
-    out[:n] = stack
+    out = scratch("census.f0", ((1 + _K) * n, h, w))
     for c in range(n):
-        factor_numba(out[c], params, out=out[n + c])
+        factor_numba(stack[c], params, out=out[c], diffs=out[n + c * _K:n + (c + 1) * _K])
     return out, None
 
 
-def level_signatures(level: np.ndarray, radius: int = 1) -> np.ndarray:
-    """The signatures (C K, H, W) that a level of :func:`level_signature_numba` (2 C, H, W) stands for: each
-    channel's neighbour differences at distance ``radius`` (census.shifted: edge values) times its factor (numpy;
-    for checks)."""
-    n = level.shape[0] // 2
-    return np.concatenate([np.stack([shifted(level[c], dy, dx) - level[c] for dy, dx in offsets(radius)])
-                           * level[n + c] for c in range(n)]).astype(np.float32)
+def level_signatures(level: np.ndarray) -> np.ndarray:
+    """The signatures (C K, H, W) that a level of :func:`level_signature_numba` ((1 + K) C, H, W) stands for:
+    each channel's K neighbour differences times its factor, as :func:`census_kernel` forms them (numpy; for
+    checks)."""
+    n = level.shape[0] // (1 + _K)
+    return np.concatenate([level[n + c * _K:n + (c + 1) * _K] * level[c] for c in range(n)]).astype(np.float32)
 
 
 def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,
                       robust: bool, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
     """census.census_form with :func:`census_kernel`: the quadratic form (5, H, W) of one warp, f0 frame 0's level
-    (2 C, H, W) (:func:`level_signature_numba`). The rings are the
+    ((1 + K) C, H, W) (:func:`level_signature_numba`). The rings are the
     calling thread's scratch arrays (workspace.py); the rows run in one block per thread on levels of
     LINEARISE_PARALLEL_MIN_PIXELS or more (else in one); the form itself is fresh (a Bregman step reuses the
     last warp's), or ``out`` (5, H, W) float32 C-contiguous when given."""
@@ -351,7 +355,7 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
     m = 2 * params.radius + 1  # warped rows per ring (_census_rows)
     rings = (scratch("census.warped", (n, n_c, m, w)), scratch("census.keep", (n, m, w)),
              scratch("census.pair", (n, q, 3, w + 2)), scratch("census.diff", (n, q, 3, w)),
-             scratch("census.temp", (n, 2 * _K, 1, w)), scratch("census.ss", (n, w)), *row_scratch(w))
+             scratch("census.temp", (n, _K, 1, w)), scratch("census.ss", (n, w)), *row_scratch(w))
     out = np.empty((5, h, w), _F32) if out is None else out
     census_kernel(np.ascontiguousarray(f0, dtype=_F32), np.ascontiguousarray(coefs, dtype=_F32),
                   np.ascontiguousarray(frames, dtype=_F32), np.ascontiguousarray(v0, dtype=_F32),
@@ -359,3 +363,41 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
                   _F32(params.delta),
                   _F32(1.0 / n_c), out, *rings, blocks)
     return out
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def contrast_kernel(frames, dy, dx, st, ny, nx):  # noqa: ANN001, ANN201
+    """census.median_contrast of frames (C, H, W) on the grid of pixels (1 + st i, 1 + st j), i < ny, j < nx:
+    s(x) with the reference's float32 operations in its order (no fastmath: no contraction of sq + d d), and
+    np.median's value (the middle one, or the float32 mean of the middle two), the largest over channels -- the
+    same value bit for bit."""
+    n_c = frames.shape[0]
+    k_n = dy.shape[0]
+    n = ny * nx
+    values = np.empty(n, np.float32)
+    best = _F32(-1.0)
+    for c in range(n_c):
+        for i in range(ny):
+            y = 1 + st * i
+            for j in range(nx):
+                x = 1 + st * j
+                centre = frames[c, y, x]
+                sq = _F32(0.0)
+                for k in range(k_n):
+                    d = frames[c, y + dy[k], x + dx[k]] - centre
+                    sq += d * d
+                values[i * nx + j] = math.sqrt(sq / _F32(k_n))
+        part = np.partition(values, n // 2)  # as np.median: the middle value, or the float32 mean of the middle two
+        mid = part[n // 2] if n % 2 else (part[:n // 2].max() + part[n // 2]) / _F32(2.0)
+        best = max(best, mid)
+    return best
+
+
+def median_contrast_numba(frames: np.ndarray) -> float:
+    """census.median_contrast with :func:`contrast_kernel`: the same value bit for bit."""
+    h, w = frames.shape[1:]
+    if h < 3 or w < 3:
+        return 0.0
+    st = contrast_stride(h, w)
+    return float(contrast_kernel(np.ascontiguousarray(frames, dtype=_F32), _DY, _DX, st, len(range(1, h - 1, st)),
+                                 len(range(1, w - 1, st))))

@@ -206,15 +206,17 @@ def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: 
     return replace(params, eps=eps_floor) if eps_floor > params.eps else params
 
 
-def level_contrast(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig) -> float:
+def level_contrast(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig,
+                   contrast: Callable[[np.ndarray], float] = median_contrast) -> float:
     """What :func:`level_census` needs of a level's contrast (census.median_contrast of the channels c0, c1
-    (C, h, w)): the smaller of both frames', measured only where it decides -- inf when ``cfg.census_empty_contrast``
-    is off or the level is narrower than ``cfg.census_coarse_width`` (damped by width anyway), and frame 0's alone
-    when that is already below the threshold (the level is empty whatever frame 1's is)."""
+    (C, h, w), by ``contrast``: a backend's): the smaller of both frames', measured
+    only where it decides -- inf when ``cfg.census_empty_contrast`` is off or the level is narrower than
+    ``cfg.census_coarse_width`` (damped by width anyway), and frame 0's alone when that is already below the
+    threshold (the level is empty whatever frame 1's is)."""
     if cfg.census_empty_contrast <= 0 or c0.shape[2] < cfg.census_coarse_width:
         return math.inf
-    first = median_contrast(c0)
-    return first if first < cfg.census_empty_contrast else min(first, median_contrast(c1))
+    first = contrast(c0)
+    return first if first < cfg.census_empty_contrast else min(first, contrast(c1))
 
 
 def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
@@ -226,7 +228,7 @@ def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
     the least EPS of both frames' signatures on this level; ``finest``: this is the finest solved level
     (:func:`level_census`, with :func:`level_contrast`)."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
-    params = level_census(cfg, c0.shape[2], eps_floor, level_contrast(c0, c1, cfg), finest)
+    params = level_census(cfg, c0.shape[2], eps_floor, level_contrast(c0, c1, cfg, backend.contrast), finest)
     f0, g0 = backend.signature(c0, params)
     h, w = c0.shape[1:]
     a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)
