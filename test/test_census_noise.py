@@ -133,7 +133,7 @@ def test_a_clean_pair_without_coarse_quantisation_is_not_presmoothed() -> None:
 @pytest.mark.parametrize("preset", ["realtime", "fastest"])
 def test_grey_value_flows_do_not_see_the_noise_floor(preset: str) -> None:
     f0, f1 = low_light_pair(64, 80)
-    cfg = FlowConfig.preset(preset).replace(threads=1, photometric="normalise")  # realtime: census by default
+    cfg = FlowConfig.preset(preset).replace(threads=1, photometric="normalise")  # (the grey-value term, said)
     assert make_pyramid(f0, f1, cfg.replace(census_noise_k=3.0)).census_eps is None
     flows = [FlowEstimator(cfg.replace(census_noise_k=k)).estimate(f0, f1).flow for k in (0.0, 3.0)]
     np.testing.assert_array_equal(*flows)

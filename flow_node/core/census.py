@@ -43,6 +43,8 @@ from .warping import Sample, sample_coefficients
 
 # the 8 neighbours (dy, dx) of the 3 x 3 neighbourhood
 OFFSETS: tuple[tuple[int, int], ...] = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
+# OFFSETS as the numba kernels take them, (dy, dx) int64 arrays (K) (numba_census, numba_judge)
+OFFSETS_DY, OFFSETS_DX = (np.array([d[k] for d in OFFSETS], np.int64) for k in (0, 1))
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ import numba
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from .census import OFFSETS, CensusParams, contrast_stride
+from .census import OFFSETS, OFFSETS_DX, OFFSETS_DY, CensusParams, contrast_stride
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_kernels import FASTMATH
 from .numba_warp import sample_row
@@ -37,14 +37,12 @@ from .workspace import scratch
 # away from every later process's; test_cold_start.test_kernels_compute_the_same_compiled_or_cached)
 _JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
 _F32 = np.float32
-_DY = np.array([d[0] for d in OFFSETS], np.int64)
-_DX = np.array([d[1] for d in OFFSETS], np.int64)
 _K = len(OFFSETS)
 
 
 def _offset_arrays(radius: int) -> tuple[np.ndarray, np.ndarray]:
     """The signature's neighbour offsets at distance ``radius`` (census.offsets) as (dy, dx) int64 arrays (K)."""
-    return (_DY, _DX) if radius == 1 else (_DY * radius, _DX * radius)
+    return (OFFSETS_DY, OFFSETS_DX) if radius == 1 else (OFFSETS_DY * radius, OFFSETS_DX * radius)
 
 
 def _make_diff_row(edge: bool):  # noqa: ANN202
@@ -399,5 +397,5 @@ def median_contrast_numba(frames: np.ndarray) -> float:
     if h < 3 or w < 3:
         return 0.0
     st = contrast_stride(h, w)
-    return float(contrast_kernel(np.ascontiguousarray(frames, dtype=_F32), _DY, _DX, st, len(range(1, h - 1, st)),
-                                 len(range(1, w - 1, st))))
+    return float(contrast_kernel(np.ascontiguousarray(frames, dtype=_F32), OFFSETS_DY, OFFSETS_DX, st,
+                                 len(range(1, h - 1, st)), len(range(1, w - 1, st))))

@@ -12,15 +12,13 @@ import math
 import numpy as np
 from numba import njit
 
-from .census import CENSUS, OFFSETS, OUTLIER, SAMPLE_SPACING, CensusParams
+from .census import CENSUS, OFFSETS_DX, OFFSETS_DY, OUTLIER, SAMPLE_SPACING, CensusParams
 from .numba_kernels import FASTMATH
 from .numba_warp import cubic_weights4, tap_indices, tap_sum
 from .photometric import reliability_stride
 
 _JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)  # numba_census's flags
 _F32 = np.float32
-_DY = np.array([d[0] for d in OFFSETS], np.int64)
-_DX = np.array([d[1] for d in OFFSETS], np.int64)
 
 
 @njit(**_JIT)
@@ -73,6 +71,6 @@ def reliability_numba(i0: np.ndarray, i1: np.ndarray, flow: np.ndarray, params: 
     h, w = i0.shape
     stride = SAMPLE_SPACING * reliability_stride(h, w, samples)
     inside, bad = unexplained_kernel(np.ascontiguousarray(i0, dtype=_F32), np.ascontiguousarray(i1, dtype=_F32)[None],
-                                     np.ascontiguousarray(flow, dtype=_F32), stride, _DY, _DX, _F32(params.eps),
-                                     _F32(OUTLIER))
+                                     np.ascontiguousarray(flow, dtype=_F32), stride, OFFSETS_DY, OFFSETS_DX,
+                                     _F32(params.eps), _F32(OUTLIER))
     return bad / inside if inside else 1.0
