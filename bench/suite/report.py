@@ -94,6 +94,21 @@ def _unchanged_of(r: dict[str, Any]) -> dict[str, str]:
     return out
 
 
+def pair_kind(aee: float, ref: float, unchanged: bool) -> str | None:
+    """A photometric pair's kind for the signal: 'unchanged', 'handled' (AEE within HANDLED x its unchanged pair's
+    ``ref``), 'wrong' (WRONG x and WRONG_PX px more), or None in between."""
+    if unchanged:
+        return "unchanged"
+    if aee <= HANDLED * ref:
+        return "handled"
+    return "wrong" if aee >= WRONG * ref and aee >= ref + WRONG_PX else None
+
+
+def misread(kind: str, unexplained: float) -> bool:
+    """The fraction is on the wrong side of UNRELIABLE for a pair of ``kind`` (:func:`pair_kind`)."""
+    return unexplained < UNRELIABLE if kind == "wrong" else unexplained >= UNRELIABLE
+
+
 def signal_table(r: dict[str, Any]) -> str:
     """Markdown table of how well each flow_node method's unexplained fraction (FlowResult.unexplained, per pair)
     tells a wrong flow from a right one on a photometric regime: per method the unchanged pairs and the families'
@@ -108,16 +123,12 @@ def signal_table(r: dict[str, Any]) -> str:
             continue
         groups: dict[str, list[float]] = {"unchanged": [], "handled": [], "wrong": []}
         for name, q in pp.items():
-            ref = pp[base[name]]["aee"]
-            if name == base[name]:
-                groups["unchanged"].append(q["unexplained"])
-            elif q["aee"] <= HANDLED * ref:
-                groups["handled"].append(q["unexplained"])
-            elif q["aee"] >= WRONG * ref and q["aee"] >= ref + WRONG_PX:
-                groups["wrong"].append(q["unexplained"])
+            kind = pair_kind(q["aee"], pp[base[name]]["aee"], name == base[name])
+            if kind:
+                groups[kind].append(q["unexplained"])
         cells = []
         for g, vals in groups.items():
-            off = sum((u < UNRELIABLE) if g == "wrong" else (u >= UNRELIABLE) for u in vals)
+            off = sum(misread(g, u) for u in vals)
             span = f", {min(vals):.2f}-{max(vals):.2f}" if vals else ""
             cells.append(f"{len(vals)} ({off}{span})")
         rows.append([n, *cells, str(len(pp) - sum(len(v) for v in groups.values()))])

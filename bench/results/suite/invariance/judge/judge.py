@@ -16,7 +16,7 @@ import numpy as np
 
 from bench.suite.photometric import UNCHANGED, UNCHANGED_RGB
 from bench.suite.regimes import REGIMES
-from bench.suite.report import COLOUR, HANDLED, WRONG, WRONG_PX
+from bench.suite.report import COLOUR, misread, pair_kind
 from flow_node.core.api import FlowEstimator
 from flow_node.core.config import FlowConfig
 from flow_node.core.metrics import aee
@@ -60,13 +60,11 @@ def main() -> None:
             aees = {q[0]: q[2] for q in rows}
             n, off = Counter(), Counter()
             for name, ref, a, g, c in rows:
-                r0 = aees[ref]
-                kind = ("unchanged" if name == ref else "handled" if a <= HANDLED * r0 else
-                        "wrong" if a >= WRONG * r0 and a >= r0 + WRONG_PX else None)
+                kind = pair_kind(a, aees[ref], name == ref)
                 if kind:
                     n[kind] += 1
                     for judge, u in (("grey", g), ("census", c)):
-                        off[kind, judge] += (u < UNRELIABLE) if kind == "wrong" else (u >= UNRELIABLE)
+                        off[kind, judge] += misread(kind, u)
             print(f"{reg} {preset}: " + "; ".join(f"{k} {n[k]}: grey {off[k, 'grey']}, census {off[k, 'census']}"
                                                  for k in ("unchanged", "handled", "wrong")), flush=True)
 
