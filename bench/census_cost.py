@@ -9,7 +9,8 @@
 
 Each preset runs with ``photometric`` ``normalise`` (grey values, the default) and ``census`` on the 8
 Middlebury pairs (``--data large``: the large-motion set, ../shared/data/large, where the initialisation and
-fusion run; ``--pairs`` a subset by name), one thread, warm (one call per pair first); each round runs every pair
+fusion run; ``--data fine_320``: the suite's fine_320 regime's tune pairs, 320x240; ``--pairs`` a subset by
+name), one thread, warm (one call per pair first); each round runs every pair
 with each data term in turn (the order reversed every other pair and round), and the table gives the median over
 rounds of each stage's time summed over the pairs (ms). A stage's time is *exclusive*: a timed function's time
 minus that of the timed functions it calls (e.g. the census form without the kernels listed beside it). The spans
@@ -39,6 +40,7 @@ from flow_node.core.backends import select_backend
 from flow_node.core.config import FlowConfig
 
 from .common import md_table, run_record, write_result
+from .suite import synthetic
 from .suite.data import Sample, large, middlebury
 
 PRESETS = ("realtime", "fastest", "quality")
@@ -55,7 +57,10 @@ SPANS: tuple[tuple[Any, str], ...] = (
     (refine, "warp_source"), (numba_census, "factor_numba"), (numba_census, "census_kernel"),
     (engine, "candidates_on_level"), (initialise, "equalised"), (initialise, "dis_candidates"),
     (fusion, "planes"), (fusion, "census_planes"))
-DATA: dict[str, Callable[[bool], list[Sample]]] = {"middlebury": middlebury, "large": large}
+# ``fine_320``: the suite's fine_320 regime, tune seeds (12 textures at 320x240, 0.3-3 px): the suite's small frames
+DATA: dict[str, Callable[[bool], list[Sample]]] = {
+    "middlebury": middlebury, "large": large,
+    "fine_320": lambda quick: list(synthetic.fine("tune", quick, (320, 240)))}
 
 
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
