@@ -49,7 +49,8 @@ def _make_diff_row(edge: bool):  # noqa: ANN202
     """dst = neighbour - centre and ss += dst^2 over one row (1-D views; vectorises); with ``edge`` one neighbour
     value, neighbour[0], for every pixel (the columns whose neighbour is clamped to the row's end). ``edge`` is a
     compile-time constant: one source, two kernels (:data:`_diff_row`, :data:`_diff_edge`), each as fast as its
-    loop written out (the factor kernel's time within 1-2 %; bench/results/census_cost/onesig/summary.md)."""
+    loop written out (the factor kernel's time within 1-2 %;
+    git show 4983857:bench/results/census_cost/onesig/summary.md)."""
 
     def diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN202
         for j in range(dst.shape[0]):
