@@ -67,7 +67,8 @@ CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time
 # After the warm-up every object is frozen (gc.freeze): a full collection of the cyclic collector walks every object
 # of the process -- numba's and the modules', ~35 ms here -- and lands in whichever call allocates the container
 # that triggers it; a run of one round per process (an A/B of two trees) then charged it to one term of one
-# preset in 11 of 12 rounds (bench/results/census_cost/fusecens/summary.md). What remains is each call's own.
+# preset in 11 of 12 rounds (git show 4983857:bench/results/census_cost/fusecens/summary.md).
+# What remains is each call's own.
 
 
 class Spans:

@@ -11,7 +11,7 @@ exactly those pixels and leaves textured ones (s(x) >> EPS) normalised as before
   |N|_2 = 6), on every :data:`NOISE_STRIDE`-th interior pixel in each direction (:func:`noise_sigma`).
 * Both frames use one EPS, from the larger of their two estimates: the same contrast scale in both
   signatures (a per-frame EPS leaves a flat area full-contrast in the clean frame and damped in the noisy
-  one, measured worse: bench/results/census_cost/lowlight/summary.md).
+  one, measured worse: git show 4983857:bench/results/census_cost/lowlight/summary.md).
 * It is carried down the pyramid analytically, not re-estimated (a coarse level's texture reads as noise):
   every level is a fixed linear filter of the input (blur and bilinear resampling, separable), so white
   noise's neighbour differences on a level have a known RMS, computed from that filter

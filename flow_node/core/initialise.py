@@ -263,7 +263,7 @@ class InitSettings(Protocol):
 
 # grey levels a frame's ranks are taken on (equalised): 12 bits; on 8 (cv2.equalizeHist) a tone curve merges or
 # splits enough levels of a flat-shaded scene to move DIS (the large set's Blender cube under gamma 2: 45 px, 32 on
-# 12 bits; bench/results/suite/invariance/cube/summary.md)
+# 12 bits; git show 4983857:bench/results/suite/invariance/cube/summary.md)
 RANK_LEVELS = 4096
 
 

@@ -52,8 +52,9 @@ def _make_diff_span(edge: bool):  # noqa: ANN202
     """out[k, i, j] = img[r, j + off] - img[rc, j] and ss[j] += out[k, i, j]^2 for j0 <= j < j1; with ``edge`` one
     neighbour value, img[r, off], for every pixel (the columns whose neighbour is clamped to the row's end).
     ``edge`` is a compile-time constant: one source, two kernels (:data:`_diff_span`, :data:`_diff_edge`), each
-    as fast as its loop written out (onesig: the factor kernel's time within 1-2 %; a run-time select of the
-    column was 15 % slower). Whole arrays and indices, no views (task censlarge, :func:`_census_rows`)."""
+    as fast as its loop written out (the factor kernel's time within 1-2 %;
+    git show 4983857:bench/results/census_cost/onesig/summary.md; a run-time select of the column was 15 %
+    slower). Whole arrays and indices, no views (task censlarge, :func:`_census_rows`)."""
 
     def diff_span(img, r, rc, off, j0, j1, out, k, i, ss):  # noqa: ANN001, ANN202
         for j in range(j0, j1):

@@ -75,23 +75,24 @@ from typing import Any
 #   detection): with the eleventh round's setting its report split beat its grey-value data term on every regime
 #   but real_exact (+1.7 %, 0.239 against 0.235; Middlebury 0.290 against 0.295, bags 0.057 / 0.066, large 8.12 /
 #   8.46, noise 0.024 / 0.055, the tone and illumination families 0.315 / 5.26 px) at 1.1x its CPU time
-#   (bench/results/suite/invariance/qr2/flip.md). photometric=normalise gives the grey-value term back.
+#   (git show 4983857:bench/results/suite/invariance/qr2/flip.md). photometric=normalise gives the grey-value term back.
 # - census time (issue 25's time round 5, docs/engine.md "The census data term", What it costs): with
 #   photometric=census, quality runs 8 primal-dual iterations per warp (12 with grey values) and fastest a 3 x 3
 #   median after each warp but a level's last; chosen on the suite's tune split (Middlebury, photometric_real,
 #   real_exact), checked once on the report split. realtime's cuts that reached 1.15x then lost accuracy
-#   (bench/results/census_cost/census5/summary.md); its census schedule since is task cschedule's (below).
+#   (git show 4983857:bench/results/census_cost/census5/summary.md); its census schedule since is task
+#   cschedule's (below).
 #   Grey-value flows are unchanged (census fields only).
 #   Task cschedule re-tried it with the radius-2 ring, a re-tuned census alpha and one finest warp
 #   (census_finest_warps 1 x 28: 1.14x, tune geomean 0.99-1.00) and fastest's cuts (>= 1.22x): every cut at or under
 #   1.21x lost low_contrast 8.7 % or more on the tune split against today's census
-#   (bench/results/suite/invariance/cschedule/summary.md), fastest keeps its schedule.
+#   (git show 4983857:bench/results/suite/invariance/cschedule/summary.md), fastest keeps its schedule.
 # - realtime's census schedule (issue 25, fourteenth round) is cschedule's 1.14x point of the best tune geomean
 #   whose Middlebury stays within 3 % (radius-2 ring on the finest level, one warp of 28 there, census alpha
 #   0.10): with photometric=census within issue 25's accuracy bounds against its grey-value term on the report
 #   split (bags +2.9 %, large +3.1 %, Middlebury 0.395, every other regime better) at 1.10x its CPU time on
 #   Middlebury, but +13-40 % on the suite's other regimes (large motions 1.36x), so census is not its default
-#   (docs/engine.md "Presets"; bench/results/suite/invariance/rtflip/).
+#   (docs/engine.md "Presets"; git show 4983857:bench/results/suite/invariance/rtflip/).
 CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, census_coarse_eps=0.03,
                                                            census_coarse_width=50))
 # fastest, and the stream presets' base (below)
