@@ -31,6 +31,7 @@ from numba import get_thread_id, njit, prange
 from .census import OFFSETS, OFFSETS_DX, OFFSETS_DY, CensusParams, contrast_stride
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_kernels import FASTMATH
+from .numba_sort import median_f32
 from .numba_warp import sample_row
 from .warping import KERNEL_CODES
 from .workspace import scratch
@@ -387,9 +388,7 @@ def contrast_kernel(frames, dy, dx, st, ny, nx):  # noqa: ANN001, ANN201
                     d = frames[c, y + dy[k], x + dx[k]] - centre
                     sq += d * d
                 values[i * nx + j] = math.sqrt(sq / _F32(k_n))
-        part = np.partition(values, n // 2)  # as np.median: the middle value, or the float32 mean of the middle two
-        mid = part[n // 2] if n % 2 else (part[:n // 2].max() + part[n // 2]) / _F32(2.0)
-        best = max(best, mid)
+        best = max(best, median_f32(values))  # np.median's value
     return best
 
 
