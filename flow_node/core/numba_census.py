@@ -371,23 +371,24 @@ def contrast_kernel(frames, dy, dx, st, ny, nx):  # noqa: ANN001, ANN201
     """census.median_contrast of frames (C, H, W) on the grid of pixels (1 + st i, 1 + st j), i < ny, j < nx:
     s(x) with the reference's float32 operations in its order (no fastmath: no contraction of sq + d d), and
     np.median's value (the middle one, or the float32 mean of the middle two), the largest over channels -- the
-    same value bit for bit."""
+    same value bit for bit. A grid row at a time, neighbour by neighbour (the same sum per pixel, in the same
+    order; the row loops vectorise where st is 1: 2-3x faster than pixel by pixel, task censlarge)."""
     n_c = frames.shape[0]
     k_n = dy.shape[0]
-    n = ny * nx
-    values = np.empty(n, np.float32)
+    values = np.empty(ny * nx, np.float32)
     best = _F32(-1.0)
     for c in range(n_c):
         for i in range(ny):
             y = 1 + st * i
+            sq = values[i * nx:(i + 1) * nx]  # the row's sums, then its s(x)
+            sq[:] = _F32(0.0)
+            for k in range(k_n):
+                yk, xk = y + dy[k], 1 + dx[k]
+                for j in range(nx):  # unsigned column indices (numba_census's module doc: signed ones wrap around)
+                    d = frames[c, yk, np.uint64(xk + st * j)] - frames[c, y, np.uint64(1 + st * j)]
+                    sq[j] += d * d
             for j in range(nx):
-                x = 1 + st * j
-                centre = frames[c, y, x]
-                sq = _F32(0.0)
-                for k in range(k_n):
-                    d = frames[c, y + dy[k], x + dx[k]] - centre
-                    sq += d * d
-                values[i * nx + j] = math.sqrt(sq / _F32(k_n))
+                sq[j] = math.sqrt(sq[j] / _F32(k_n))
         best = max(best, median_f32(values))  # np.median's value
     return best
 
