@@ -1,9 +1,11 @@
 """Throwaway (task censlarge): one warp's census kernel against the grey linearisation on a fine_320 level, and the
 census kernel's three steps timed apart (each over all rows of the level with the kernel's own ring buffers):
 the warp of frame 1's rows (sample_row), the signatures' P and D rows (_pair_rows), the form (_form_rows).
-PYTHONPATH=. python bench/results/census_cost/censlarge/micro.py"""
+``widths``: the three steps' time per row on random 60-row levels 16-640 px wide (the rows' fixed cost).
+PYTHONPATH=. python bench/results/census_cost/censlarge/micro.py [widths]"""
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -97,5 +99,26 @@ def main() -> None:
               f"form {1e9 * t_f / px:.1f} ns/px")
 
 
+def widths() -> None:
+    """The three steps per row on random levels of 60 rows and the given widths."""
+    rng = np.random.default_rng(0)
+    h = 60
+    dy, dx = nc._offset_arrays(1)
+    for w in (16, 24, 32, 40, 48, 56, 64, 72, 80, 96, 112, 128, 160, 240, 320, 640):
+        i0, i1 = rng.random((h, w), dtype=np.float32), rng.random((h, w), dtype=np.float32)
+        f0 = nc.level_signature_numba(i0, CENSUS)[0].copy()
+        coefs, frames = WARPER.coefficients(i1[None], "bspline").copy(), i1[None].copy()
+        flow = np.full((2, h, w), 0.3, np.float32)
+        warped, keep = rng.random((1, 3, w), dtype=np.float32), np.ones((3, w), np.float32)
+        pair, diff = np.zeros((8, 3, w + 2), np.float32), np.zeros((8, 3, w), np.float32)
+        temp, ss, out = np.zeros((8, 1, w), np.float32), np.zeros(w, np.float32), np.zeros((5, h, w), np.float32)
+        taps, base = (x[0] for x in row_scratch(w))
+        reps = max(1, 20000 // w)
+        t_p = best(_pair_all, f0, warped, dy, dx, np.float32(0.1), np.float32(0.01), pair, diff, temp, ss, reps) / reps
+        t_f = best(_form_all, out, pair, diff, keep, flow, np.float32(0.0049), True, reps) / reps
+        t_w = best(_warp_all, coefs, frames, flow, KERNEL_CODES["bspline"], warped, keep, taps, base, reps) / reps
+        print(f"w {w}: ns per row: warp {1e9 * t_w / h:.0f}, P/D {1e9 * t_p / h:.0f}, form {1e9 * t_f / (h - 2):.0f}")
+
+
 if __name__ == "__main__":
-    main()
+    widths() if sys.argv[1:] == ["widths"] else main()
