@@ -99,12 +99,63 @@ def ranks_numba(img: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
+def _kth_key(keys, k, work, counts):  # noqa: ANN001, ANN201
+    """The k-th smallest (0-based) of keys (n,) uint32 by an MSD radix select: per digit (11, 11 and 10 bits from
+    the top) the candidates' digits counted, the k-th's digit found, and only the candidates with it kept (into
+    ``work`` (n,) uint32; ``counts`` (2048,) int64 scratch). Three counting passes over ever fewer candidates,
+    where a partition (numba's np.partition) took ~8 ns an element."""
+    src, m = keys, keys.size
+    result = np.uint32(0)
+    for shift, width in ((21, 11), (10, 11), (0, 10)):
+        mask = (1 << width) - 1
+        counts[:mask + 1] = 0
+        for t in range(m):
+            counts[(src[t] >> shift) & mask] += 1
+        d, below = 0, 0
+        while below + counts[d] <= k:
+            below += counts[d]
+            d += 1
+        k -= below
+        result |= np.uint32(d << shift)
+        kept = 0
+        for t in range(m):
+            if (src[t] >> shift) & mask == d:
+                work[kept] = src[t]
+                kept += 1
+        src, m = work, kept
+    return result
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
 def median_f32(values):  # noqa: ANN001, ANN201
-    """np.median of float32 values (n,), n > 0 (reordered in place): the middle value by partition, or the float32
-    mean of the middle two -- np.median's value bit for bit."""
+    """np.median of float32 values (n,), n > 0, finite: the middle value, or the float32 mean of the middle two --
+    np.median's value bit for bit (a selection finds the same order statistic however it runs; only a -0.0 and a
+    0.0 both in the middle might come in the other order, as with np.partition; the callers' values are >= +0).
+    By :func:`_kth_key` on keys that order as the floats do (:func:`radix_sort_kernel`'s): 2.4-3x faster than
+    numba's np.partition on 4,500-30,000 values (the noise estimate's and the level contrast's), 1.4x on 1,300."""
     n = values.size
-    part = np.partition(values, n // 2)
-    return part[n // 2] if n % 2 else (part[:n // 2].max() + part[n // 2]) / np.float32(2.0)
+    bits = values.view(np.uint32)
+    keys = np.empty(n, np.uint32)
+    for t in range(n):  # negative floats: every bit flipped; others: the sign bit set
+        b = bits[t]
+        keys[t] = b ^ np.uint32(0xFFFFFFFF) if b & np.uint32(0x80000000) else b | np.uint32(0x80000000)
+    work = np.empty(n, np.uint32)
+    counts = np.empty(2048, np.int64)
+    k = n // 2
+    hi = _kth_key(keys, k, work, counts)
+    lo = hi
+    if n % 2 == 0:  # the (k - 1)-th: the largest key below hi if k keys are below it, else hi itself
+        below, top = 0, np.uint32(0)
+        for t in range(n):
+            if keys[t] < hi:
+                below += 1
+                top = max(top, keys[t])
+        lo = top if below == k else hi
+    pair = np.empty(2, np.uint32)
+    for t, key in enumerate((lo, hi)):
+        pair[t] = key ^ np.uint32(0x80000000) if key & np.uint32(0x80000000) else key ^ np.uint32(0xFFFFFFFF)
+    v = pair.view(np.float32)
+    return v[1] if n % 2 else (v[0] + v[1]) / np.float32(2.0)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
