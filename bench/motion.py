@@ -1,15 +1,9 @@
 """The derived motion outputs (issue 28) on exactly rendered scenes (flow_node.bag.motion_scenes) through the
-``realtime`` preset, as ratios to the engine's time on the same pair. Two modes:
+``realtime`` preset, as ratios to the engine's time on the same pair; what ``score`` and ``cost`` measure:
+docs/node.md, "Derived outputs" (accuracy and cost, "Cost per frame").
 
     python -m bench.motion score [--pairs 6] [--size 320x240] [--noise 0]   # -> bench/results/motion/motion_regime.json
     python -m bench.motion cost [--sizes 320x240,640x480] [--repeat 5]      # -> bench/results/motion/motion_cost.json
-
-``score``: pans, rotations, zooms with 10-30 % moving objects, approaches at a time to contact of 10-200 frames,
-static scenes; each output timed alone on a fresh MotionAnalysis (best of ``--repeat``) and scored against the
-issue's targets (docs/node.md, "Accuracy and cost"); ``--noise`` adds Gaussian sensor noise (grey levels) before
-quantisation. ``cost``: what each ~/motion/* topic costs the node's worker per frame, alone, with the confidence
-given and "+conf" computed as the node does, interleaved with the engine, best of ``--repeat`` (docs/node.md,
-"Cost per frame"; its retired one-off rows: ``git show 2cc837f:bench/motion_cost.py``).
 """
 
 from __future__ import annotations
