@@ -24,7 +24,7 @@ from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.derived import MOTION_TOPICS, Fits, MotionAnalysis, fits_for
 
-from .common import REPO, run_record, write_json
+from .common import REPO, run_record, write_json, wxh
 from .suite.synthetic import quantise
 
 OUT = REPO / "bench" / "results" / "motion"
@@ -221,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         from flow_node.process import keep_freed_memory
 
         keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
-        results = {s: cost(tuple(int(v) for v in s.lower().split("x")), args.pairs, args.repeat, args.seed)
+        results = {s: cost(wxh(s), args.pairs, args.repeat, args.seed)
                    for s in args.sizes.split(",")}
         print(f"{'topic':22s}" + "".join(f"{s:>22s}{s + ' +conf':>14s}" for s in results))
         for name in (*MOTION_TOPICS, "all", "confidence"):
@@ -233,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
                                               for r in results.values()))
         write_json(args.output, {**head, "results": results})
         return 0
-    size = tuple(int(v) for v in args.size.lower().split("x"))
+    size = wxh(args.size)
     est, rows = estimator(size), []
     for case in cases(args.pairs, args.seed):
         rows.append(r := score(case, size, est, args.repeat, args.noise))

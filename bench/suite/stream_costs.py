@@ -27,7 +27,7 @@ from flow_node.core.config import FlowConfig
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
-from ..common import machine, run_record, write_result, wxh
+from ..common import machine, md_table, run_record, write_result, wxh
 from .sequences import Sequence, sequences
 from .streams import PERIOD_NS, parse_method
 
@@ -136,10 +136,9 @@ def markdown(results: list[dict[str, Any]], command: str, load: str) -> str:
                   f"{res['frame_seconds'] / d:.2f}x DIS ultrafast ({1e3 * d:.2f} ms), CPU time "
                   f"{1e3 * res.get('frame_cpu_seconds', float('nan')):.2f} ms; "
                   f"{res['predicted']} / {res['pairs']} pairs predicted", "",
-                  "| stage | ms per frame | x DIS ultrafast |", "|---|---|---|"]
-        for label, s in res["stages"].items():
-            lines.append(f"| {label.replace('  ', '- ')} | {1e3 * s:.3f} | {s / d:.2f} |")
-        lines.append("")
+                  *md_table(["stage", "ms per frame", "x DIS ultrafast"],
+                            [[label.replace("  ", "- "), f"{1e3 * s:.3f}", f"{s / d:.2f}"]
+                             for label, s in res["stages"].items()]), ""]
     return "\n".join(lines)
 
 
