@@ -27,6 +27,7 @@ from flow_node.process import keep_freed_memory
 
 from ..common import REPO, machine, md_table, run_record, write_result, wxh
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, parse_method
+from .metrics import add_ratios
 from .sequences import FRAMES, KINDS, Sequence, bag_sequences, sequences
 
 RESULTS = REPO / "bench" / "results" / "suite" / "stream"
@@ -130,10 +131,8 @@ def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Se
                                         "seconds": float(np.mean(per_seq[s.name][n]["seconds"]))} for s in seqs},
                   "predicted": labels.count("predicted"),
                   "fallbacks": sum(x.startswith("full") for x in labels)}
+    add_ratios(out)
     for n, m in out.items():
-        for ref in (DIS_MEDIUM, DIS_ULTRAFAST):
-            m[f"time_vs_{ref}"] = m["seconds"] / out[ref]["seconds"]
-            m[f"aee_vs_{ref}"] = m["aee"] / out[ref]["aee"]
         base = STREAM_BASE.get(n)
         if base in out:
             m["event_ratio"] = {}
