@@ -3,7 +3,7 @@ client beside it in a private context, spun by one executor thread: what bench.n
 
 The client publishes frames to the node's input and records its ~/flow messages (with their arrival time) and
 its /diagnostics windows (key -> value, plus ``_message``). ``ProcessRig`` adds the closed loop (one frame in
-flight) and the open loop (frames at 30 Hz) of bench.node's latency mode.
+flight) and the open loop (frames at 30 Hz) of bench.node's latency and security modes.
 """
 
 from __future__ import annotations
