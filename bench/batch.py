@@ -1,22 +1,8 @@
 """Batch evaluation on Dask: the Dask layer against a plain loop on one worker, and throughput with 1 and 2 workers.
+How the runs are paired and what each ratio means: docs/bags.md, "eval over many bags: a batch on Dask".
 
     .venv/bin/python -m bench.batch [--size 160x120:24 --size 320x240:12] [--repeats 3]
                                     [--variants loop,dask-1,dask-2] [--out bench/results/batch/batch.json]
-
-For every ``--size WxH:BAGS``: writes DISTINCT synthetic bags (flow_bag synth, scenes in turn, seeds 0..) of
-FRAMES frames and copies them up to BAGS bags, solved with PRESET. Every run writes into a fresh output (nothing
-cached). Whole processes, paired:
-``loop`` (one process running ``evaluate_bag`` for every job in a plain for loop, then the same batch report:
-the same per-bag work without Dask) and ``flow_bag eval FOLDER --workers N -q`` (embedded LocalCluster, N = 1,
-2), each a fresh interpreter timed from start to exit (imports, cluster start and stop, JIT cache loads, report
-included). Per repeat the order is loop, dask-1, dask-2 then dask-2, dask-1, loop, so loop and dask-1 always
-run back to back: the ratio dask-1 / loop of each repeat is the Dask layer's whole cost on one worker, and its
-median over repeats the result. Bags per minute from the median process time. The fixed costs beside it
-(``import distributed``, the cluster's start and close) were a one-off, retired: ``git show 2cc837f:bench/batch.py``.
-
-All processes run in ``WORKER_ENV`` (one numeric thread, glibc keeping freed memory): this process
-re-executes itself with it. The machine may be shared: compare the paired ratios, not absolute times.
-With the defaults it takes about 12-15 minutes on a quiet 2-core machine.
 """
 
 from __future__ import annotations
@@ -104,13 +90,8 @@ def _ratios(by: dict[str, list[dict[str, Any]]], a: str, b: str, repeats: int,
 
 
 def summarise(runs: list[dict[str, Any]], repeats: int) -> dict[str, Any]:
-    """Medians per variant, bags per minute, the paired ratios dask-1 / loop and dask-1 / dask-2 per repeat
-    and their medians; dask-1 / loop also in CPU seconds (user + system of the process and its workers: what
-    the layer adds in work, less disturbed than wall time by other load on a shared machine); and per run
-    the seconds outside the tasks (process time minus the tasks' summed time: imports, cluster, scheduling,
-    report, exit), whose paired difference dask-1 - loop is the Dask layer's cost without the noise of a
-    shared machine's varying speed inside the bags' work (but without what the layer may cost inside a
-    task, e.g. the scheduler's thread taking the GIL)."""
+    """Medians per variant, bags per minute, the paired ratios dask-1 / loop (wall, CPU seconds of the process
+    and its workers, seconds outside the tasks) and dask-1 / dask-2 per repeat and their medians (docs/bags.md)."""
     variants = [v for v in VARIANTS if any(r["variant"] == v for r in runs)]
     by = {v: [r for r in runs if r["variant"] == v] for v in variants}
     med = {v: statistics.median(r["process_seconds"] for r in rs) for v, rs in by.items()}

@@ -1,24 +1,9 @@
 """Cold start (issue 29): what a fresh process pays for its first flow, per preset, on a large-motion pair
-(initialisation and fusion run) and a small one, against a warm call in one process.
+(initialisation and fusion run) and a small one, against a warm call in one process. The columns and the target:
+docs/engine.md, "Compiled kernels: the on-disk cache and threads".
 
     python -m bench.cold_start                   # -> bench/results/cold_start/cold_start.json, a table on stdout
     python -m bench.cold_start --runs 5 --no-new-install
-
-Every process is ``flow_estimate`` itself (``python -m flow_node.cli.estimate ... -v``) on the tree this
-module belongs to, with NUMBA_CACHE_DIR in a temporary folder: ``new install`` is the first call with that
-folder empty (it compiles what the preset's path needs and fills the cache; one empty folder per preset),
-``fresh`` a later process: its wall time, and the engine's time of its one call (the -v line). ``warm`` is
-the engine's time of a later call in one process (median of its 2nd-4th); ``warm CLI`` the wall time of a
-later call of ``flow_estimate``'s ``main()`` in one process (median of its 2nd-4th): the same work as the
-fresh process's call -- decode the two PNGs, estimate, write the .flo -- warm. ``start`` is the wall time of a
-process that imports the CLI and the numba backend, applies the numba patch ``main()`` applies
-(process.defer_kernel_bitcode) and calls one cached kernel (numba's own one-time start-up: its typing and
-target registries, ~0.1-0.2 s), and does nothing else; it exits as ``main()`` does, without the final
-collection of numba's objects (process.skip_final_collection: 0.1-0.2 s for either process otherwise, so
-that saving does not count towards the target). Per row the three are measured
-interleaved, --runs times (medians). The issue's target: fresh wall <= 1.5 x warm + start, with the engine's
-warm time (strict: the fresh call's decode and write count against the engine's budget) and, beside it, with
-the warm CLI call (like for like: both sides decode, estimate and write).
 """
 
 from __future__ import annotations

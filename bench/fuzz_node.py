@@ -1,17 +1,7 @@
-"""A hostile-input campaign against the live node over real DDS (issue 15): corrupted encodings, sizes, steps,
-lengths, NaN/inf and huge float values, stamps going back and jumping, size changes, garbage, truncated and
-oversized compressed data, interleaved with random ``set_parameters`` (valid and invalid) and ``~/reset``.
+"""A hostile-input campaign against the live node over real DDS (issue 15; `make fuzz`): what it sends and what it
+reports: docs/node.md, "Input encodings"; the results: BENCHMARKS.md, "Hostile input against the live node".
 
     .venv/bin/python -m bench.fuzz_node [--messages 300] [--seed 15] [--out bench/results/node/fuzz_node.json]
-
-The node runs as its own process (``python -m flow_node.ros.node``), once subscribed to raw Images and once
-to CompressedImages, ``--messages`` each. Every 20 hostile messages, two valid frames follow and the time
-until their flow arrives is measured (a hang: none within 10 s). Reported: messages sent, what the node
-received, rejected, published, reset, dropped and counted as engine errors (its /diagnostics totals), flows
-received here and how many held NaN/inf (must be 0), parameter calls accepted/rejected (a rejection without
-a reason counts as a failure), crashes (the process gone before SIGINT, or a traceback in its log), hangs,
-the longest gap until valid frames gave flow again, RSS (start, max, end) and the exit code on SIGINT.
-Deterministic message sequence for a seed (numpy Generator); timings are the shared machine's.
 """
 
 from __future__ import annotations

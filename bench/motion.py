@@ -1,15 +1,9 @@
 """The derived motion outputs (issue 28) on exactly rendered scenes (flow_node.bag.motion_scenes) through the
-``realtime`` preset, as ratios to the engine's time on the same pair. Two modes:
+``realtime`` preset, as ratios to the engine's time on the same pair; what ``score`` and ``cost`` measure:
+docs/node.md, "Derived outputs" (accuracy and cost, "Cost per frame").
 
     python -m bench.motion score [--pairs 6] [--size 320x240] [--noise 0]   # -> bench/results/motion/motion_regime.json
     python -m bench.motion cost [--sizes 320x240,640x480] [--repeat 5]      # -> bench/results/motion/motion_cost.json
-
-``score``: pans, rotations, zooms with 10-30 % moving objects, approaches at a time to contact of 10-200 frames,
-static scenes; each output timed alone on a fresh MotionAnalysis (best of ``--repeat``) and scored against the
-issue's targets (docs/node.md, "Accuracy and cost"); ``--noise`` adds Gaussian sensor noise (grey levels) before
-quantisation. ``cost``: what each ~/motion/* topic costs the node's worker per frame, alone, with the confidence
-given and "+conf" computed as the node does, interleaved with the engine, best of ``--repeat`` (docs/node.md,
-"Cost per frame"; its retired one-off rows: ``git show 2cc837f:bench/motion_cost.py``).
 """
 
 from __future__ import annotations
@@ -30,7 +24,7 @@ from flow_node.core.confidence import confidence
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.derived import MOTION_TOPICS, Fits, MotionAnalysis, fits_for
 
-from .common import REPO, run_record, write_json
+from .common import REPO, run_record, write_json, wxh
 from .suite.synthetic import quantise
 
 OUT = REPO / "bench" / "results" / "motion"
@@ -227,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         from flow_node.process import keep_freed_memory
 
         keep_freed_memory()  # as the node's main() does: arrays freed by one frame serve the next
-        results = {s: cost(tuple(int(v) for v in s.lower().split("x")), args.pairs, args.repeat, args.seed)
+        results = {s: cost(wxh(s), args.pairs, args.repeat, args.seed)
                    for s in args.sizes.split(",")}
         print(f"{'topic':22s}" + "".join(f"{s:>22s}{s + ' +conf':>14s}" for s in results))
         for name in (*MOTION_TOPICS, "all", "confidence"):
@@ -239,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
                                               for r in results.values()))
         write_json(args.output, {**head, "results": results})
         return 0
-    size = tuple(int(v) for v in args.size.lower().split("x"))
+    size = wxh(args.size)
     est, rows = estimator(size), []
     for case in cases(args.pairs, args.seed):
         rows.append(r := score(case, size, est, args.repeat, args.noise))

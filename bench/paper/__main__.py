@@ -25,9 +25,6 @@ RESULTS = REPO / "bench" / "results" / "paper"
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="Middlebury folder (<Seq>/frame10.png ...)")
-    ap.add_argument("--backend", default="auto", choices=("auto", "numpy", "numba"))
-    ap.add_argument("--factors", type=float, nargs="*", default=list(DYNAMIC_FACTORS),
-                    help="dynamic search: multiples of the static weights tried per sequence")
     ap.add_argument("--sequences", nargs="*", default=list(SEQUENCES))
     ap.add_argument("--renderer", default="cubic", choices=RENDERERS,
                     help="second-frame synthesis: cubic (the paper's, default: comparable with its figures) or "
@@ -44,15 +41,15 @@ def main(argv: list[str] | None = None) -> None:
 
     clean = load_pairs(args.data, tuple(args.sequences), args.renderer)
     noisy = [add_noise(p) for p in clean]
-    runner = Runner(backend=args.backend)
+    runner = Runner()
     res: dict[str, Any] = {
-        **run_record("bench.paper", argv), "base": BASE, "factors": args.factors, "presmooth_sigma": PRESMOOTH_SIGMA,
-        "renderer": args.renderer,
+        **run_record("bench.paper", argv), "base": BASE, "factors": list(DYNAMIC_FACTORS),
+        "presmooth_sigma": PRESMOOTH_SIGMA, "renderer": args.renderer,
         "protocol": {p.name: {"gt_scale": p.scale, "consistency": consistency(p.i0, p.i1, fill_unknown(p.gt))}
                      for p in clean},
     }
     for variant, pairs in (("clean", clean), ("noisy", noisy)):
-        out = run_static_dynamic(runner, pairs, args.factors, variant)
+        out = run_static_dynamic(runner, pairs, DYNAMIC_FACTORS, variant)
         res[variant] = {
             "algorithms": out,
             "peer": {"opencv_dualtvl1": run_peer(pairs, as_float=False),

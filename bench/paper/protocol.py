@@ -38,13 +38,14 @@ def fill_unknown(gt: np.ndarray) -> np.ndarray:
     return gt[idx[0], idx[1]]
 
 
-def scale_to_unit(gt: np.ndarray) -> np.ndarray:
-    """Scale known vectors so the largest known magnitude is exactly 1 px; unknown pixels keep their value."""
+def scale_to_unit(gt: np.ndarray) -> tuple[np.ndarray, float]:
+    """Known vectors scaled so that the largest known magnitude is exactly 1 px (unknown pixels keep their
+    value), and the factor applied."""
     known = valid_mask(gt)
     peak = float(np.linalg.norm(gt[known], axis=-1).max())
     out = gt.copy()
     out[known] = gt[known] / peak
-    return out
+    return out, 1.0 / peak
 
 
 def _sample(field: np.ndarray, map_x: np.ndarray, map_y: np.ndarray, interp: int) -> np.ndarray:
@@ -93,19 +94,14 @@ class PaperPair:
     i1: np.ndarray
     gt: np.ndarray
     scale: float = 1.0  # factor applied to the original ground truth
-    colour: np.ndarray | None = None  # the RGB frame 10, for figures
 
 
 def make_pair(seq_dir: Path, renderer: str = "bandlimited") -> PaperPair:
     """The clean synthesised pair of one sequence (second frame by ``renderer``)."""
-    rgb = read_image(seq_dir / "frame10.png")
-    i0 = to_grey(rgb, "frame10")
-    gt = read_flo(seq_dir / "flow10.flo")
-    known = valid_mask(gt)
-    scale = 1.0 / float(np.linalg.norm(gt[known], axis=-1).max())
-    g = scale_to_unit(gt)
+    i0 = to_grey(read_image(seq_dir / "frame10.png"), "frame10")
+    g, scale = scale_to_unit(read_flo(seq_dir / "flow10.flo"))
     i1 = synthesise_second(i0, fill_unknown(g).astype(np.float32), renderer)
-    return PaperPair(seq_dir.name, i0, i1.astype(np.float32), g, scale, rgb)
+    return PaperPair(seq_dir.name, i0, i1.astype(np.float32), g, scale)
 
 
 def add_noise(p: PaperPair, sigma: float = NOISE_SIGMA, seed: int = 0) -> PaperPair:

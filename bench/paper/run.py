@@ -41,7 +41,6 @@ def presmooth(img: np.ndarray, sigma: float) -> np.ndarray:
 class Runner:
     """Runs configs on pairs with one estimator per config; keeps flows wanted for figures."""
 
-    backend: str = "auto"
     sigma: float = PRESMOOTH_SIGMA
     keep: set[str] = field(default_factory=lambda: set(FIGURE_SEQUENCES))
     flows: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
@@ -53,7 +52,7 @@ class Runner:
               init: np.ndarray | None = None) -> dict[str, float]:
         """AEE (px) and AE (deg) of ``cfg`` on one pair (optionally started from flow ``init`` (H, W, 2));
         the flow is kept under ``tag`` for figures."""
-        est = FlowEstimator(cfg.replace(backend=self.backend))
+        est = FlowEstimator(cfg)
         start = time.perf_counter()
         flow = est.estimate(presmooth(p.i0, self.sigma), presmooth(p.i1, self.sigma), initial_flow=init).flow
         self.seconds += time.perf_counter() - start

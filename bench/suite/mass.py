@@ -1,18 +1,8 @@
-"""The ``mass`` regime: exactly rendered density images advected by compressible, divergent motions.
+"""The ``mass`` regime: exactly rendered density images advected by compressible, divergent motions (issue 27).
 
-Frame 0 is a band-limited texture T (bench.suite.synthetic's bands) read as a density, I0(x) = T(x). A map
-y = phi(x) with a known inverse moves it and keeps its mass: I1(y) = I0(phi^-1(y)) / det(D phi)(phi^-1(y)),
-so I1(phi(x)) det(D phi)(x) = I0(x) exactly, the continuity equation in its Lagrangian form. The ground
-truth is phi(x) - x. Brightness constancy is wrong by the factor det(D phi), which varies in space.
-
-Maps (the kind cycles with the seed's index, the band with it as in bench.suite.synthetic):
-- ``affine``: c + M (x - c) + b, an anisotropic zoom with a shear, det M = 0.85-1.18 (the inverse in
-  closed form; the density change is a global gain here, which brightness constancy can partly absorb);
-- ``radial``: a source or sink, c + (x - c) g(r), g(r) = 1 + A exp(-r^2 / (2 s^2)), det = g (g + r g');
-  its inverse is one monotone scalar equation in r, solved by Newton's method to 1e-12 px;
-- ``separable``: (x + A sin(2 pi x / L + p), y + B sin(2 pi y / L' + q)), det = (1 + g'(x)) (1 + h'(y));
-  the inverse is one monotone scalar equation per axis, solved the same way.
-Displacements stay within ~0.5-3.5 px, the density changes by up to ~25 %. 8-bit, 320x240.
+Frame 0 is a band-limited texture read as a density; a map y = phi(x) with a known inverse moves it and keeps
+its mass, I1(y) = I0(phi^-1(y)) / det(D phi)(phi^-1(y)); ground truth phi(x) - x. The maps (``affine``,
+``radial``, ``separable``), their inverses and sizes: docs/suite.md, "The ``mass`` regime". 8-bit, 320x240.
 """
 
 from __future__ import annotations

@@ -1,16 +1,8 @@
 """The methods the suite compares: flow_node configs (presets and the plain FlowConfig()) and the peers.
 
-A method has two steps: ``prepare(sample)`` (untimed: what the caller hands it, e.g. the 8-bit grey image
-an OpenCV peer requires) and ``run(prepared)`` (timed), which returns the flow (H, W, 2) float32, or a
-pair (flow, confidence) with a per-pixel confidence (H, W) in [0, 1] (higher = more trustworthy), or a triple
-(flow, confidence, unexplained) with the method's own unexplained fraction (flow_node's FlowResult.unexplained).
-
-What each method is given:
-- flow_node gets the sample's frames exactly as delivered (uint8 / uint16 / float32, grey or RGB): its own
-  input conversion (to_grey, and whatever photometric stage it has) is part of its work and its time.
-- Peers get the grey image scaled by the content's bit depth (10-bit content in mono16 divided by 1023, as
-  a user who knows the camera would do), as float32 in [0, 1] (scikit-image) or rounded to uint8 (OpenCV,
-  which needs 8-bit input).
+A method has two steps: ``prepare(sample)`` (untimed) and ``run(prepared)`` (timed), which returns the flow
+(H, W, 2) float32, or (flow, confidence) with a per-pixel confidence (H, W) in [0, 1], or (flow, confidence,
+unexplained) with flow_node's FlowResult.unexplained. What each method is given: docs/suite.md, "Decisions".
 """
 
 from __future__ import annotations

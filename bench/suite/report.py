@@ -162,13 +162,18 @@ def targets_table(checks: list[dict[str, Any]]) -> str:
     return "\n".join(md_table(["target", "regime", "method", "result", "numbers"], rows))
 
 
+def run_line(res: dict[str, Any], note: str = "") -> str:
+    """How a result was run: its command, split (and ``note``), start, wall time and commit."""
+    return (f"Command: `{res.get('command', 'run_suite(...)').strip()}`; split `{res['split']}`{note}; started "
+            f"{res.get('started', '?')}, wall {res.get('wall_seconds', 0) / 60:.0f} min; "
+            f"commit {res.get('versions', {}).get('commit', '?')}")
+
+
 def markdown(res: dict[str, Any]) -> str:
     """The whole report: how it was run, every regime's table, then the target checks."""
     v = res.get("versions", {})
-    head = (f"Command: `{res.get('command', 'run_suite(...)').strip()}`; split `{res['split']}`"
-            f"{' (QUICK: fewer pairs, indicative only)' if res['quick'] else ''}; started {res.get('started', '?')}, "
-            f"wall {res.get('wall_seconds', 0) / 60:.0f} min; commit {v.get('commit', '?')}; "
-            f"numpy {v.get('numpy', '?')}, "
+    quick = " (QUICK: fewer pairs, indicative only)" if res["quick"] else ""
+    head = (run_line(res, quick) + f"; numpy {v.get('numpy', '?')}, "
             f"OpenCV {v.get('opencv', '?')}, scikit-image {v.get('scikit-image', '?')}, numba {v.get('numba', '?')}; "
             f"per pair the median of {res['repeats']} interleaved timed runs ({res['slow_repeats']} for the TV-L1 "
             f"peers and a method slower than {res['slow_seconds']} s per pair). Times in ms, ratios against DIS "
@@ -181,13 +186,11 @@ def markdown(res: dict[str, Any]) -> str:
 
 def summary(res: dict[str, Any]) -> str:
     """BENCHMARKS.md's part: how it was run, the mean-AEE table and the target count (the rest: the .md)."""
-    v, checks = res.get("versions", {}), res.get("targets", [])
+    checks = res.get("targets", [])
     met = sum(c["met"] is True for c in checks)
     missed = [c for c in checks if c["met"] is False]
-    head = (f"Command: `{res.get('command', 'run_suite(...)').strip()}`; split `{res['split']}`; started "
-            f"{res.get('started', '?')}, wall {res.get('wall_seconds', 0) / 60:.0f} min; "
-            f"commit {v.get('commit', '?')}. "
-            "Mean AEE (px) per regime, in brackets time / DIS medium in the same run (DIS medium: ms per pair).")
+    head = (run_line(res) + ". Mean AEE (px) per regime, in brackets time / DIS medium in the same run (DIS medium: "
+            "ms per pair).")
     tail = f"Target checks: **{met} met, {len(missed)} missed**" + "".join(
         f"\n- missed: {c['target']} ({c['regime']}, {c['method']}): {c['detail']}" for c in missed)
     return "\n\n".join([head, summary_table(res), tail]) + "\n"

@@ -1,20 +1,11 @@
 """``python -m bench.suite.stream_costs``: where a stream preset's time per frame goes, against OpenCV DIS
-ultrafast on the same frames (issue 26: a stream preset at <= 2x DIS ultrafast's time), or with ``--cpu`` the
-CPU time of its predicted frames alone, for an A/B of two code versions on a shared machine.
+ultrafast on the same frames (issue 26), or with ``--cpu`` the CPU time of its predicted frames alone, for an A/B
+of two code versions on a shared machine; what each figure is: docs/suite.md, "Streams".
 
     python -m bench.suite.stream_costs --size 320x240 --method lite=stream_lite[,key=value...] [--out DIR]
     python -m bench.suite.stream_costs --cpu --size 320x240 --kind pan --repeats 6   # stream_fast by default
     for r in 1 2 3; do for t in /path/main /path/branch; do
         (cd $t && PYTHONPATH=$t python -m bench.suite.stream_costs --cpu --kind objects); done; done
-
-A sequence is streamed 1 + ``--repeats`` times through ``FlowStream.process`` (as bench.suite.streams runs
-it; the first pass warms caches up and is not counted). Stages: the tune pan; every stage the stream stage
-calls (STAGES) is timed by wrapping its function, per predicted frame, with the frame's wall and CPU time and
-DIS ultrafast right after it; medians over the repeats (docs/suite.md, "Streams"). ``--cpu``: one report
-sequence (``--kind``); each predicted frame's ``time.process_time`` (every thread of the process); the figure
-is the mean over the frames of each frame's minimum over the passes (the least disturbed figure on a loaded
-machine: a frame's minimum is the pass in which nothing else ran on its core), beside the median over passes
-of the per-pass mean; one line per method, no file.
 """
 
 from __future__ import annotations
@@ -36,7 +27,7 @@ from flow_node.core.config import FlowConfig
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
-from ..common import machine, run_record, write_result, wxh
+from ..common import machine, md_table, run_record, write_result, wxh
 from .sequences import Sequence, sequences
 from .streams import PERIOD_NS, parse_method
 
@@ -145,10 +136,9 @@ def markdown(results: list[dict[str, Any]], command: str, load: str) -> str:
                   f"{res['frame_seconds'] / d:.2f}x DIS ultrafast ({1e3 * d:.2f} ms), CPU time "
                   f"{1e3 * res.get('frame_cpu_seconds', float('nan')):.2f} ms; "
                   f"{res['predicted']} / {res['pairs']} pairs predicted", "",
-                  "| stage | ms per frame | x DIS ultrafast |", "|---|---|---|"]
-        for label, s in res["stages"].items():
-            lines.append(f"| {label.replace('  ', '- ')} | {1e3 * s:.3f} | {s / d:.2f} |")
-        lines.append("")
+                  *md_table(["stage", "ms per frame", "x DIS ultrafast"],
+                            [[label.replace("  ", "- "), f"{1e3 * s:.3f}", f"{s / d:.2f}"]
+                             for label, s in res["stages"].items()]), ""]
     return "\n".join(lines)
 
 

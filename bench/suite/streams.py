@@ -25,8 +25,9 @@ from flow_node.core.metrics import aee
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
 
-from ..common import REPO, machine, run_record, write_result, wxh
+from ..common import REPO, machine, md_table, run_record, write_result, wxh
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, parse_method
+from .metrics import add_ratios
 from .sequences import FRAMES, KINDS, Sequence, bag_sequences, sequences
 
 RESULTS = REPO / "bench" / "results" / "suite" / "stream"
@@ -130,10 +131,8 @@ def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Se
                                         "seconds": float(np.mean(per_seq[s.name][n]["seconds"]))} for s in seqs},
                   "predicted": labels.count("predicted"),
                   "fallbacks": sum(x.startswith("full") for x in labels)}
+    add_ratios(out)
     for n, m in out.items():
-        for ref in (DIS_MEDIUM, DIS_ULTRAFAST):
-            m[f"time_vs_{ref}"] = m["seconds"] / out[ref]["seconds"]
-            m[f"aee_vs_{ref}"] = m["aee"] / out[ref]["aee"]
         base = STREAM_BASE.get(n)
         if base in out:
             m["event_ratio"] = {}
@@ -168,21 +167,21 @@ def run(methods: Mapping[str, FlowConfig], split: str, size: tuple[int, int], ki
 def markdown(res: dict[str, Any], command: str) -> str:
     """A short table of a result: per method mean AEE, ms per frame, ratios, fallbacks, worst event ratio."""
     w, h = res["size"]
-    lines = [f"# Stream regime, {res['split']} split, {w}x{h} (up to {res['frames']} frames per sequence)", "",
-             f"`{command}`", "",
-             "| method | mean AEE | ms/frame | time vs DIS medium | time vs DIS ultrafast | AEE vs DIS medium "
-             "| predicted / full | worst event ratio | CPU ms/frame |", "|---|---|---|---|---|---|---|---|---|"]
+    rows = []
     for n, m in res["methods"].items():
         ev = [r for rs in m.get("event_ratio", {}).values() for r in rs]
-        worst = f"{max(ev):.2f}" if ev else ""
-        lines.append(f"| {n} | {m['aee']:.3f} | {1000 * m['seconds']:.1f} | {m['time_vs_dis_medium']:.2f} | "
-                     f"{m['time_vs_dis_ultrafast']:.2f} | {m['aee_vs_dis_medium']:.2f} | "
-                     f"{m['predicted']} / {m['fallbacks']} | {worst} | {1000 * m.get('cpu_seconds', np.nan):.1f} |")
+        rows.append([n, f"{m['aee']:.3f}", f"{1000 * m['seconds']:.1f}", f"{m['time_vs_dis_medium']:.2f}",
+                     f"{m['time_vs_dis_ultrafast']:.2f}", f"{m['aee_vs_dis_medium']:.2f}",
+                     f"{m['predicted']} / {m['fallbacks']}", f"{max(ev):.2f}" if ev else "",
+                     f"{1000 * m.get('cpu_seconds', np.nan):.1f}"])
     kinds = list(next(iter(res["methods"].values()))["per_kind"])
-    lines += ["", "Mean AEE per kind:", "", "| method | " + " | ".join(kinds) + " |",
-              "|---|" + "---|" * len(kinds)]
-    for n, m in res["methods"].items():
-        lines.append(f"| {n} | " + " | ".join(f"{m['per_kind'][k]['aee']:.3f}" for k in kinds) + " |")
+    lines = [f"# Stream regime, {res['split']} split, {w}x{h} (up to {res['frames']} frames per sequence)", "",
+             f"`{command}`", "", *md_table(["method", "mean AEE", "ms/frame", "time vs DIS medium",
+                                            "time vs DIS ultrafast", "AEE vs DIS medium", "predicted / full",
+                                            "worst event ratio", "CPU ms/frame"], rows),
+             "", "Mean AEE per kind:", "",
+             *md_table(["method", *kinds], [[n, *(f"{m['per_kind'][k]['aee']:.3f}" for k in kinds)]
+                                            for n, m in res["methods"].items()])]
     if res.get("load"):
         lines += ["", f"Load (1-min average, before each sequence and at the end): {min(res['load']):.1f}-"
                       f"{max(res['load']):.1f}" + ("; glibc's malloc defaults" if res.get("malloc_defaults") else "")]
