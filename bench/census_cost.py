@@ -7,19 +7,23 @@
     python -m bench.census_cost --data large --pairs kitti2012_000000,tartanair_a_000010_to_000009
 
 
-Each preset runs with ``photometric`` ``normalise`` (grey values, the default) and ``census`` on the 8
-Middlebury pairs (``--data large``: the large-motion set, ../shared/data/large, where the initialisation and
-fusion run; ``--pairs`` a subset by name), one thread, warm (one call per pair first); each round runs every pair
-with each data term in turn (the order reversed every other pair and round), and the table gives the median over
-rounds of each stage's time summed over the pairs (ms). A stage's time is *exclusive*: a timed function's time
-minus that of the timed functions it calls (e.g. the census form without the kernels listed beside it). The spans
-wrap the backend's fields and a few module functions (:data:`SPANS`); "other" is the call's time outside every
-span (Python glue, resizes, layout). The wrappers cost ~1 us per call: the totals are a few ms above an untimed call.
-``--term NAME=key=value,...`` adds a census variant (the preset with ``photometric=census`` and those fields),
-timed in the same rounds: an A/B of a census change against the preset's census and grey values in one run.
-``--clock cpu`` times with the process's CPU time (time.process_time) instead of the wall clock: on a machine
-shared with other jobs (load above the core count) the wall clock counts the time the process waits for a core,
-which lands on whichever term runs then; CPU time does not (it still sees their cache and memory traffic).
+Each preset runs with ``photometric`` ``normalise`` (grey values, the default) and ``census`` on the 8 Middlebury
+pairs (``--data large``: the large-motion set, ../shared/data/large, where the initialisation and fusion run; ``--data
+fine_320``: the suite's fine_320 regime's tune pairs, 320x240; ``--data bags``: the bundled bags' pairs, 128x96;
+``--pairs`` a subset by name), one thread, warm (one call per pair first); each round runs every pair with each data
+term in turn (the order reversed every other pair and round), and the table gives the median over rounds of each
+stage's time summed over the pairs (ms). A stage's time is *exclusive*: a timed function's time minus that of the
+timed functions it calls (e.g. the census form without the kernels listed beside it). The spans wrap the backend's
+fields and a few module functions (:data:`SPANS`); "other" is the call's time outside every span (Python glue,
+resizes, layout). The wrappers cost ~1 us per call: the totals are a few ms above an untimed call. ``--term
+NAME=key=value,...`` adds a census variant (the preset with ``photometric=census`` and those fields), timed in the
+same rounds: an A/B of a census change against the preset's census and grey values in one run. ``--clock cpu`` times
+with the process's CPU time (time.process_time) instead of the wall clock: on a machine shared with other jobs (load
+above the core count) the wall clock counts the time the process waits for a core, which lands on whichever term runs
+then; CPU time does not (it still sees their cache and memory traffic). It counts every thread of the process, though:
+OpenCV's second worker (DIS, some resizes) works and then spins on the other core after a parallel call, and that lands
+on whichever stage runs next (the solve of the coarse levels after the initialisation, say): 26-40 ms of the large
+set's ~150-200 ms per round, in both terms alike (task censlarge, bench/results/census_cost/censlarge/clocks.py).
 """
 
 from __future__ import annotations
@@ -39,7 +43,8 @@ from flow_node.core.backends import select_backend
 from flow_node.core.config import FlowConfig
 
 from .common import md_table, run_record, write_result
-from .suite.data import Sample, large, middlebury
+from .suite import synthetic
+from .suite.data import Sample, bags, large, middlebury
 
 PRESETS = ("realtime", "fastest", "quality")
 TERMS = ("normalise", "census")  # the grey-value baseline first: every ratio is against it
@@ -55,7 +60,11 @@ SPANS: tuple[tuple[Any, str], ...] = (
     (refine, "warp_source"), (numba_census, "factor_numba"), (numba_census, "census_kernel"),
     (engine, "candidates_on_level"), (initialise, "equalised"), (initialise, "dis_candidates"),
     (fusion, "planes"), (fusion, "census_planes"))
-DATA: dict[str, Callable[[bool], list[Sample]]] = {"middlebury": middlebury, "large": large}
+# ``fine_320``: the suite's fine_320 regime, tune seeds (12 textures at 320x240, 0.3-3 px): the suite's small frames;
+# ``bags``: the bundled bags' pairs (128x96)
+DATA: dict[str, Callable[[bool], list[Sample]]] = {
+    "middlebury": middlebury, "large": large, "bags": bags,
+    "fine_320": lambda quick: list(synthetic.fine("tune", quick, (320, 240)))}
 
 
 CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}

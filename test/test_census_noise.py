@@ -14,6 +14,7 @@ from flow_node.core.census import CENSUS
 from flow_node.core.census_noise import PairNoise, channel_noise, difference_noise_gains, noise_sigma, pair_noise
 from flow_node.core.colour import normalise_channel_pair
 from flow_node.core.config import FlowConfig
+from flow_node.core.numba_sort import noise_sigma_numba
 from flow_node.core.photometric import (
     QUANT_SIGMA,
     STEP_REF,
@@ -51,6 +52,19 @@ def test_noise_sigma_reads_white_noise_and_not_a_smooth_texture() -> None:
     assert noise_sigma(tex + noise) == pytest.approx(0.02, rel=0.1)
     assert noise_sigma(quantised(tex)) < 0.002  # 8-bit quantisation of a smooth texture: ~1/255 / sqrt(12) at most
     assert noise_sigma(np.zeros((2, 9), np.float32)) == 0.0
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (2, 9), (3, 3), (5, 7), (16, 17), (17, 16), (18, 40), (240, 320),
+                                   (375, 1242)])
+def test_noise_sigma_numba_is_the_reference_bit_for_bit(shape: tuple[int, int]) -> None:
+    """numba_sort.noise_sigma_numba (the numba backend's ``noise``): noise_sigma's value exactly, on noise,
+    quantised noise (ties in the median), a flat frame and a noisy ramp; both the stride-1 and stride-4 grids,
+    odd and even sample counts."""
+    rng = np.random.default_rng(shape[0] * 1000 + shape[1])
+    ramp = np.linspace(0.0, 1.0, shape[1], dtype=np.float32)[None] + 0.01 * rng.standard_normal(shape)
+    for img in (rng.random(shape), np.round(rng.random(shape) * 255) / 255, np.zeros(shape), ramp):
+        img = img.astype(np.float32)
+        assert noise_sigma_numba(img) == noise_sigma(img)
 
 
 @pytest.mark.parametrize(("cfg", "blur"), [(CENSUS_RT, 0.0), (CENSUS_RT, QUANT_SIGMA),

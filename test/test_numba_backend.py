@@ -24,6 +24,7 @@ from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import NUMPY, select_backend
 from flow_node.core.census import census_form, level_signature, median_contrast
 from flow_node.core.census import reliability as census_reliability
+from flow_node.core.census_noise import noise_sigma
 from flow_node.core.confidence import confidence, confidence_at
 from flow_node.core.config import MODELS, FlowConfig
 from flow_node.core.densify import push_pull, splat_forward
@@ -37,7 +38,7 @@ from flow_node.core.numba_census import census_form_numba, level_signature_numba
 from flow_node.core.numba_confidence import confidence_at_numba, confidence_numba
 from flow_node.core.numba_fusion import consistent_numba, fuse_numba, planes_numba
 from flow_node.core.numba_judge import reliability_numba as census_reliability_numba
-from flow_node.core.numba_sort import ranks_numba, sorted_sample_numba
+from flow_node.core.numba_sort import noise_sigma_numba, ranks_numba, sorted_sample_numba
 from flow_node.core.numba_temporal import push_pull_numba, splat_numba
 from flow_node.core.operators import image_gradient, linearise
 from flow_node.core.photometric import sorted_sample
@@ -321,12 +322,12 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
 NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, census_reliability, fuse, forward_backward_consistent,
                 level_signature, census_form, confidence, 1, NUMPY.on_threads, splat_forward,
                 confidence_at, sorted_sample, image_gradient, push_pull, level_planes, equalised,
-                median_contrast)
+                median_contrast, noise_sigma)
 NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, census_reliability_numba, fuse_numba, consistent_numba,
                 level_signature_numba, census_form_numba, confidence_numba,
                 numba.config.NUMBA_NUM_THREADS, numba_backend.thread_count, splat_numba,
                 confidence_at_numba, sorted_sample_numba, image_gradient_numba, push_pull_numba,
-                planes_numba, ranks_numba, median_contrast_numba)
+                planes_numba, ranks_numba, median_contrast_numba, noise_sigma_numba)
 
 
 def test_backend_selection_and_log() -> None:

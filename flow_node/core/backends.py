@@ -13,6 +13,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .census import CensusForm, LevelSignature, census_form, level_signature, median_contrast, reliability
+from .census_noise import noise_sigma
 from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .densify import push_pull, splat_forward
 from .errors import ConfigError
@@ -39,7 +40,8 @@ class Backend(NamedTuple):
     sample of a frame (photometric.sorted_sample; the same array in every backend), the data term's image
     gradient (operators.image_gradient), the stream stage's hole fill (densify.push_pull), the fusion's cost
     planes of a level's frame (fusion.level_planes), the census initialisation's mid-ranks of a frame
-    (initialise.equalised) and a census level's contrast (census.median_contrast) (same semantics in every
+    (initialise.equalised), a census level's contrast (census.median_contrast) and a frame's noise for the census
+    noise floor (census_noise.noise_sigma) (same semantics in every
     backend; the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels
     run on and the context that binds them (:meth:`running`).
     """
@@ -64,6 +66,7 @@ class Backend(NamedTuple):
     cost_planes: LevelPlanes = level_planes  # what the fusion compares of a level's frame (fusion.level_planes)
     ranks: Callable[[np.ndarray], np.ndarray] = equalised  # a frame's mid-ranks for census's sources (equalised)
     contrast: Callable[[np.ndarray], float] = median_contrast  # a census level's contrast (census.median_contrast)
+    noise: Callable[[np.ndarray], float] = noise_sigma  # a frame's white-noise std (census_noise.noise_sigma)
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -192,4 +195,5 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    sample=Deferred(_numba_sort, "sorted_sample_numba"), gradient=numba_backend.image_gradient_numba,
                    fill=Deferred(_numba_temporal, "push_pull_numba"),
                    cost_planes=numba_fusion.planes_numba, ranks=Deferred(_numba_sort, "ranks_numba"),
-                   contrast=Deferred(_numba_census, "median_contrast_numba"))
+                   contrast=Deferred(_numba_census, "median_contrast_numba"),
+                   noise=Deferred(_numba_sort, "noise_sigma_numba"))

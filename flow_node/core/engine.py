@@ -101,7 +101,8 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     judge = backend.reliability
     noise = None
     if signatures and cfg.census_noise_k > 0:
-        noise = pair_noise((i0, i1), samples, gain, solver_pair) if colour is None else channel_noise(*colour, gain)
+        noise = (pair_noise((i0, i1), samples, gain, solver_pair, backend.noise) if colour is None
+                 else channel_noise(*colour, gain, backend.noise))
     return solver_pair, Judged(frames, judge, samples, key, noise)
 
 

@@ -10,7 +10,10 @@ warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings
 level-sized arrays (the judge's kernel, census.reliability, is numba_judge's). Grey and colour input are the
 same kernel (C = 1 or 3 channels of K signatures each), and so are the neighbours at distance 1 and 2
 (CensusParams.radius: the warped rows' ring holds 2 radius + 1 rows; the reliability figure compares the 3 x 3
-signature either way). Rows run as whole-row loops (1-D views of C-contiguous arrays, so they vectorise). The same
+signature either way). Rows run as whole-row loops over C-contiguous arrays (unit stride, so they vectorise), the
+helpers taking the whole arrays and row / slot indices, not row views: every view numba makes is a reference count
+taken and dropped (two atomic operations), and the ~90 views a row took cost ~2 us a row whatever its width -- on a
+40-160 px level most of the kernel's time (task censlarge: 1.6-2.6x faster there, 1.2x at 640 px). The same
 quantities as the reference, the form's sums rearranged (:func:`_form_finish`): equal to float32 rounding
 (test_census, 1e-5 of the form's largest value).
 
@@ -28,6 +31,7 @@ from numba import get_thread_id, njit, prange
 from .census import OFFSETS, OFFSETS_DX, OFFSETS_DY, CensusParams, contrast_stride
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
 from .numba_kernels import FASTMATH
+from .numba_sort import median_f32
 from .numba_warp import sample_row
 from .warping import KERNEL_CODES
 from .workspace import scratch
@@ -45,59 +49,60 @@ def _offset_arrays(radius: int) -> tuple[np.ndarray, np.ndarray]:
     return (OFFSETS_DY, OFFSETS_DX) if radius == 1 else (OFFSETS_DY * radius, OFFSETS_DX * radius)
 
 
-def _make_diff_row(edge: bool):  # noqa: ANN202
-    """dst = neighbour - centre and ss += dst^2 over one row (1-D views; vectorises); with ``edge`` one neighbour
-    value, neighbour[0], for every pixel (the columns whose neighbour is clamped to the row's end). ``edge`` is a
-    compile-time constant: one source, two kernels (:data:`_diff_row`, :data:`_diff_edge`), each as fast as its
-    loop written out (the factor kernel's time within 1-2 %;
-    git show 4983857:bench/results/census_cost/onesig/summary.md)."""
+def _make_diff_span(edge: bool):  # noqa: ANN202
+    """out[k, i, j] = img[r, j + off] - img[rc, j] and ss[j] += out[k, i, j]^2 for j0 <= j < j1; with ``edge`` one
+    neighbour value, img[r, off], for every pixel (the columns whose neighbour is clamped to the row's end).
+    ``edge`` is a compile-time constant: one source, two kernels (:data:`_diff_span`, :data:`_diff_edge`), each
+    as fast as its loop written out (the factor kernel's time within 1-2 %;
+    git show 4983857:bench/results/census_cost/onesig/summary.md; a run-time select of the column was 15 %
+    slower). Whole arrays and indices, no views (task censlarge, :func:`_census_rows`)."""
 
-    def diff_row(neighbour, centre, dst, ss):  # noqa: ANN001, ANN202
-        for j in range(dst.shape[0]):
-            d = (neighbour[0] if edge else neighbour[j]) - centre[j]  # (neighbour[0 if edge else j]: 15 % slower)
-            dst[j] = d
-            ss[j] += d * d
+    def diff_span(img, r, rc, off, j0, j1, out, k, i, ss):  # noqa: ANN001, ANN202
+        for j in range(j0, j1):
+            c = np.uint64(j)  # unsigned column indices: numba wraps a signed index around (+ W where < 0), a
+            # select that kept this loop (j + off, off < 0) from being vectorised (1.4x slower at 640 px)
+            d = (img[r, off] if edge else img[r, np.uint64(j + off)]) - img[rc, c]
+            out[k, i, c] = d
+            ss[c] += d * d
 
-    diff_row.__name__ = diff_row.__qualname__ = "diff_edge" if edge else "diff_row"
-    return njit(**_JIT)(diff_row)
+    diff_span.__name__ = diff_span.__qualname__ = "diff_edge" if edge else "diff_span"
+    return njit(**_JIT)(diff_span)
 
 
-_diff_row, _diff_edge = _make_diff_row(False), _make_diff_row(True)
+_diff_span, _diff_edge = _make_diff_span(False), _make_diff_span(True)
 
 
 @njit(**_JIT)
-def _neighbour_differences(up, centre, down, dy, dx, out, i, ss):  # noqa: ANN001, ANN201
-    """The K neighbour differences of one image row ``centre`` (W), whose neighbour rows are ``up`` and ``down``
+def _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss):  # noqa: ANN001, ANN201
+    """The K neighbour differences of the row ``rc`` of img (., W), whose neighbour rows are ``ru`` and ``rd``
     (rows y - r and y + r for offsets (dy, dx) of distance r, clamped to the image: edge values), into the rows
     out[k, i] (k < K) of out (K, ., W), column neighbours clamped to the row; and their sum of squares added to
-    ss (W). Channel by channel over whole rows (1-D views of C-contiguous arrays,
-    so that the loops vectorise)."""
-    w = centre.shape[0]
+    ss (W). Channel by channel over whole rows (unit stride, so that the loops vectorise)."""
+    w = img.shape[1]
     k_n = dy.shape[0]
     for k in range(k_n):
-        src = up if dy[k] < 0 else (down if dy[k] > 0 else centre)
-        dst = out[k, i]
+        r = ru if dy[k] < 0 else (rd if dy[k] > 0 else rc)
         d = dx[k]
         m = min(abs(d), w)  # the columns whose neighbour is clamped to the row's end
         if d == 0:
-            _diff_row(src, centre, dst, ss)
+            _diff_span(img, r, rc, 0, 0, w, out, k, i, ss)
         elif d > 0:  # the last d columns' neighbour is the last column
-            _diff_row(src[m:], centre[:w - m], dst[:w - m], ss[:w - m])
-            _diff_edge(src[w - 1:], centre[w - m:], dst[w - m:], ss[w - m:])
+            _diff_span(img, r, rc, m, 0, w - m, out, k, i, ss)
+            _diff_edge(img, r, rc, w - 1, w - m, w, out, k, i, ss)
         else:
-            _diff_row(src[:w - m], centre[m:], dst[m:], ss[m:])
-            _diff_edge(src[:1], centre[:m], dst[:m], ss[:m])
+            _diff_span(img, r, rc, -m, m, w, out, k, i, ss)
+            _diff_edge(img, r, rc, 0, 0, m, out, k, i, ss)
 
 
 @njit(**_JIT)
-def _differences(up, centre, down, dy, dx, gain, eps, out, i, ss):  # noqa: ANN001, ANN201
+def _differences(img, ru, rc, rd, dy, dx, gain, eps, out, i, ss):  # noqa: ANN001, ANN201
     """:func:`_neighbour_differences` and into ss (W) the factor that makes them the signature,
     GAIN / (RMS + EPS) (census.signature)."""
     k_n = dy.shape[0]
     ss[:] = 0.0
-    _neighbour_differences(up, centre, down, dy, dx, out, i, ss)
+    _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss)
     inv_k = _F32(1.0) / _F32(k_n)  # float32 throughout (ss / k_n, an int, promoted the row to float64)
-    for j in range(centre.shape[0]):
+    for j in range(img.shape[1]):
         ss[j] = gain / (math.sqrt(ss[j] * inv_k) + eps)
 
 
@@ -112,12 +117,13 @@ def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, diffs):  # noqa: ANN
     h, w = img.shape
     k_n = dy.shape[0]
     for i in prange(h):
-        up, centre, down = img[max(i - rad, 0)], img[i], img[min(i + rad, h - 1)]
+        rc = np.int64(i)  # (prange's index is unsigned: mixed with rad, float64)
+        ru, rd = max(rc - rad, 0), min(rc + rad, h - 1)
         if diffs is not None:
-            _differences(up, centre, down, dy, dx, gain, eps, diffs, i, out[i])
+            _differences(img, ru, rc, rd, dy, dx, gain, eps, diffs, rc, out[rc])
         else:
             tmp = np.empty((k_n, 1, w), np.float32)
-            _differences(up, centre, down, dy, dx, gain, eps, tmp, 0, out[i])
+            _differences(img, ru, rc, rd, dy, dx, gain, eps, tmp, 0, out[rc])
             if planes is not None:
                 for j in range(w):
                     for k in range(k_n):
@@ -125,38 +131,43 @@ def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, diffs):  # noqa: ANN
 
 
 @njit(**_JIT)
-def _pair_row(d0, s0, d, ss, p, r):  # noqa: ANN001, ANN201
-    """With F0 = d0 s0 (frame 0's neighbour differences times its factor, :func:`factor_kernel`) and F1 = d ss
-    (the warped frame's, :func:`_differences`) over one row (1-D views, W): p[1:W + 1] = F0 + F1 and
-    r = F1 - F0; p's ends mirror its columns 1 and W - 2 (p[0] = P(1), p[W + 1] = P(W - 2); both P(0) when
-    W == 1), so that P(x + 1) - P(x - 1) is 0 on the border columns."""
-    w = r.shape[0]
+def _pair_row(f0, n_c, c, k, rr, temp, ss, pair, diff, sq):  # noqa: ANN001, ANN201
+    """Channel q = c K + k of one row: with F0 = frame 0's neighbour difference f0[n_c + q, rr] times its factor
+    f0[c, rr] (:func:`level_signature_numba`) and F1 = temp[k, 0] ss (the warped frame's, :func:`_differences`),
+    pair[q, sq, 1:W + 1] = F0 + F1 and diff[q, sq] = F1 - F0; the pair row's ends mirror its columns 1 and W - 2
+    (P(1) before, P(W - 2) after; both P(0) when W == 1), so that P(x + 1) - P(x - 1) is 0 on the border
+    columns."""
+    w = diff.shape[2]
+    q = c * temp.shape[0] + k
     for j in range(w):
-        a, b = d0[j] * s0[j], d[j] * ss[j]
-        p[j + 1] = a + b
-        r[j] = b - a
-    p[0] = p[min(2, w)]
-    p[w + 1] = p[max(w - 1, 1)]
+        a, b = f0[n_c + q, rr, j] * f0[c, rr, j], temp[k, 0, j] * ss[j]
+        pair[q, sq, j + 1] = a + b
+        diff[q, sq, j] = b - a
+    pair[q, sq, 0] = pair[q, sq, min(2, w)]
+    pair[q, sq, w + 1] = pair[q, sq, max(w - 1, 1)]
 
 
 def _make_form_row(first: bool):  # noqa: ANN202
-    """The sums of four channels along one row segment (1-D views; vectorises; four per pass: the sums are
-    loaded and stored a quarter as often as one per pass), from P = F0 + F1 at the pixels' left/right/up/down
-    neighbours and D = F1 - F0 at the pixels (p, e, x, y: the four channels): with a channel's unscaled gradient
-    ax = P(x + 1) - P(x - 1), ay = P(y + 1) - P(y - 1) (sums of both frames' central differences), the residual
-    D at v0 and the weight wk, s0..s4 += wk (ax ax, ax ay, ay ay, ax D, ay D) of each (``first``: s0..s4 = the
-    sums, the row's first pass; no zeroing pass). ``first`` is a compile-time constant: one source, two kernels
-    (:data:`_form_row_first`, :data:`_form_row_add`). :func:`_form_finish` turns the sums over the channels into
-    the form."""
+    """The sums of four channels q .. q + 3 along row i (unit stride; vectorises; four per pass: the sums are
+    loaded and stored a quarter as often as one per pass), from P = F0 + F1 (``pair``, ring slots su, sc, sd:
+    rows i - 1, i, i + 1, border-mirrored, column x at x + 1) at the pixels' left/right/up/down neighbours and
+    D = F1 - F0 (``diff``, slot sc) at the pixels: with a channel's unscaled gradient ax = P(x + 1) - P(x - 1),
+    ay = P(y + 1) - P(y - 1) (sums of both frames' central differences), the residual D at v0 and the weight wk,
+    out[0..4, i] += wk (ax ax, ax ay, ay ay, ax D, ay D) of each (``first``: = the sums, the row's first pass;
+    no zeroing pass). ``first`` is a compile-time constant: one source, two kernels (:data:`_form_row_first`,
+    :data:`_form_row_add`). :func:`_form_finish` turns the sums over the channels into the form. Whole arrays
+    and indices, no row views (task censlarge, :func:`_census_rows`)."""
 
-    def form_row(pl, pr, pu, pd, pc, el, er, eu, ed, ec, xl, xr, xu, xd, xc, yl, yr, yu, yd, yc,  # noqa: ANN001, ANN202
-                 s0, s1, s2, s3, s4, d2, robust):
+    def form_row(pair, diff, q, su, sc, sd, out, i, d2, robust):  # noqa: ANN001, ANN202
         one = _F32(1.0)
-        for j in range(s0.shape[0]):
-            ax, ay, r0 = pr[j] - pl[j], pd[j] - pu[j], pc[j]
-            bx, by, r1 = er[j] - el[j], ed[j] - eu[j], ec[j]
-            cx, cy, r2 = xr[j] - xl[j], xd[j] - xu[j], xc[j]
-            dx, dy, r3 = yr[j] - yl[j], yd[j] - yu[j], yc[j]
+        for j in range(diff.shape[2]):
+            ax, ay, r0 = pair[q, sc, j + 2] - pair[q, sc, j], pair[q, sd, j + 1] - pair[q, su, j + 1], diff[q, sc, j]
+            bx, by, r1 = (pair[q + 1, sc, j + 2] - pair[q + 1, sc, j], pair[q + 1, sd, j + 1] - pair[q + 1, su, j + 1],
+                          diff[q + 1, sc, j])
+            cx, cy, r2 = (pair[q + 2, sc, j + 2] - pair[q + 2, sc, j], pair[q + 2, sd, j + 1] - pair[q + 2, su, j + 1],
+                          diff[q + 2, sc, j])
+            dx, dy, r3 = (pair[q + 3, sc, j + 2] - pair[q + 3, sc, j], pair[q + 3, sd, j + 1] - pair[q + 3, su, j + 1],
+                          diff[q + 3, sc, j])
             wa = one / math.sqrt(r0 * r0 + d2) if robust else one
             wb = one / math.sqrt(r1 * r1 + d2) if robust else one
             wc = one / math.sqrt(r2 * r2 + d2) if robust else one
@@ -169,13 +180,13 @@ def _make_form_row(first: bool):  # noqa: ANN202
             t3 = (wax * r0 + wbx * r1) + (wcx * r2 + wdx * r3)
             t4 = (way * r0 + wby * r1) + (wcy * r2 + wdy * r3)
             if first:
-                s0[j], s1[j], s2[j], s3[j], s4[j] = t0, t1, t2, t3, t4
+                out[0, i, j], out[1, i, j], out[2, i, j], out[3, i, j], out[4, i, j] = t0, t1, t2, t3, t4
             else:
-                s0[j] += t0
-                s1[j] += t1
-                s2[j] += t2
-                s3[j] += t3
-                s4[j] += t4
+                out[0, i, j] += t0
+                out[1, i, j] += t1
+                out[2, i, j] += t2
+                out[3, i, j] += t3
+                out[4, i, j] += t4
 
     form_row.__name__ = form_row.__qualname__ = "form_row_first" if first else "form_row_add"
     return njit(**_JIT)(form_row)
@@ -185,22 +196,21 @@ _form_row_first, _form_row_add = _make_form_row(True), _make_form_row(False)
 
 
 @njit(**_JIT)
-def _form_finish(out, i, ry, vx, vy, keep):  # noqa: ANN001, ANN201
+def _form_finish(out, i, ry, flow, keep, sk):  # noqa: ANN001, ANN201
     """Row i of out (5, H, W) from the channels' sums of :func:`_make_form_row` in place: the gradients' scales
     (x: 1/4, the mean of two central differences; y: ``ry``, 1/4 or 0 on the first and last rows) and the
-    pixel's weight ``keep`` (W), and the linearisation point: with rho_k(v) = a_k . (v - v0) + r0_k,
-    g = sum_k w_k a_k r0_k - T v0 (census.signature_form's sum of w_k c_k a_k, c_k = r0_k - a_k . v0)."""
-    o0, o1, o2, o3, o4 = out[0, i], out[1, i], out[2, i], out[3, i], out[4, i]
+    pixel's weight keep[sk] (W), and the linearisation point flow (2, H, W): with rho_k(v) = a_k . (v - v0) +
+    r0_k, g = sum_k w_k a_k r0_k - T v0 (census.signature_form's sum of w_k c_k a_k, c_k = r0_k - a_k . v0)."""
     q = _F32(0.25)
-    for j in range(o0.shape[0]):
-        t11 = keep[j] * q * q * o0[j]
-        t12 = keep[j] * q * ry * o1[j]
-        t22 = keep[j] * ry * ry * o2[j]
-        o0[j] = t11
-        o1[j] = t12
-        o2[j] = t22
-        o3[j] = keep[j] * q * o3[j] - t11 * vx[j] - t12 * vy[j]
-        o4[j] = keep[j] * ry * o4[j] - t12 * vx[j] - t22 * vy[j]
+    for j in range(out.shape[2]):
+        t11 = keep[sk, j] * q * q * out[0, i, j]
+        t12 = keep[sk, j] * q * ry * out[1, i, j]
+        t22 = keep[sk, j] * ry * ry * out[2, i, j]
+        out[0, i, j] = t11
+        out[1, i, j] = t12
+        out[2, i, j] = t22
+        out[3, i, j] = keep[sk, j] * q * out[3, i, j] - t11 * flow[0, i, j] - t12 * flow[1, i, j]
+        out[4, i, j] = keep[sk, j] * ry * out[4, i, j] - t12 * flow[0, i, j] - t22 * flow[1, i, j]
 
 
 @njit(**_JIT)
@@ -228,7 +238,7 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
             _pair_rows(f0, min(max(rr, 0), h - 1), warped, (rr - rad + 2 * m) % m, (rr + 2 * m) % m, s,
                        (rr + 3) % 3, dy, dx, gain, eps, pair, diff, temp, ss)
         if rr - 1 >= r0:  # output row i: signature rows i - 1, i, i + 1 are in the ring
-            _form_rows(out, rr - 1, pair, diff, keep[(rr - 1 + 2 * m) % m], flow, d2, robust)
+            _form_rows(out, rr - 1, pair, diff, keep, (rr - 1 + 2 * m) % m, flow, d2, robust)
 
 
 @njit(**_JIT)
@@ -239,32 +249,24 @@ def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, te
     k_n = dy.shape[0]
     n_c = warped.shape[0]
     for c in range(n_c):
-        _differences(warped[c, sm], warped[c, s0], warped[c, sp], dy, dx, gain, eps, temp, 0, ss)
+        _differences(warped[c], sm, s0, sp, dy, dx, gain, eps, temp, 0, ss)
         for k in range(k_n):
-            q = c * k_n + k
-            _pair_row(f0[n_c + q, rr], f0[c, rr], temp[k, 0], ss, pair[q, sq], diff[q, sq])
+            _pair_row(f0, n_c, c, k, rr, temp, ss, pair, diff, sq)
 
 
 @njit(**_JIT)
-def _form_rows(out, i, pair, diff, keep, flow, d2, robust):  # noqa: ANN001, ANN201
-    """Row i of the form out (5, H, W) from the rings' rows i - 1, i, i + 1 and the row's weight keep (W)
+def _form_rows(out, i, pair, diff, keep, sk, flow, d2, robust):  # noqa: ANN001, ANN201
+    """Row i of the form out (5, H, W) from the rings' rows i - 1, i, i + 1 and the row's weight keep[sk] (W)
     (:func:`_census_rows`)."""
     h = out.shape[1]
     su, sc, sd = (i + 2) % 3, (i + 3) % 3, (i + 4) % 3
     ry = _F32(0.25) if 0 < i < h - 1 else _F32(0.0)
-    w = diff.shape[2]
-    o0, o1, o2, o3, o4 = out[0, i], out[1, i], out[2, i], out[3, i], out[4, i]
     for q in range(0, pair.shape[0], 4):  # C K channels: K = 8, four per pass
-        p, e, x, y = pair[q], pair[q + 1], pair[q + 2], pair[q + 3]  # rows (W + 2), border-mirrored: x - 1 at
-        rows = (p[sc, :w], p[sc, 2:], p[su, 1:w + 1], p[sd, 1:w + 1], diff[q, sc],  # [:w], x + 1 at [2:]
-                e[sc, :w], e[sc, 2:], e[su, 1:w + 1], e[sd, 1:w + 1], diff[q + 1, sc],
-                x[sc, :w], x[sc, 2:], x[su, 1:w + 1], x[sd, 1:w + 1], diff[q + 2, sc],
-                y[sc, :w], y[sc, 2:], y[su, 1:w + 1], y[sd, 1:w + 1], diff[q + 3, sc], o0, o1, o2, o3, o4, d2, robust)
         if q == 0:
-            _form_row_first(*rows)
+            _form_row_first(pair, diff, q, su, sc, sd, out, i, d2, robust)
         else:
-            _form_row_add(*rows)
-    _form_finish(out, i, ry, flow[0, i], flow[1, i], keep)
+            _form_row_add(pair, diff, q, su, sc, sd, out, i, d2, robust)
+    _form_finish(out, i, ry, flow, keep, sk)
 
 
 @njit(parallel=True, **_JIT)
@@ -369,26 +371,25 @@ def contrast_kernel(frames, dy, dx, st, ny, nx):  # noqa: ANN001, ANN201
     """census.median_contrast of frames (C, H, W) on the grid of pixels (1 + st i, 1 + st j), i < ny, j < nx:
     s(x) with the reference's float32 operations in its order (no fastmath: no contraction of sq + d d), and
     np.median's value (the middle one, or the float32 mean of the middle two), the largest over channels -- the
-    same value bit for bit."""
+    same value bit for bit. A grid row at a time, neighbour by neighbour (the same sum per pixel, in the same
+    order; the row loops vectorise where st is 1: 2-3x faster than pixel by pixel, task censlarge)."""
     n_c = frames.shape[0]
     k_n = dy.shape[0]
-    n = ny * nx
-    values = np.empty(n, np.float32)
+    values = np.empty(ny * nx, np.float32)
     best = _F32(-1.0)
     for c in range(n_c):
         for i in range(ny):
             y = 1 + st * i
+            sq = values[i * nx:(i + 1) * nx]  # the row's sums, then its s(x)
+            sq[:] = _F32(0.0)
+            for k in range(k_n):
+                yk, xk = y + dy[k], 1 + dx[k]
+                for j in range(nx):  # unsigned column indices (numba_census's module doc: signed ones wrap around)
+                    d = frames[c, yk, np.uint64(xk + st * j)] - frames[c, y, np.uint64(1 + st * j)]
+                    sq[j] += d * d
             for j in range(nx):
-                x = 1 + st * j
-                centre = frames[c, y, x]
-                sq = _F32(0.0)
-                for k in range(k_n):
-                    d = frames[c, y + dy[k], x + dx[k]] - centre
-                    sq += d * d
-                values[i * nx + j] = math.sqrt(sq / _F32(k_n))
-        part = np.partition(values, n // 2)  # as np.median: the middle value, or the float32 mean of the middle two
-        mid = part[n // 2] if n % 2 else (part[:n // 2].max() + part[n // 2]) / _F32(2.0)
-        best = max(best, mid)
+                sq[j] = math.sqrt(sq[j] / _F32(k_n))
+        best = max(best, median_f32(values))  # np.median's value
     return best
 
 

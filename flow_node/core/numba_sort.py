@@ -1,6 +1,8 @@
 """The photometric stage's sorted sample with a numba kernel: :func:`sorted_sample_numba`
-(photometric.sorted_sample), the numba backend's ``sample`` field; and the census initialisation's mid-ranks of a
-frame, :func:`ranks_numba` (initialise.equalised), its ``ranks`` field.
+(photometric.sorted_sample), the numba backend's ``sample`` field; the census initialisation's mid-ranks of a
+frame, :func:`ranks_numba` (initialise.equalised), its ``ranks`` field; and a frame's white-noise estimate for the
+census noise floor, :func:`noise_sigma_numba` (census_noise.noise_sigma), its ``noise`` field -- with
+:func:`median_f32`, np.median of float32 values (numba_census.contrast_kernel's too).
 
 np.sort takes ~18 ns an element here (0.6 ms for the 34,000 samples of a 640x480 frame, twice a pair); an LSD
 radix sort on the floats' bit patterns -- mapped to unsigned keys that order as the floats do -- takes three
@@ -14,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .census_noise import KERNEL_NORM, MAD_TO_STD, noise_grid
 from .initialise import RANK_LEVELS
 from .photometric import subsample
 
@@ -93,3 +96,96 @@ def ranks_numba(img: np.ndarray) -> np.ndarray:
     out = np.empty(src.shape, np.float32)
     ranks_kernel(src.reshape(-1), RANK_LEVELS, out.reshape(-1))
     return out
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def _kth_key(keys, k, work, counts):  # noqa: ANN001, ANN201
+    """The k-th smallest (0-based) of keys (n,) uint32 by an MSD radix select: per digit (11, 11 and 10 bits from
+    the top) the candidates' digits counted, the k-th's digit found, and only the candidates with it kept (into
+    ``work`` (n,) uint32; ``counts`` (2048,) int64 scratch). Three counting passes over ever fewer candidates,
+    where a partition (numba's np.partition) took ~8 ns an element."""
+    src, m = keys, keys.size
+    result = np.uint32(0)
+    for shift, width in ((21, 11), (10, 11), (0, 10)):
+        mask = (1 << width) - 1
+        counts[:mask + 1] = 0
+        for t in range(m):
+            counts[(src[t] >> shift) & mask] += 1
+        d, below = 0, 0
+        while below + counts[d] <= k:
+            below += counts[d]
+            d += 1
+        k -= below
+        result |= np.uint32(d << shift)
+        kept = 0
+        for t in range(m):
+            if (src[t] >> shift) & mask == d:
+                work[kept] = src[t]
+                kept += 1
+        src, m = work, kept
+    return result
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def median_f32(values):  # noqa: ANN001, ANN201
+    """np.median of float32 values (n,), n > 0, finite: the middle value, or the float32 mean of the middle two --
+    np.median's value bit for bit (a selection finds the same order statistic however it runs; only a -0.0 and a
+    0.0 both in the middle might come in the other order, as with np.partition; the callers' values are >= +0).
+    By :func:`_kth_key` on keys that order as the floats do (:func:`radix_sort_kernel`'s): 2.4-3x faster than
+    numba's np.partition on 4,500-30,000 values (the noise estimate's and the level contrast's), 1.4x on 1,300."""
+    n = values.size
+    bits = values.view(np.uint32)
+    keys = np.empty(n, np.uint32)
+    for t in range(n):  # negative floats: every bit flipped; others: the sign bit set
+        b = bits[t]
+        keys[t] = b ^ np.uint32(0xFFFFFFFF) if b & np.uint32(0x80000000) else b | np.uint32(0x80000000)
+    work = np.empty(n, np.uint32)
+    counts = np.empty(2048, np.int64)
+    k = n // 2
+    hi = _kth_key(keys, k, work, counts)
+    lo = hi
+    if n % 2 == 0:  # the (k - 1)-th: the largest key below hi if k keys are below it, else hi itself
+        below, top = 0, np.uint32(0)
+        for t in range(n):
+            if keys[t] < hi:
+                below += 1
+                top = max(top, keys[t])
+        lo = top if below == k else hi
+    pair = np.empty(2, np.uint32)
+    for t, key in enumerate((lo, hi)):
+        pair[t] = key ^ np.uint32(0x80000000) if key & np.uint32(0x80000000) else key ^ np.uint32(0xFFFFFFFF)
+    v = pair.view(np.float32)
+    return v[1] if n % 2 else (v[0] + v[1]) / np.float32(2.0)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def noise_kernel(img, s, ny, nx):  # noqa: ANN001, ANN201
+    """The median of |I * N| (census_noise's Immerkaer kernel N) over the pixels (1 + s i, 1 + s j), i < ny, j < nx,
+    of img (H, W) float32: the reference's float32 operations in its order (the nine taps' sum from zero, row by
+    row of N; no fastmath), so the same value bit for bit."""
+    values = np.empty(ny * nx, np.float32)
+    one, two, four = np.float32(1.0), np.float32(-2.0), np.float32(4.0)
+    for i in range(ny):
+        y = 1 + s * i
+        for j in range(nx):
+            x = 1 + s * j
+            r = np.float32(0.0) + one * img[y - 1, x - 1]
+            r = r + two * img[y - 1, x]
+            r = r + one * img[y - 1, x + 1]
+            r = r + two * img[y, x - 1]
+            r = r + four * img[y, x]
+            r = r + two * img[y, x + 1]
+            r = r + one * img[y + 1, x - 1]
+            r = r + two * img[y + 1, x]
+            r = r + one * img[y + 1, x + 1]
+            values[i * nx + j] = abs(r)
+    return median_f32(values)
+
+
+def noise_sigma_numba(img: np.ndarray) -> float:
+    """census_noise.noise_sigma with :func:`noise_kernel`: the same value bit for bit, ~10x faster."""
+    grid = noise_grid(*img.shape)
+    if grid is None:
+        return 0.0
+    med = np.float32(noise_kernel(np.ascontiguousarray(img, dtype=np.float32), *grid))
+    return float(MAD_TO_STD * med / KERNEL_NORM)  # as the reference: float32 (NumPy 2's scalar rules), then float
