@@ -200,10 +200,10 @@ def test_rerun_skips_evaluated_bags_and_a_changed_parameter_reruns_them(bags, tm
         assert {p: p.stat().st_mtime_ns for p in (out / "bags").rglob("*") if p.is_file()} == stamps
         assert [r.get("aee_mean") for r in batch_report(out)["bags"]] == [r.get("aee_mean") for r in report["bags"]]
 
-        assert flow_bag(["eval", str(bags), "--output", str(out), *FAST, *remote, "--set", "alpha=0.05"]) == 1
+        assert flow_bag(["eval", str(bags), "--output", str(out), *FAST, *remote, "--set", "median_filter=3"]) == 1
     assert statuses(out) == {"corrupt": "failed", "translation": "done", "rotation": "done", "robot2__zoom": "done"}
     rerun = json.loads((out / "bags" / "rotation" / "report.json").read_text())["models"][0]
-    assert rerun["config"]["alpha"] == 0.05
+    assert rerun["config"]["median_filter"] == 3  # (realtime's census term weighs with census_alpha, not alpha)
     assert rerun["summary"]["aee_mean"] != {r["bag"]: r for r in report["bags"]}["rotation"]["aee_mean"]
 
 
