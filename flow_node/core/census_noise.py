@@ -34,6 +34,7 @@ from .photometric import QUANT_SIGMA, Samples, affine_normalised, frame_maps, fr
 
 NOISE_STRIDE = 4  # the estimate's median over every 4th interior pixel in each direction (1/16 of them)
 MAD_TO_STD = 1.4826  # std of a Gaussian over its median absolute deviation
+IMMERKAER = ((1, -2, 1), (-2, 4, -2), (1, -2, 1))  # the estimator's 3 x 3 kernel N (module doc)
 KERNEL_NORM = 6.0  # |N|_2 of Immerkaer's kernel: the std of N * (white noise of std 1)
 _PAD = 1  # the kernel's radius
 
@@ -55,13 +56,12 @@ def noise_sigma(img: np.ndarray) -> float:
     if grid is None:
         return 0.0
     s, ny, nx = grid
-    weights = ((1, -2, 1), (-2, 4, -2), (1, -2, 1))
     response = np.zeros((ny, nx), np.float32)
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
             y0, x0 = _PAD + dy, _PAD + dx
             view = img[y0:y0 + (ny - 1) * s + 1:s, x0:x0 + (nx - 1) * s + 1:s]
-            response += np.float32(weights[dy + 1][dx + 1]) * view
+            response += np.float32(IMMERKAER[dy + 1][dx + 1]) * view
     return float(MAD_TO_STD * np.median(np.abs(response)) / KERNEL_NORM)
 
 
