@@ -112,9 +112,9 @@ class FlowConfig:
                                        "sets 28 beside census_finest_warps 1: issue 25, task cschedule, "
                                        "docs/engine.md)", lo=0, hi=100000)
     census_finest_warps: int = _f(0, "photometric census: warps on the finest solved level (0 = finest_warps, else "
-                                  "warps). Each costs the census kernel once at that level's size: realtime census "
-                                  "with 1 x 28 there (its preset's) takes ~1.14x its grey-value time (2 x 16: ~1.36x) "
-                                  "(issue 25, task cschedule, docs/engine.md 'Presets')",
+                                  "warps). Each costs the census kernel once at that level's size: realtime sets 1 "
+                                  "(x 28 iterations), 2 x 16 took ~1.2x its time (issue 25, task cschedule, "
+                                  "docs/engine.md 'Presets')",
                                   lo=0, hi=100)
     census_alpha: float = _f(0.0, "photometric census: the regularisation weight alpha with the census data term "
                              "(0 = alpha); realtime sets 0.10 beside census_delta 0.07, quality 0.10 beside 0.05, "
