@@ -356,6 +356,20 @@ def test_the_gate_passes_every_pair_the_preset_would_fuse_unchanged(preset) -> N
             assert np.array_equal(cands[0].backward_flow(), np.moveaxis(algo.calc(u1, u0, None), -1, 0))
 
 
+def test_a_small_object_moving_far_is_far_by_the_tail() -> None:
+    """2 % of the pixels moving 50 px over a still scene (../shared/data/large's toy square) is far: the 95th
+    percentile is 0, the 99th beyond TAIL_FACTOR x init_min_motion; the same object moving 30 px (under 1.5 x
+    24) is not, nor 0.5 % moving 50 px. The gate's count test says the same on squared magnitudes."""
+    from flow_node.core.initialise import TAIL_FACTOR, beyond, moves_far
+
+    assert TAIL_FACTOR * 24.0 < 50.0
+    for share, speed, far in ((0.02, 50.0, True), (0.02, 30.0, False), (0.005, 50.0, False), (0.06, 30.0, True)):
+        flow = np.zeros((2, 200, 200), np.float32)
+        flow[0, np.random.default_rng(0).random((200, 200)) < share] = speed  # spread: moves_far samples
+        assert moves_far(flow, 24.0) is far, (share, speed)
+        assert beyond(flow[0] ** 2 + flow[1] ** 2, 24.0) is far, (share, speed)
+
+
 def test_a_backward_flow_computed_in_the_background_is_waited_for_and_its_error_raised() -> None:
     """Candidate.backward_flow waits for a backward flow still computing (initialise.in_background) and
     re-raises its error in the caller (here: OpenCV refusing frames of different sizes)."""
