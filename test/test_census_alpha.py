@@ -45,25 +45,28 @@ def test_census_delta_reaches_every_level() -> None:
     assert level_census(cfg.replace(census_delta=CENSUS.delta, census_finest_radius=1), 128, finest=True) == CENSUS
 
 
-# each preset's census DELTA and census alpha (tune data only): realtime task smoothbags, fastest task fastdelta
-TUNED = {"realtime": (0.07, 0.10), "fastest": (0.05, 0.2)}  # realtime's alpha 0.08 until task cschedule
+# each preset's census DELTA and census alpha (tune data only): realtime task smoothbags, fastest tasks fastdelta
+# (0.05 / 0.2) and fastbags; and the bound on the AEE ratio to the former ones (DELTA 0.2, the grey values' alpha)
+TUNED = {"realtime": (0.07, 0.10, 0.9), "fastest": (0.02, 0.35, 0.8)}  # realtime's alpha 0.08 until task cschedule
 
 
 @pytest.mark.parametrize("preset", sorted(TUNED))
 def test_census_on_a_smooth_deformation_and_grey_flows_unchanged(preset: str) -> None:
     """A rendered deformation scene of the bundled bag's kind (mono16, 128x96; a tune seed, not the bag's): the
     preset's census with its DELTA and census alpha is clearly closer to the truth than with the former ones (DELTA
-    0.2, the grey values' alpha): realtime 0.0557 -> 0.0444 px (seeds 101-105 0.79-0.81x), fastest 0.182 -> 0.150 px
-    (0.82-0.85x); grey-value flows do not depend on either field."""
+    0.2, the grey values' alpha): realtime 0.0557 -> 0.0444 px (seeds 101-105 0.79-0.81x), fastest 0.182 -> 0.125 px
+    (0.68-0.73x; task fastdelta's 0.05 / 0.2 gave 0.150 px, 0.82-0.85x); grey-value flows do not depend on either
+    field."""
     frames, gts = render_frames(SynthSpec(scene="deformation", frames=3, size=(128, 96), encoding="mono16", seed=103))
     grey_cfg = FlowConfig.preset(preset).replace(threads=1, photometric="normalise")
     census = grey_cfg.replace(photometric="census")
-    assert (census.census_delta, census.census_alpha) == TUNED[preset]
+    delta, alpha, bound = TUNED[preset]
+    assert (census.census_delta, census.census_alpha) == (delta, alpha)
     today = FlowEstimator(census.replace(census_alpha=0.0, census_delta=CENSUS.delta))
     tuned = FlowEstimator(census)
     before = np.mean([_aee(today.estimate(frames[k], frames[k + 1]).flow, gts[k]) for k in range(2)])
     after = np.mean([_aee(tuned.estimate(frames[k], frames[k + 1]).flow, gts[k]) for k in range(2)])
-    assert after < 0.9 * before, (before, after)
+    assert after < bound * before, (before, after)
     grey = FlowEstimator(grey_cfg).estimate(frames[0], frames[1]).flow
     grey_set = FlowEstimator(grey_cfg.replace(census_alpha=0.01, census_delta=0.01)).estimate(frames[0], frames[1]).flow
     np.testing.assert_array_equal(grey, grey_set)

@@ -118,14 +118,14 @@ class FlowConfig:
                                   lo=0, hi=100)
     census_alpha: float = _f(0.0, "photometric census: the regularisation weight alpha with the census data term "
                              "(0 = alpha); realtime sets 0.10 beside census_delta 0.07, quality 0.10 beside 0.05, "
-                             "fastest 0.2 beside 0.05: the smaller quadratic zone makes the term pull harder (issue "
-                             "25, tasks smoothbags, qdelta and fastdelta, docs/engine.md 'Presets')",
+                             "fastest 0.35 beside 0.02: the smaller quadratic zone makes the term pull harder (issue "
+                             "25, tasks smoothbags, qdelta, fastdelta and fastbags, docs/engine.md 'Presets')",
                              lo=0.0, hi=1000.0)
     census_delta: float = _f(0.2, "photometric census: the residual (signature units) below which the L1 term's "
                              "majoriser is quadratic (its weight 1/sqrt(rho^2 + delta^2) flat). A quadratic data term "
                              "pulls less than TV near the solution and shrinks a flow's gradient (rotation, zoom, "
-                             "deformation; realtime sets 0.07, quality and fastest 0.05: issue 25, tasks smoothbags, "
-                             "qdelta and fastdelta, docs/engine.md 'Presets')",
+                             "deformation; realtime sets 0.07, quality 0.05, fastest 0.02: issue 25, tasks smoothbags, "
+                             "qdelta, fastdelta and fastbags, docs/engine.md 'Presets')",
                              lo=0.0, hi=10.0, lo_open=True)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
