@@ -327,10 +327,10 @@ def initialise(i0: np.ndarray, i1: np.ndarray, cfg: InitSettings, initial_flow: 
 def beyond_reach(candidates: list[Candidate], min_motion: float) -> list[Candidate]:
     """The candidates worth fusing: a caller's ``initial_flow`` always; a computed one only when it says
     the pair moves far (:func:`moves_far`: the 95th percentile of its |flow|, px on every 4th pixel, above
-    ``min_motion`` = ``FlowConfig.init_min_motion``, or its 99th above TAIL_FACTOR times that). Below that the pyramid's own estimate is the more accurate one (on
-    Middlebury, whose largest motions are ~21 px, fusing DIS anyway costs quality 0.32 -> 0.51 mean AEE:
-    DIS is less precise, and a data cost cannot always tell), so only the candidate's computation is
-    spent, not accuracy."""
+    ``min_motion`` = ``FlowConfig.init_min_motion``, or its 99th above TAIL_FACTOR times that). Below that
+    the pyramid's own estimate is the more accurate one (on Middlebury, whose largest motions are ~21 px,
+    fusing DIS anyway costs quality 0.32 -> 0.51 mean AEE: DIS is less precise, and a data cost cannot always
+    tell), so only the candidate's computation is spent, not accuracy."""
     # a DIS candidate says whether dis_candidates found it moves far (same threshold): not judged twice
     return [c for c in candidates
             if c.name == INITIAL_FLOW or (c.far if c.far is not None else moves_far(c.flow, min_motion))]
