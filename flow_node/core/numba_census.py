@@ -29,7 +29,7 @@ import numpy as np
 from numba import get_thread_id, njit, prange
 
 from .census import OFFSETS, OFFSETS_DX, OFFSETS_DY, CensusParams, contrast_stride
-from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
+from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, threads
 from .numba_kernels import FASTMATH
 from .numba_sort import median_f32
 from .numba_warp import sample_row
@@ -269,19 +269,50 @@ def _form_rows(out, i, pair, diff, keep, sk, flow, d2, robust):  # noqa: ANN001,
     _form_finish(out, i, ry, flow, keep, sk)
 
 
+def ring_floats(threads: int, n_c: int, m: int, w: int) -> int:
+    """The length of :func:`census_kernel`'s ``rings`` (float32) for ``threads`` threads, C ``n_c`` channels, M
+    ``m`` warped rows and W ``w`` columns (:func:`_ring_views`)."""
+    q = n_c * _K
+    return threads * (n_c * m * w + m * w + q * 3 * (w + 2) + q * 3 * w + _K * w + w + 9 * w)
+
+
+@njit(**_JIT)
+def _ring_views(rings, t, n_c, m, w):  # noqa: ANN001, ANN201
+    """:func:`census_kernel`'s per-thread rings for T = ``t`` threads, C = ``n_c`` channels, M = ``m`` warped rows,
+    W = ``w`` columns, cut in this order from ``rings`` (1-D float32, :func:`ring_floats` long): warped (T, C, M, W),
+    keep (T, M, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, K, 1, W), ss (T, W) and the warp's row
+    scratch taps (T, 9, W). One array argument instead of seven: each array argument costs ~0.25 us of numba's
+    dispatch per call (task fastcens)."""
+    q = n_c * _K
+    o1 = t * n_c * m * w
+    o2 = o1 + t * m * w
+    o3 = o2 + t * q * 3 * (w + 2)
+    o4 = o3 + t * q * 3 * w
+    o5 = o4 + t * _K * w
+    o6 = o5 + t * w
+    return (rings[:o1].reshape((t, n_c, m, w)), rings[o1:o2].reshape((t, m, w)),
+            rings[o2:o3].reshape((t, q, 3, w + 2)), rings[o3:o4].reshape((t, q, 3, w)),
+            rings[o4:o5].reshape((t, _K, 1, w)), rings[o5:o6].reshape((t, w)),
+            rings[o6:o6 + t * 9 * w].reshape((t, 9, w)))
+
+
 @njit(parallel=True, **_JIT)
 def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, weight, out,  # noqa: ANN001, ANN201
-                  warped, keep, pair, diff, temp, ss, taps, base, blocks):
+                  rings, base, blocks):
     """census.census_form in one pass: out (5, H, W) from frame 0's level f0 ((1 + K) C, H, W) (its channels'
     factors and neighbour differences, :func:`level_signature_numba`), frame 1's interpolation coefficients
     ``coefs`` and channels ``frames`` (C, H, W) and the flow v0 (2, H, W); each pixel's weight ``weight`` (1 / C)
     inside, 0 where x + v0 leaves the image; the signatures' offsets (dy, dx) at distance rad, the warped rings'
     M = 2 rad + 1 rows. The rows in ``blocks`` contiguous blocks, in parallel when more than one
-    (:func:`_census_rows`; per-thread rings warped (T, C, M, W), keep (T, M, W), pair (T, C K, 3, W + 2),
-    diff (T, C K, 3, W), temp (T, K, 1, W), ss (T, W) and the warp's row scratch taps (T, 9, W), base (T, 2, W)
-    int32)."""
-    h = f0.shape[1]
+    (:func:`_census_rows`; per-thread rings cut from ``rings``, :func:`_ring_views`, for T = base.shape[0]
+    threads, and the warp's row scratch base (T, 2, W) int32)."""
+    n_c, h, w = frames.shape
     d2 = delta * delta
+    t_n = base.shape[0]
+    rad = 0
+    for k in range(dy.shape[0]):
+        rad = max(rad, abs(dy[k]))
+    warped, keep, pair, diff, temp, ss, taps = _ring_views(rings, t_n, n_c, 2 * rad + 1, w)
     if blocks > 1:
         for b in prange(blocks):
             t = get_thread_id()
@@ -350,19 +381,15 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
     LINEARISE_PARALLEL_MIN_PIXELS or more (else in one); the form itself is fresh (a Bregman step reuses the
     last warp's), or ``out`` (5, H, W) float32 C-contiguous when given."""
     n_c, h, w = frames.shape
-    t = threads()
-    blocks = min(t, h) if t > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS else 1
-    n, q = numba.config.NUMBA_NUM_THREADS, n_c * _K  # per-thread rings: get_thread_id's range
-    m = 2 * params.radius + 1  # warped rows per ring (_census_rows)
-    rings = (scratch("census.warped", (n, n_c, m, w)), scratch("census.keep", (n, m, w)),
-             scratch("census.pair", (n, q, 3, w + 2)), scratch("census.diff", (n, q, 3, w)),
-             scratch("census.temp", (n, _K, 1, w)), scratch("census.ss", (n, w)), *row_scratch(w))
+    blocks = min(threads(), h) if h * w >= LINEARISE_PARALLEL_MIN_PIXELS else 1  # (threads() costs ~0.6 us)
+    n = numba.config.NUMBA_NUM_THREADS  # per-thread rings: get_thread_id's range
+    rings = scratch("census.rings", (ring_floats(n, n_c, 2 * params.radius + 1, w),))
     out = np.empty((5, h, w), _F32) if out is None else out
     census_kernel(np.ascontiguousarray(f0, dtype=_F32), np.ascontiguousarray(coefs, dtype=_F32),
                   np.ascontiguousarray(frames, dtype=_F32), np.ascontiguousarray(v0, dtype=_F32),
                   KERNEL_CODES[kernel], *_offset_arrays(params.radius), _F32(params.gain), _F32(params.eps), robust,
-                  _F32(params.delta),
-                  _F32(1.0 / n_c), out, *rings, blocks)
+                  _F32(params.delta), _F32(1.0 / n_c), out, rings,
+                  scratch("numba.linearise_base", (n, 2, w), np.int32), blocks)
     return out
 
 
