@@ -40,6 +40,7 @@ from .workspace import scratch
 # compiled in a process than when read from numba's cache (a new install's first process got census flows 2e-3 px
 # away from every later process's; test_cold_start.test_kernels_compute_the_same_compiled_or_cached)
 _JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
+_ROWS = dict(_JIT, _nrt=False)
 _F32 = np.float32
 _K = len(OFFSETS)
 
@@ -66,13 +67,13 @@ def _make_diff_span(edge: bool):  # noqa: ANN202
             ss[c] += d * d
 
     diff_span.__name__ = diff_span.__qualname__ = "diff_edge" if edge else "diff_span"
-    return njit(**_JIT)(diff_span)
+    return njit(**_ROWS)(diff_span)
 
 
 _diff_span, _diff_edge = _make_diff_span(False), _make_diff_span(True)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss):  # noqa: ANN001, ANN201
     """The K neighbour differences of the row ``rc`` of img (., W), whose neighbour rows are ``ru`` and ``rd``
     (rows y - r and y + r for offsets (dy, dx) of distance r, clamped to the image: edge values), into the rows
@@ -94,7 +95,7 @@ def _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss):  # noqa: ANN001
             _diff_edge(img, r, rc, 0, 0, m, out, k, i, ss)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _differences(img, ru, rc, rd, dy, dx, gain, eps, out, i, ss):  # noqa: ANN001, ANN201
     """:func:`_neighbour_differences` and into ss (W) the factor that makes them the signature,
     GAIN / (RMS + EPS) (census.signature)."""
@@ -130,7 +131,7 @@ def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, diffs):  # noqa: ANN
                         planes[i, j, k] = tmp[k, 0, j] * out[i, j]
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _pair_row(f0, n_c, c, k, rr, temp, ss, pair, diff, sq):  # noqa: ANN001, ANN201
     """Channel q = c K + k of one row: with F0 = frame 0's neighbour difference f0[n_c + q, rr] times its factor
     f0[c, rr] (:func:`level_signature_numba`) and F1 = temp[k, 0] ss (the warped frame's, :func:`_differences`),
@@ -189,13 +190,13 @@ def _make_form_row(first: bool):  # noqa: ANN202
                 out[4, i, j] += t4
 
     form_row.__name__ = form_row.__qualname__ = "form_row_first" if first else "form_row_add"
-    return njit(**_JIT)(form_row)
+    return njit(**_ROWS)(form_row)
 
 
 _form_row_first, _form_row_add = _make_form_row(True), _make_form_row(False)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _form_finish(out, i, ry, flow, keep, sk):  # noqa: ANN001, ANN201
     """Row i of out (5, H, W) from the channels' sums of :func:`_make_form_row` in place: the gradients' scales
     (x: 1/4, the mean of two central differences; y: ``ry``, 1/4 or 0 on the first and last rows) and the
@@ -213,7 +214,7 @@ def _form_finish(out, i, ry, flow, keep, sk):  # noqa: ANN001, ANN201
         out[4, i, j] = keep[sk, j] * ry * out[4, i, j] - t12 * flow[0, i, j] - t22 * flow[1, i, j]
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, r0, r1,  # noqa: ANN001, ANN201
                  warped, keep, pair, diff, temp, ss, taps, base):
     """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, M, W) and keep (M, W)
@@ -241,7 +242,7 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
             _form_rows(out, rr - 1, pair, diff, keep, (rr - 1 + 2 * m) % m, flow, d2, robust)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, temp, ss):  # noqa: ANN001, ANN201
     """P and D of one row (image row rr) into ring slot sq of pair and diff, from the warped rows in slots sm,
     s0, sp (rad rows above, at, rad below) and frame 0's level f0 ((1 + K) C, H, W): its channels' factors and
@@ -254,7 +255,7 @@ def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, te
             _pair_row(f0, n_c, c, k, rr, temp, ss, pair, diff, sq)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _form_rows(out, i, pair, diff, keep, sk, flow, d2, robust):  # noqa: ANN001, ANN201
     """Row i of the form out (5, H, W) from the rings' rows i - 1, i, i + 1 and the row's weight keep[sk] (W)
     (:func:`_census_rows`)."""
