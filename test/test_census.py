@@ -15,7 +15,7 @@ from flow_node.core.config import FlowConfig
 from flow_node.core.metrics import aee
 from flow_node.core.models import MODEL_SPECS, prox_data_quadratic, quadratic_data
 from flow_node.core.numba_backend import WARPER, solve_numba, thread_count
-from flow_node.core.numba_census import census_form_numba, census_planes_numba, level_signature_numba, level_signatures
+from flow_node.core.numba_census import census_form_numba, census_planes_numba, factor_numba, level_signature_numba
 from flow_node.core.numba_judge import reliability_numba as census_reliability_numba
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.warping import NUMPY_WARPER
@@ -144,8 +144,9 @@ def test_numba_signature_and_form_match_numpy(params: CensusParams, kernel: str)
     f0, g0 = level_signature(i0, params)
     f0_fast, _ = level_signature_numba(i0, params)
     diffs = np.stack([census.shifted(i0, dy, dx) - i0 for dy, dx in census.offsets(params.radius)])
-    np.testing.assert_array_equal(f0_fast[1:], diffs)  # the level: the factor, then the neighbour differences
-    np.testing.assert_allclose(level_signatures(f0_fast), f0, atol=AGREE)
+    # the level: the neighbour differences times the factor, the product bit for bit
+    np.testing.assert_array_equal(f0_fast, diffs * factor_numba(i0, params))
+    np.testing.assert_allclose(f0_fast, f0, atol=AGREE)
     planes = census_planes_numba(i0, params)  # the same kernel's signature planes, interleaved (the fusion's)
     np.testing.assert_allclose(np.moveaxis(planes, -1, 0), f0, rtol=0, atol=AGREE)
     for robust in (False, True):

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -174,29 +175,39 @@ def warped_frames(coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel:
 
 
 def census_form(f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray,
-                kernel: str, robust: bool, params: CensusParams = CENSUS, sample: Sample = sample_coefficients
-                ) -> np.ndarray:
+                kernel: str, robust: bool, params: CensusParams = CENSUS, sample: Sample = sample_coefficients,
+                out: np.ndarray | None = None) -> np.ndarray:
     """One warp's census data term: the quadratic form (5, H, W) around v0 (2, H, W).
 
     f0 (C K, H, W), g0 (2, C K, H, W): frame 0's signatures of its C channels and their gradients on this level
     (:func:`level_signature`, stacked channel by channel); ``coefs``, ``frames``
     (C, H, W): frame 1's channels and their interpolation coefficients (``kernel``), sampled at x + v0 by
     :func:`warped_frames`; ``robust``: the L1 data term (else L2). C = 1 for grey input; with C channels
-    (colour.py) the form is the mean over them (scaled by 1 / C, so that alpha means what it means for grey)."""
+    (colour.py) the form is the mean over them (scaled by 1 / C, so that alpha means what it means for grey).
+    Into ``out`` (5, H, W) float32 when given (and returned)."""
     if g0 is None:
         raise ValueError("census_form needs frame 0's signature gradients (census.level_signature)")
     warped, outside = warped_frames(coefs, frames, v0, kernel, sample)
     f1 = np.concatenate([signature(w, params) for w in warped])
     form = signature_form(f0, g0, f1, outside, v0, robust, params)
-    return form if len(warped) == 1 else (form * np.float32(1.0 / len(warped))).astype(np.float32)
+    form = form if len(warped) == 1 else (form * np.float32(1.0 / len(warped))).astype(np.float32)
+    if out is None:
+        return form
+    out[...] = form
+    return out
 
 
-# level_signature(frames, params) -> (f0, g0) and census_form(f0, g0, coefs, frames, v0, kernel, robust, params) -> q:
-# the numpy references above or a backend's kernels (numba_census.py)
+# level_signature(frames, params) -> (f0, g0) and census_form(f0, g0, coefs, frames, v0, kernel, robust, params,
+# out=None) -> q: the numpy references above or a backend's kernels (numba_census.py)
 # (the numba kernels take frame 0's gradient inside the form kernel: their level signature's second item is None)
 LevelSignature = Callable[[np.ndarray, CensusParams], tuple[np.ndarray, np.ndarray | None]]
-CensusForm = Callable[[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray, np.ndarray, str, bool, CensusParams],
-                      np.ndarray]
+
+
+class CensusForm(Protocol):
+    """A backend's :func:`census_form`: the form (5, H, W) of one warp, into ``out`` when given."""
+
+    def __call__(self, f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray,
+                 kernel: str, robust: bool, params: CensusParams, *, out: np.ndarray | None = None) -> np.ndarray: ...
 
 
 # reliability samples every SAMPLE_SPACING-th point of photometric.reliability_stride's grid (~5,000 at any size

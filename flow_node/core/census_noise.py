@@ -30,7 +30,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from .photometric import QUANT_SIGMA, Samples, affine_normalised, frame_maps, frame_samples
+from .photometric import QUANT_SIGMA, FrameMaps, Samples, affine_normalised, frame_maps, frame_samples
 
 NOISE_STRIDE = 4  # the estimate's median over every 4th interior pixel in each direction (1/16 of them)
 MAD_TO_STD = 1.4826  # std of a Gaussian over its median absolute deviation
@@ -76,16 +76,17 @@ class PairNoise:
 
 
 def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_gain: float,
-               solver_pair: tuple[np.ndarray, np.ndarray], sigma: Callable[[np.ndarray], float] = noise_sigma
-               ) -> PairNoise:
+               solver_pair: tuple[np.ndarray, np.ndarray], sigma: Callable[[np.ndarray], float] = noise_sigma,
+               maps: FrameMaps | None = None) -> PairNoise:
     """The :class:`PairNoise` of the census stage's pair: ``frames`` (H, W) as they came, their sorted
     ``samples``, the stage's ``noise_gain`` and what it made of them (``solver_pair``). Where the stage did not
     presmooth, its pair is the normalised one and is measured as it is; where it did, the frames are mapped
     again without the blur (one affine map each) and measured, by ``sigma`` (:func:`noise_sigma` or a backend's:
-    the same value)."""
-    maps, smooth = frame_maps(samples, noise_gain)
+    the same value). ``maps``: photometric.frame_maps(samples, noise_gain) when known (the stage took them)."""
+    (map0, map1), smooth = frame_maps(samples, noise_gain) if maps is None else maps
     if smooth:
-        solver_pair = tuple(affine_normalised(f, *m, noise_gain, False) for f, m in zip(frames, maps, strict=True))
+        solver_pair = tuple(affine_normalised(f, *m, noise_gain, False)
+                            for f, m in zip(frames, (map0, map1), strict=True))
     return PairNoise(max(sigma(solver_pair[0]), sigma(solver_pair[1])), QUANT_SIGMA if smooth else 0.0)
 
 

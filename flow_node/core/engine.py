@@ -45,6 +45,7 @@ from .photometric import (
     Reliability,
     Samples,
     compares_signatures,
+    frame_maps,
     frame_samples,
     pair_map,
     stage,
@@ -97,11 +98,12 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     key = map_key(pmap, i0.shape, cfg)
     n0 = known0[1] if known0 is not None and key is not None and key == known0[0] else None
     gain = noise_gain(i0.shape, cfg)
-    solver_pair, frames = stage(i0, i1, cfg.photometric, gain, samples, pmap, n0)
+    maps = frame_maps(samples, gain) if signatures else None  # once, for the stage and the noise floor
+    solver_pair, frames = stage(i0, i1, cfg.photometric, gain, samples, pmap, n0, maps)
     judge = backend.reliability
     noise = None
     if signatures and cfg.census_noise_k > 0:
-        noise = (pair_noise((i0, i1), samples, gain, solver_pair, backend.noise) if colour is None
+        noise = (pair_noise((i0, i1), samples, gain, solver_pair, backend.noise, maps) if colour is None
                  else channel_noise(*colour, gain, backend.noise))
     return solver_pair, Judged(frames, judge, samples, key, noise)
 

@@ -1,9 +1,8 @@
 """numba kernels of the census data term (census.py, the numpy reference and test oracle).
 
 :func:`factor_kernel` computes the factor GAIN / (RMS + EPS) that turns an image's neighbour differences into
-its soft census signature (frame 0's, once per level: the level's signatures are that plane and the K
-neighbour differences, :func:`level_signature_numba`), and on request the signature planes (the fusion's cost,
-:func:`census_planes_numba`);
+its soft census signature, and the signatures: frame 0's once per level (:func:`level_signature_numba`), and on
+request interleaved (the fusion's cost, :func:`census_planes_numba`);
 :func:`census_kernel` one warp's quadratic form in one pass over the level (census.census_form): frame 1's channels
 sampled at x + v0 (a value-only warp, numba_warp.sample_row), both frames' signatures and the form, row by row, the
 warped rows and the rows of P = F0 + F1 and D = F1 - F0 kept in per-thread rings (cache-resident) instead of
@@ -29,7 +28,7 @@ import numpy as np
 from numba import get_thread_id, njit, prange
 
 from .census import OFFSETS, OFFSETS_DX, OFFSETS_DY, CensusParams, contrast_stride
-from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_scratch, threads
+from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, threads
 from .numba_kernels import FASTMATH
 from .numba_sort import median_f32
 from .numba_warp import sample_row
@@ -40,6 +39,7 @@ from .workspace import scratch
 # compiled in a process than when read from numba's cache (a new install's first process got census flows 2e-3 px
 # away from every later process's; test_cold_start.test_kernels_compute_the_same_compiled_or_cached)
 _JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
+_ROWS = dict(_JIT, _nrt=False)
 _F32 = np.float32
 _K = len(OFFSETS)
 
@@ -66,13 +66,13 @@ def _make_diff_span(edge: bool):  # noqa: ANN202
             ss[c] += d * d
 
     diff_span.__name__ = diff_span.__qualname__ = "diff_edge" if edge else "diff_span"
-    return njit(**_JIT)(diff_span)
+    return njit(**_ROWS)(diff_span)
 
 
 _diff_span, _diff_edge = _make_diff_span(False), _make_diff_span(True)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss):  # noqa: ANN001, ANN201
     """The K neighbour differences of the row ``rc`` of img (., W), whose neighbour rows are ``ru`` and ``rd``
     (rows y - r and y + r for offsets (dy, dx) of distance r, clamped to the image: edge values), into the rows
@@ -94,7 +94,7 @@ def _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss):  # noqa: ANN001
             _diff_edge(img, r, rc, 0, 0, m, out, k, i, ss)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _differences(img, ru, rc, rd, dy, dx, gain, eps, out, i, ss):  # noqa: ANN001, ANN201
     """:func:`_neighbour_differences` and into ss (W) the factor that makes them the signature,
     GAIN / (RMS + EPS) (census.signature)."""
@@ -107,20 +107,22 @@ def _differences(img, ru, rc, rd, dy, dx, gain, eps, out, i, ss):  # noqa: ANN00
 
 
 @njit(parallel=True, **_JIT)
-def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, diffs):  # noqa: ANN001, ANN201
+def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, sigs):  # noqa: ANN001, ANN201
     """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`) for the offsets (dy, dx)
-    at distance ``rad``, neighbours clamped to the image (edge values); unless ``diffs`` is None (a compile-time
-    case), the neighbour differences themselves into diffs (K, H, W) (a census level's, :func:`census_kernel`
-    reads them); unless ``planes`` is None (a compile-time case), also the signature -- the differences times
-    the factor, as :func:`census_kernel` forms it; census.signature to float32 rounding -- into planes (H, W, K),
-    interleaved (fusion.census_planes; read only when ``diffs`` is None). Rows in parallel."""
+    at distance ``rad``, neighbours clamped to the image (edge values), and the signature -- the neighbour
+    differences times the factor; census.signature to float32 rounding -- into sigs (K, H, W) unless ``sigs`` is
+    None (a compile-time case; a census level's, :func:`census_kernel` reads them), else into planes (H, W, K),
+    interleaved, unless ``planes`` is None (a compile-time case; fusion.census_planes). Rows in parallel."""
     h, w = img.shape
     k_n = dy.shape[0]
     for i in prange(h):
         rc = np.int64(i)  # (prange's index is unsigned: mixed with rad, float64)
         ru, rd = max(rc - rad, 0), min(rc + rad, h - 1)
-        if diffs is not None:
-            _differences(img, ru, rc, rd, dy, dx, gain, eps, diffs, rc, out[rc])
+        if sigs is not None:
+            _differences(img, ru, rc, rd, dy, dx, gain, eps, sigs, rc, out[rc])
+            for k in range(k_n):  # the same product as the planes' below
+                for j in range(w):
+                    sigs[k, rc, j] = sigs[k, rc, j] * out[rc, j]
         else:
             tmp = np.empty((k_n, 1, w), np.float32)
             _differences(img, ru, rc, rd, dy, dx, gain, eps, tmp, 0, out[rc])
@@ -130,17 +132,17 @@ def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, diffs):  # noqa: ANN
                         planes[i, j, k] = tmp[k, 0, j] * out[i, j]
 
 
-@njit(**_JIT)
-def _pair_row(f0, n_c, c, k, rr, temp, ss, pair, diff, sq):  # noqa: ANN001, ANN201
-    """Channel q = c K + k of one row: with F0 = frame 0's neighbour difference f0[n_c + q, rr] times its factor
-    f0[c, rr] (:func:`level_signature_numba`) and F1 = temp[k, 0] ss (the warped frame's, :func:`_differences`),
+@njit(**_ROWS)
+def _pair_row(f0, c, k, rr, temp, ss, pair, diff, sq):  # noqa: ANN001, ANN201
+    """Channel q = c K + k of one row: with F0 = frame 0's signature f0[q, rr] (:func:`level_signature_numba`) and
+    F1 = temp[k, 0] ss (the warped frame's, :func:`_differences`),
     pair[q, sq, 1:W + 1] = F0 + F1 and diff[q, sq] = F1 - F0; the pair row's ends mirror its columns 1 and W - 2
     (P(1) before, P(W - 2) after; both P(0) when W == 1), so that P(x + 1) - P(x - 1) is 0 on the border
     columns."""
     w = diff.shape[2]
     q = c * temp.shape[0] + k
     for j in range(w):
-        a, b = f0[n_c + q, rr, j] * f0[c, rr, j], temp[k, 0, j] * ss[j]
+        a, b = f0[q, rr, j], temp[k, 0, j] * ss[j]
         pair[q, sq, j + 1] = a + b
         diff[q, sq, j] = b - a
     pair[q, sq, 0] = pair[q, sq, min(2, w)]
@@ -189,13 +191,13 @@ def _make_form_row(first: bool):  # noqa: ANN202
                 out[4, i, j] += t4
 
     form_row.__name__ = form_row.__qualname__ = "form_row_first" if first else "form_row_add"
-    return njit(**_JIT)(form_row)
+    return njit(**_ROWS)(form_row)
 
 
 _form_row_first, _form_row_add = _make_form_row(True), _make_form_row(False)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _form_finish(out, i, ry, flow, keep, sk):  # noqa: ANN001, ANN201
     """Row i of out (5, H, W) from the channels' sums of :func:`_make_form_row` in place: the gradients' scales
     (x: 1/4, the mean of two central differences; y: ``ry``, 1/4 or 0 on the first and last rows) and the
@@ -213,7 +215,7 @@ def _form_finish(out, i, ry, flow, keep, sk):  # noqa: ANN001, ANN201
         out[4, i, j] = keep[sk, j] * ry * out[4, i, j] - t12 * flow[0, i, j] - t22 * flow[1, i, j]
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, r0, r1,  # noqa: ANN001, ANN201
                  warped, keep, pair, diff, temp, ss, taps, base):
     """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, M, W) and keep (M, W)
@@ -241,20 +243,20 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
             _form_rows(out, rr - 1, pair, diff, keep, (rr - 1 + 2 * m) % m, flow, d2, robust)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, temp, ss):  # noqa: ANN001, ANN201
     """P and D of one row (image row rr) into ring slot sq of pair and diff, from the warped rows in slots sm,
-    s0, sp (rad rows above, at, rad below) and frame 0's level f0 ((1 + K) C, H, W): its channels' factors and
-    neighbour differences (:func:`level_signature_numba`) (:func:`_census_rows`)."""
+    s0, sp (rad rows above, at, rad below) and frame 0's level f0 (C K, H, W): its channels' signatures
+    (:func:`level_signature_numba`) (:func:`_census_rows`)."""
     k_n = dy.shape[0]
     n_c = warped.shape[0]
     for c in range(n_c):
         _differences(warped[c], sm, s0, sp, dy, dx, gain, eps, temp, 0, ss)
         for k in range(k_n):
-            _pair_row(f0, n_c, c, k, rr, temp, ss, pair, diff, sq)
+            _pair_row(f0, c, k, rr, temp, ss, pair, diff, sq)
 
 
-@njit(**_JIT)
+@njit(**_ROWS)
 def _form_rows(out, i, pair, diff, keep, sk, flow, d2, robust):  # noqa: ANN001, ANN201
     """Row i of the form out (5, H, W) from the rings' rows i - 1, i, i + 1 and the row's weight keep[sk] (W)
     (:func:`_census_rows`)."""
@@ -269,19 +271,50 @@ def _form_rows(out, i, pair, diff, keep, sk, flow, d2, robust):  # noqa: ANN001,
     _form_finish(out, i, ry, flow, keep, sk)
 
 
+def ring_floats(threads: int, n_c: int, m: int, w: int) -> int:
+    """The length of :func:`census_kernel`'s ``rings`` (float32) for ``threads`` threads, C ``n_c`` channels, M
+    ``m`` warped rows and W ``w`` columns (:func:`_ring_views`)."""
+    q = n_c * _K
+    return threads * (n_c * m * w + m * w + q * 3 * (w + 2) + q * 3 * w + _K * w + w + 9 * w)
+
+
+@njit(**_JIT)
+def _ring_views(rings, t, n_c, m, w):  # noqa: ANN001, ANN201
+    """:func:`census_kernel`'s per-thread rings for T = ``t`` threads, C = ``n_c`` channels, M = ``m`` warped rows,
+    W = ``w`` columns, cut in this order from ``rings`` (1-D float32, :func:`ring_floats` long): warped (T, C, M, W),
+    keep (T, M, W), pair (T, C K, 3, W + 2), diff (T, C K, 3, W), temp (T, K, 1, W), ss (T, W) and the warp's row
+    scratch taps (T, 9, W). One array argument instead of seven: each array argument costs ~0.25 us of numba's
+    dispatch per call (task fastcens)."""
+    q = n_c * _K
+    o1 = t * n_c * m * w
+    o2 = o1 + t * m * w
+    o3 = o2 + t * q * 3 * (w + 2)
+    o4 = o3 + t * q * 3 * w
+    o5 = o4 + t * _K * w
+    o6 = o5 + t * w
+    return (rings[:o1].reshape((t, n_c, m, w)), rings[o1:o2].reshape((t, m, w)),
+            rings[o2:o3].reshape((t, q, 3, w + 2)), rings[o3:o4].reshape((t, q, 3, w)),
+            rings[o4:o5].reshape((t, _K, 1, w)), rings[o5:o6].reshape((t, w)),
+            rings[o6:o6 + t * 9 * w].reshape((t, 9, w)))
+
+
 @njit(parallel=True, **_JIT)
 def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, weight, out,  # noqa: ANN001, ANN201
-                  warped, keep, pair, diff, temp, ss, taps, base, blocks):
-    """census.census_form in one pass: out (5, H, W) from frame 0's level f0 ((1 + K) C, H, W) (its channels'
-    factors and neighbour differences, :func:`level_signature_numba`), frame 1's interpolation coefficients
+                  rings, base, blocks):
+    """census.census_form in one pass: out (5, H, W) from frame 0's level f0 (C K, H, W) (its channels'
+    signatures, :func:`level_signature_numba`), frame 1's interpolation coefficients
     ``coefs`` and channels ``frames`` (C, H, W) and the flow v0 (2, H, W); each pixel's weight ``weight`` (1 / C)
     inside, 0 where x + v0 leaves the image; the signatures' offsets (dy, dx) at distance rad, the warped rings'
     M = 2 rad + 1 rows. The rows in ``blocks`` contiguous blocks, in parallel when more than one
-    (:func:`_census_rows`; per-thread rings warped (T, C, M, W), keep (T, M, W), pair (T, C K, 3, W + 2),
-    diff (T, C K, 3, W), temp (T, K, 1, W), ss (T, W) and the warp's row scratch taps (T, 9, W), base (T, 2, W)
-    int32)."""
-    h = f0.shape[1]
+    (:func:`_census_rows`; per-thread rings cut from ``rings``, :func:`_ring_views`, for T = base.shape[0]
+    threads, and the warp's row scratch base (T, 2, W) int32)."""
+    n_c, h, w = frames.shape
     d2 = delta * delta
+    t_n = base.shape[0]
+    rad = 0
+    for k in range(dy.shape[0]):
+        rad = max(rad, abs(dy[k]))
+    warped, keep, pair, diff, temp, ss, taps = _ring_views(rings, t_n, n_c, 2 * rad + 1, w)
     if blocks > 1:
         for b in prange(blocks):
             t = get_thread_id()
@@ -294,14 +327,14 @@ def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, de
 
 
 def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None = None,
-                 diffs: np.ndarray | None = None) -> np.ndarray:
+                 sigs: np.ndarray | None = None) -> np.ndarray:
     """GAIN / (RMS + EPS) of an image (H, W) with :func:`factor_kernel`: (H, W) float32 (into ``out`` when
-    given); census.signature = the neighbour differences (census.shifted) times it, which go into ``diffs``
+    given); census.signature = the neighbour differences (census.shifted) times it, which go into ``sigs``
     (K, H, W) float32 C-contiguous when given."""
     src = np.ascontiguousarray(img, dtype=_F32)
     out = np.empty(src.shape, _F32) if out is None else out
     factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps), out, None,
-                  diffs)
+                  sigs)
     return out
 
 
@@ -317,52 +350,40 @@ def census_planes_numba(img: np.ndarray, params: CensusParams) -> np.ndarray:
 
 def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.ndarray, None]:
     """census.level_signature for the kernel: frame 0's signatures on one level of an image (H, W) or a channel
-    stack (C, H, W) as the level ((1 + K) C, H, W) -- the channels' factors, then their K neighbour differences
-    each (:func:`factor_numba`) -- and None (the gradients are taken inside :func:`census_kernel`, which reads
-    f0's neighbours anyway). :func:`census_kernel` scales the differences by the factor (the signatures as
-    census.signature computes them, value for value; :func:`level_signatures` expands them, for checks). The
-    differences are taken once per level, not per warp: on fastest's small levels (73 x 48 .. 320 x 240) taking
-    them in every warp made its kernel 1.1-1.35x slower per call (issue 25, task censreg; docs/engine.md, "The
-    census data term"). Into the calling thread's scratch array (workspace.py; as the grey path's level arrays,
-    refine.grey_problem): valid until this thread's next level signature of that shape, i.e. for the level's
-    warps."""
+    stack (C, H, W), (C K, H, W) float32 (census.level_signature's f0 to float32 rounding; :func:`factor_numba`),
+    and None (the gradients are taken inside :func:`census_kernel`, which reads f0's neighbours anyway). Taken
+    once per level, not per warp: on fastest's small levels (73 x 48 .. 320 x 240) taking them in every warp made
+    its kernel 1.1-1.35x slower per call (issue 25, task censreg; docs/engine.md, "The census data term"). The
+    kernel once read the differences and the factor and multiplied them per warp; the level now holds the product
+    (the same float32 product, so the same forms bit for bit; one plane less to read per warp; task fastcens).
+    Into the calling thread's scratch array (workspace.py; as the grey path's level arrays, refine.grey_problem):
+    valid until this thread's next level signature of that shape, i.e. for the level's warps."""
     stack = frames if frames.ndim == 3 else frames[None]
     n, h, w = stack.shape
-    out = scratch("census.f0", ((1 + _K) * n, h, w))
+    out = scratch("census.f0", (_K * n, h, w))
+    factor = scratch("census.factor", (h, w))
     for c in range(n):
-        factor_numba(stack[c], params, out=out[c], diffs=out[n + c * _K:n + (c + 1) * _K])
+        factor_numba(stack[c], params, out=factor, sigs=out[c * _K:(c + 1) * _K])
     return out, None
-
-
-def level_signatures(level: np.ndarray) -> np.ndarray:
-    """The signatures (C K, H, W) that a level of :func:`level_signature_numba` ((1 + K) C, H, W) stands for:
-    each channel's K neighbour differences times its factor, as :func:`census_kernel` forms them (numpy; for
-    checks)."""
-    n = level.shape[0] // (1 + _K)
-    return np.concatenate([level[n + c * _K:n + (c + 1) * _K] * level[c] for c in range(n)]).astype(np.float32)
 
 
 def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,
                       robust: bool, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
     """census.census_form with :func:`census_kernel`: the quadratic form (5, H, W) of one warp, f0 frame 0's level
-    ((1 + K) C, H, W) (:func:`level_signature_numba`). The rings are the
+    (C K, H, W) (:func:`level_signature_numba`). The rings are the
     calling thread's scratch arrays (workspace.py); the rows run in one block per thread on levels of
     LINEARISE_PARALLEL_MIN_PIXELS or more (else in one); the form itself is fresh (a Bregman step reuses the
     last warp's), or ``out`` (5, H, W) float32 C-contiguous when given."""
     n_c, h, w = frames.shape
-    t = threads()
-    blocks = min(t, h) if t > 1 and h * w >= LINEARISE_PARALLEL_MIN_PIXELS else 1
-    n, q = numba.config.NUMBA_NUM_THREADS, n_c * _K  # per-thread rings: get_thread_id's range
-    m = 2 * params.radius + 1  # warped rows per ring (_census_rows)
-    rings = (scratch("census.warped", (n, n_c, m, w)), scratch("census.keep", (n, m, w)),
-             scratch("census.pair", (n, q, 3, w + 2)), scratch("census.diff", (n, q, 3, w)),
-             scratch("census.temp", (n, _K, 1, w)), scratch("census.ss", (n, w)), *row_scratch(w))
+    blocks = min(threads(), h) if h * w >= LINEARISE_PARALLEL_MIN_PIXELS else 1  # (threads() costs ~0.6 us)
+    n = numba.config.NUMBA_NUM_THREADS  # per-thread rings: get_thread_id's range
+    rings = scratch("census.rings", (ring_floats(n, n_c, 2 * params.radius + 1, w),))
     out = np.empty((5, h, w), _F32) if out is None else out
     census_kernel(np.ascontiguousarray(f0, dtype=_F32), np.ascontiguousarray(coefs, dtype=_F32),
                   np.ascontiguousarray(frames, dtype=_F32), np.ascontiguousarray(v0, dtype=_F32),
                   KERNEL_CODES[kernel], *_offset_arrays(params.radius), _F32(params.gain), _F32(params.eps), robust,
-                  _F32(params.delta),
-                  _F32(1.0 / n_c), out, *rings, blocks)
+                  _F32(params.delta), _F32(1.0 / n_c), out, rings,
+                  scratch("numba.linearise_base", (n, 2, w), np.int32), blocks)
     return out
 
 

@@ -167,7 +167,7 @@ def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, ba
         c[i, j] = i1w - i0[i, j] - a0 * flow[0, i, j] - a1 * flow[1, i, j]
 
 
-@njit(**_JIT)
+@njit(_nrt=False, **_JIT)  # no reference counts: a view per channel and row (task fastcens)
 def sample_row(coefs, frames, flow, i, kernel, weight, out, slot, keep, scratch, base):  # noqa: ANN001, ANN201
     """Row i of every channel of frame 1 sampled at x + flow (census.warped_frames): out[:, slot] of out
     (C, ., W) from the interpolation coefficients ``coefs`` (C, H, W), where x + flow leaves the image the

@@ -157,24 +157,30 @@ def relative_step(lo: float, hi: float, step: float, noise_gain: float) -> float
 
 
 def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 1.0,
-                     samples: Samples | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     samples: Samples | None = None, maps: FrameMaps | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Both frames (H, W) float32, each by its own robust range (its 2nd and 98th percentiles mapped to [0, 1],
     coarsely quantised content's contrast shrunk as in :func:`normalise_pair`: the ``census`` mode's map; its
     data term is invariant to each frame's gain and offset, and the map gives EPS the same meaning in both
     frames), and both presmoothed by QUANT_SIGMA when either's quantisation is coarse (:func:`frame_maps`): the
     two signatures a census data term compares must come from the same filter (a blur is not a tone curve, so
     one frame blurred and the other not differ wherever there is texture; issue 25's low light, frame 2
-    darkened 0.4x: docs/engine.md). ``samples``: the frames' :func:`sorted_sample` when known."""
-    maps, smooth = frame_maps(frame_samples(*frames) if samples is None else samples, noise_gain)
-    n0, n1 = (affine_normalised(img, *m, noise_gain, smooth) for img, m in zip(frames, maps, strict=True))
+    darkened 0.4x: docs/engine.md). ``samples``: the frames' :func:`sorted_sample` when known; ``maps``: their
+    :func:`frame_maps` at this ``noise_gain`` when known (the engine takes them once for this and the noise floor,
+    census_noise.pair_noise)."""
+    if maps is None:
+        maps = frame_maps(frame_samples(*frames) if samples is None else samples, noise_gain)
+    (map0, map1), smooth = maps
+    n0, n1 = (affine_normalised(img, *m, noise_gain, smooth) for img, m in zip(frames, (map0, map1), strict=True))
     return n0, n1
 
 
 # a frame's own map: (lo, hi, step), its robust range and quantisation step
 FrameMap = tuple[float, float, float]
+# both frames' maps and whether both are presmoothed (:func:`frame_maps`)
+FrameMaps = tuple[tuple[FrameMap, FrameMap], bool]
 
 
-def frame_maps(samples: Samples, noise_gain: float = 1.0) -> tuple[tuple[FrameMap, FrameMap], bool]:
+def frame_maps(samples: Samples, noise_gain: float = 1.0) -> FrameMaps:
     """Each frame's own map from its sorted sample, and whether :func:`normalise_frames` presmooths both: when
     either's quantisation step is coarse (rel > STEP_REF) and noise_gain >= 1."""
     maps = []
@@ -275,7 +281,7 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
 
 
 def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, samples: Samples | None = None,
-          pmap: PairMap | None = None, n0: np.ndarray | None = None
+          pmap: PairMap | None = None, n0: np.ndarray | None = None, maps: FrameMaps | None = None
           ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair census.reliability judges).
     The second is the ``normalise`` result in every mode but ``census``; ``census`` normalises each frame on its
@@ -284,10 +290,11 @@ def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, sa
     ``noise_gain``: see :func:`normalise_pair`. ``samples``: both frames' :func:`sorted_sample` when known (a
     stream knows its new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise;
     every mode's ranges come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census``
-    uses it); ``n0``: i0 normalised by that map when known (:func:`normalise_pair`; not used by ``census``)."""
+    uses it); ``n0``: i0 normalised by that map when known (:func:`normalise_pair`; not used by ``census``);
+    ``maps``: their :func:`frame_maps` at this ``noise_gain`` when known (only ``census`` uses them)."""
     s0, s1 = frame_samples(i0, i1) if samples is None else samples
     if compares_signatures(mode):
-        pair = normalise_frames((i0, i1), noise_gain, (s0, s1))
+        pair = normalise_frames((i0, i1), noise_gain, (s0, s1), maps)
         return pair, pair
     n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, pair_map((s0, s1)) if pmap is None else pmap, n0)
     if mode == "density":

@@ -1,6 +1,7 @@
 """Throwaway (task censlarge): every flow of realtime, fastest and quality (census and grey values) on Middlebury, the
 large set and the fine_320 tune pairs, hashed (sha256 of the float32 bytes): run in two trees and compare the files.
-PYTHONPATH=<tree> python bench/results/census_cost/censlarge/flows.py OUT.json"""
+``--bags``: also the bundled bags' pairs (task fastcens).
+PYTHONPATH=<tree> python bench/results/census_cost/censlarge/flows.py OUT.json [--bags]"""
 from __future__ import annotations
 
 import hashlib
@@ -16,6 +17,8 @@ from flow_node.core.config import FlowConfig
 def main() -> None:
     sets = {"middlebury": sdata.middlebury(False), "large": sdata.large(False),
             "fine_320": list(synthetic.fine("tune", False, (320, 240)))}
+    if "--bags" in sys.argv[2:]:
+        sets["bags"] = sdata.bags(False)
     out = {}
     for preset in ("realtime", "fastest", "quality"):
         for term in ("normalise", "census"):

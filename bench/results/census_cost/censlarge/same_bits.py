@@ -1,6 +1,7 @@
 """Throwaway (task censlarge): the census kernels' outputs on random and textured levels of several shapes, radius 1 and
 2, grey and 3 channels, L1 and L2 -- saved (``save PATH``) or compared bit for bit with a saved file (``check PATH``).
-PYTHONPATH=. python bench/results/census_cost/censlarge/same_bits.py save|check PATH"""
+``--more``: also the levels fastest's small frames solve (32-80 px wide, vector loops' remainders; task fastcens).
+PYTHONPATH=. python bench/results/census_cost/censlarge/same_bits.py save|check PATH [--more]"""
 from __future__ import annotations
 
 import sys
@@ -12,11 +13,14 @@ from flow_node.core import numba_census as nc
 from flow_node.core.census import CENSUS
 from flow_node.core.numba_backend import WARPER
 
+SHAPES = ((1, 1), (2, 3), (5, 4), (17, 23), (47, 155), (120, 160), (240, 320))
+MORE = ((9, 33), (24, 32), (30, 40), (48, 64), (60, 80), (97, 146))
 
-def outputs() -> dict[str, np.ndarray]:
+
+def outputs(shapes: tuple[tuple[int, int], ...] = SHAPES) -> dict[str, np.ndarray]:
     rng = np.random.default_rng(5)
     out = {}
-    for h, w in ((1, 1), (2, 3), (5, 4), (17, 23), (47, 155), (120, 160), (240, 320)):
+    for h, w in shapes:
         for n_c in (1, 3):
             f0 = rng.random((n_c, h, w), dtype=np.float32)
             f1 = np.clip(f0 + 0.05 * rng.standard_normal((n_c, h, w)).astype(np.float32), 0, 1)
@@ -35,7 +39,7 @@ def outputs() -> dict[str, np.ndarray]:
 
 def main() -> None:
     mode, path = sys.argv[1], sys.argv[2]
-    got = outputs()
+    got = outputs(SHAPES + MORE if "--more" in sys.argv[3:] else SHAPES)
     if mode == "save":
         np.savez_compressed(path, **got)
         print(f"saved {len(got)} arrays")
