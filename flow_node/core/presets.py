@@ -104,6 +104,13 @@ from typing import Any
 #   its grey-value time on Middlebury, fine 320x240 and the bags, and 1.26-1.29x on the large set, where one pair
 #   (toy_square) misses its initialisation (bench/results/census_cost/censlarge/summary.md; docs/engine.md
 #   "Presets"). photometric=normalise gives the grey-value term back.
+# - fastest compares census signatures by default (issue 25, seventeenth round, 2026-12-06), and so stream_fast, the
+#   node's default: task fastcens's kernels (flows bit-identical) brought its census time to 1.10-1.16x its grey
+#   time (bench/results/census_cost/fastcens/summary.md), task fastbags' DELTA / alpha (above) its bags within 1 %
+#   of grey values, and the initialisation's tail rule (initialise.TAIL_FACTOR) its large set below grey values;
+#   Middlebury 0.461 against 0.564. stream_lite keeps grey values: at quarter size census lost on the stream
+#   regime's tune split (0.048 -> 0.058-0.073 over six census settings; docs/engine.md "Presets").
+#   photometric=normalise gives the grey-value term back.
 CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, census_coarse_eps=0.03,
                                                            census_coarse_width=50))
 # fastest, and the stream presets' base (below)
@@ -111,7 +118,7 @@ FASTEST: Mapping[str, Any] = MappingProxyType(dict(
     model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5, finest_level=1, median_filter=5,
     gradient_scheme="interpolated", tolerance=0.0, initialisation="dis_ultrafast", init_finest_level=2,
     census_median_filter=3, census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005,
-    census_delta=0.02, census_alpha=0.35))
+    census_delta=0.02, census_alpha=0.35, photometric="census"))
 PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
@@ -142,7 +149,8 @@ PRESETS: dict[str, dict[str, Any]] = {
     # last, the result check on ~5,000 pixels)
     "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=2, stream_iterations=10, stream_finest_warps=3,
                         stream_finest_iterations=8, stream_inner_median=3, stream_check_samples=5000),
-    "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=8, stream_iterations=10),
+    "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=8, stream_iterations=10,
+                        photometric="normalise"),
 }
 
 # The general-purpose presets, in order of cost: what the suite judges against the peers on every regime. The
