@@ -153,12 +153,13 @@ def _spy_parallel(iterate: object, index: int, seen: list[bool]) -> Iterator[Non
 def test_parallel_min_pixels_selects_the_parallel_kernels_for_an_estimator() -> None:
     """FlowConfig.parallel_min_pixels binds the threshold to the estimator's backend (not a module global):
     with it at 1 every level runs the parallel solver and linearisation, and the flow is the same bit for bit
-    as with the defaults (every level of this small pair serial); a config change selects the backend again."""
+    as with the defaults (every level of this small pair serial); a config change selects the backend again.
+    (The grey-value data term: the census term's form kernel is not the linearisation.)"""
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("one core: no parallel kernels")
     t = texture(60, 80, seed=2).image
     t1 = np.roll(t, 1, axis=1)
-    cfg = FlowConfig.preset("stream_fast").replace(backend="numba", threads=2, levels=3)
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba", threads=2, levels=3, photometric="normalise")
     est = FlowEstimator(cfg)
     default = est.estimate(t, t1)
     assert select_backend("numba", 2).solve is solve_numba

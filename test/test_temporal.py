@@ -156,7 +156,8 @@ def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: p
         return build(*args, **kwargs)
 
     monkeypatch.setattr(temporal, "make_pyramid", spy)
-    est = FlowEstimator(FlowConfig.preset("stream_fast").replace(backend="numpy"))
+    # the grey-value term's normalising map (stream_fast compares census signatures by default)
+    est = FlowEstimator(FlowConfig.preset("stream_fast").replace(backend="numpy", photometric="normalise"))
     first = est.estimate_next(seq[0], seq[1], None)
     assert first.seen is not None and first.seen.levels is None  # a full solve hands on the sample only
     carried, fresh = first, first
@@ -178,15 +179,23 @@ def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: p
 
 def test_an_exposure_step_is_solved_in_full() -> None:
     """photometric normalise: the stage compares local contrast on a pair with an exposure change, so the
-    carried state (solved on grey values) does not start it."""
+    carried state (solved on grey values) does not start it. The census term (stream_fast's default) compares
+    the same signatures either way: the stepped pair is predicted, and its flow is the unstepped pair's within
+    0.01 px."""
     scene = pan(5)
     seq = frames(scene, 3)
-    est = FlowEstimator(FlowConfig.preset("stream_fast").replace(backend="numpy"))
-    prev = est.estimate_next(seq[0], seq[1], None)
     stepped = np.clip(seq[2] * np.float32(1.3) - np.float32(0.04), 0.0, 1.0)
-    res = est.estimate_next(seq[1], stepped, Prior(prev.state, prev.unexplained))
-    assert res.stats.stream == FULL + ": exposure step"
-    assert est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained)).stats.stream == PREDICTED
+    for photometric in ("normalise", "census"):
+        est = FlowEstimator(FlowConfig.preset("stream_fast").replace(backend="numpy", photometric=photometric))
+        prev = est.estimate_next(seq[0], seq[1], None)
+        res = est.estimate_next(seq[1], stepped, Prior(prev.state, prev.unexplained))
+        plain = est.estimate_next(seq[1], seq[2], Prior(prev.state, prev.unexplained))
+        assert plain.stats.stream == PREDICTED
+        if photometric == "normalise":
+            assert res.stats.stream == FULL + ": exposure step"
+        else:
+            assert res.stats.stream == PREDICTED
+            assert np.abs(res.flow - plain.flow).mean() < 0.01
 
 
 def test_the_finest_level_takes_its_own_stream_schedule() -> None:
@@ -209,23 +218,25 @@ def test_stream_alpha_weights_the_refinement_from_the_prediction_only() -> None:
     """stream_alpha is the regularisation weight of a predicted pair's refinement (0: alpha): it changes the
     predicted pairs' flow, not a pair solved in full (the first pair, the fallbacks, single pairs)."""
     cfg = FlowConfig.preset("stream_fast").replace(backend="numba")
+    data_alpha = cfg.census_alpha if cfg.photometric == "census" else cfg.alpha  # the data term's weight
     seq = frames(pan(4), 3)
     plain, weighted = FlowEstimator(cfg), FlowEstimator(cfg.replace(stream_alpha=0.2))
     first = [e.estimate_next(seq[0], seq[1], None) for e in (plain, weighted)]
     np.testing.assert_array_equal(first[0].flow, first[1].flow)
     np.testing.assert_array_equal(plain.estimate(seq[0], seq[1]).flow, weighted.estimate(seq[0], seq[1]).flow)
     prior = Prior(first[0].state, first[0].unexplained)
-    same = FlowEstimator(cfg.replace(stream_alpha=cfg.alpha)).estimate_next(seq[1], seq[2], prior)
+    same = FlowEstimator(cfg.replace(stream_alpha=data_alpha)).estimate_next(seq[1], seq[2], prior)
     res = [e.estimate_next(seq[1], seq[2], prior) for e in (plain, weighted)]
     assert res[0].stats.stream == res[1].stats.stream == PREDICTED
-    np.testing.assert_array_equal(same.flow, res[0].flow)  # stream_alpha == alpha: as 0
+    np.testing.assert_array_equal(same.flow, res[0].flow)  # stream_alpha == the data term's alpha: as 0
     assert np.abs(res[1].flow - res[0].flow).max() > 1e-3
 
 
 def test_stream_inner_median_filters_the_inner_warps_of_a_predicted_pair_only(median_sizes: list[int]) -> None:
     """stream_inner_median: the median size after a stream level's warps but its last (the last keeps
     median_filter; -1 = median_filter: the flows bit for bit as before). Pairs solved in full never use it."""
-    cfg = FlowConfig.preset("stream_fast").replace(backend="numba")  # coarse level 2 warps, finest 3
+    # coarse level 2 warps, finest 3; grey values (census solves in full with census_median_filter 3)
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba", photometric="normalise")
     seq = frames(pan(6), 3)
     sizes = median_sizes
     first = FlowEstimator(cfg).estimate_next(seq[0], seq[1], None)
