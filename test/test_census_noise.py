@@ -97,6 +97,47 @@ def test_the_carried_noise_matches_the_pyramid_of_white_noise(cfg: FlowConfig, b
 # the floor reaching the form (numpy and numba): test_census_schedule.test_census_problem_uses_the_level_eps
 
 
+def _dense_gains(shapes: list[tuple[int, int]], sigmas: tuple[float, ...], blur: float, lag: int) -> tuple[float, ...]:
+    """difference_noise_gains as it was built before: per axis, the whole n_0 x n_0 impulse matrix at once,
+    through the pyramid's blurs (OpenCV's kernel size for float input) and bilinear resampling."""
+    def blurred(m: np.ndarray, sigma: float, border: int) -> np.ndarray:
+        kernel = cv2.getGaussianKernel(int(round(sigma * 4 * 2 + 1)) | 1, sigma, cv2.CV_32F)
+        return cv2.sepFilter2D(m, cv2.CV_32F, kernel, np.ones((1, 1), np.float32), borderType=border)
+
+    def axis(lengths: list[int]) -> tuple[list[float], list[float]]:
+        m = np.eye(lengths[0], dtype=np.float32)
+        if blur > 0:
+            m = blurred(m, blur, cv2.BORDER_REFLECT)
+        var, dvar = [], []
+        for level, n in enumerate(lengths):
+            if level:
+                m = blurred(m, sigmas[level - 1], cv2.BORDER_REPLICATE)
+                m = cv2.resize(m, (n, m.shape[0]), interpolation=cv2.INTER_LINEAR)
+            inner = (m[:, 2:-2] if n > 8 else m).astype(np.float64)
+            var.append(float(np.mean(np.sum(inner ** 2, axis=0))))
+            diff = inner[:, lag:] - inner[:, :-lag]
+            dvar.append(float(np.mean(np.sum(diff * diff, axis=0))) if diff.size else 0.0)
+        return var, dvar
+
+    (vy, dy), (vx, dx) = axis([s[0] for s in shapes]), axis([s[1] for s in shapes])
+    return tuple(float(np.sqrt((dx[k] * vy[k] + vx[k] * dy[k]) / 4.0)) for k in range(len(shapes)))
+
+
+@pytest.mark.parametrize("size", [(375, 1242), (129, 300), (13, 5)])
+@pytest.mark.parametrize("blur,lag", [(0.0, 1), (1.0, 2)])
+def test_the_gains_built_in_blocks_are_the_dense_matrix_s(size: tuple[int, int], blur: float, lag: int) -> None:
+    """census_noise builds its impulse responses GAIN_ROWS input pixels at a time (a fresh process's first call
+    paid ~0.1 s for the whole matrix at 1242 px); the gains are the dense matrix's to float32 rounding (OpenCV's
+    float32 filters round a block of rows differently here and there: ~4e-9 relative on a 129 px axis's deepest
+    levels), with a partial last block and axes under one block."""
+    shapes = [size]
+    while min(shapes[-1]) > 4:
+        shapes.append((int(round(shapes[-1][0] * 0.5)), int(round(shapes[-1][1] * 0.5))))
+    sigmas = tuple([1.4] * (len(shapes) - 1))
+    dense = _dense_gains(shapes, sigmas, blur, lag)
+    np.testing.assert_allclose(difference_noise_gains(shapes, sigmas, blur, lag), dense, rtol=1e-7, atol=0.0)
+
+
 def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
     """Frame 2 at gain 0.4 plus noise: its 8-bit step is coarse against its range, so both frames are
     presmoothed (not frame 2 alone), and the pair's EPS floor, from frame 2's noise, is above EPS on the
