@@ -141,8 +141,13 @@ def _row_shapes(width: int, volume: bool) -> tuple[tuple[str, tuple[int, ...]], 
 def row_scratch(width: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-thread row scratch of the linearisation kernel for images ``width`` wide: tap weights and mask
     (threads, 9, width) float32, tap bases (threads, 2, width) int32; the calling thread's scratch arrays."""
-    n = numba.config.NUMBA_NUM_THREADS
-    return scratch("numba.linearise_rows", (n, 9, width)), scratch("numba.linearise_base", (n, 2, width), np.int32)
+    return scratch("numba.linearise_rows", (numba.config.NUMBA_NUM_THREADS, 9, width)), row_base(width)
+
+
+def row_base(width: int) -> np.ndarray:
+    """The tap bases of :func:`row_scratch` alone, (threads, 2, width) int32 (the census kernel keeps its tap
+    weights in its own rings)."""
+    return scratch("numba.linearise_base", (numba.config.NUMBA_NUM_THREADS, 2, width), np.int32)
 
 
 def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: int | None = None) -> int:

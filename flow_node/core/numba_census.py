@@ -28,7 +28,7 @@ import numpy as np
 from numba import get_thread_id, njit, prange
 
 from .census import OFFSETS, OFFSETS_DX, OFFSETS_DY, CensusParams, contrast_stride
-from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, threads
+from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_base, threads
 from .numba_kernels import FASTMATH
 from .numba_sort import median_f32
 from .numba_warp import sample_row
@@ -271,11 +271,24 @@ def _form_rows(out, i, pair, diff, keep, sk, flow, d2, robust):  # noqa: ANN001,
     _form_finish(out, i, ry, flow, keep, sk)
 
 
+@njit(**_JIT)
+def _ring_ends(t, n_c, m, w):  # noqa: ANN001, ANN201
+    """Where each of :func:`_ring_views`' rings ends in ``rings`` (the layout's one definition; the last is the
+    length :func:`ring_floats` allocates)."""
+    q = n_c * _K
+    o1 = t * n_c * m * w
+    o2 = o1 + t * m * w
+    o3 = o2 + t * q * 3 * (w + 2)
+    o4 = o3 + t * q * 3 * w
+    o5 = o4 + t * _K * w
+    o6 = o5 + t * w
+    return o1, o2, o3, o4, o5, o6, o6 + t * 9 * w
+
+
 def ring_floats(threads: int, n_c: int, m: int, w: int) -> int:
     """The length of :func:`census_kernel`'s ``rings`` (float32) for ``threads`` threads, C ``n_c`` channels, M
     ``m`` warped rows and W ``w`` columns (:func:`_ring_views`)."""
-    q = n_c * _K
-    return threads * (n_c * m * w + m * w + q * 3 * (w + 2) + q * 3 * w + _K * w + w + 9 * w)
+    return int(_ring_ends.py_func(threads, n_c, m, w)[-1])  # plain Python: no kernel to compile or read
 
 
 @njit(**_JIT)
@@ -286,16 +299,11 @@ def _ring_views(rings, t, n_c, m, w):  # noqa: ANN001, ANN201
     scratch taps (T, 9, W). One array argument instead of seven: each array argument costs ~0.25 us of numba's
     dispatch per call (task fastcens)."""
     q = n_c * _K
-    o1 = t * n_c * m * w
-    o2 = o1 + t * m * w
-    o3 = o2 + t * q * 3 * (w + 2)
-    o4 = o3 + t * q * 3 * w
-    o5 = o4 + t * _K * w
-    o6 = o5 + t * w
+    o1, o2, o3, o4, o5, o6, o7 = _ring_ends(t, n_c, m, w)
     return (rings[:o1].reshape((t, n_c, m, w)), rings[o1:o2].reshape((t, m, w)),
             rings[o2:o3].reshape((t, q, 3, w + 2)), rings[o3:o4].reshape((t, q, 3, w)),
             rings[o4:o5].reshape((t, _K, 1, w)), rings[o5:o6].reshape((t, w)),
-            rings[o6:o6 + t * 9 * w].reshape((t, 9, w)))
+            rings[o6:o7].reshape((t, 9, w)))
 
 
 @njit(parallel=True, **_JIT)
@@ -383,7 +391,7 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
                   np.ascontiguousarray(frames, dtype=_F32), np.ascontiguousarray(v0, dtype=_F32),
                   KERNEL_CODES[kernel], *_offset_arrays(params.radius), _F32(params.gain), _F32(params.eps), robust,
                   _F32(params.delta), _F32(1.0 / n_c), out, rings,
-                  scratch("numba.linearise_base", (n, 2, w), np.int32), blocks)
+                  row_base(w), blocks)
     return out
 
 
