@@ -23,6 +23,7 @@ exactly those pixels and leaves textured ones (s(x) >> EPS) normalised as before
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
@@ -132,13 +133,20 @@ def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float
     linear map) and of its difference between samples ``lag`` apart. The map is built as a matrix (rows: input
     impulses) by the very operations of pyramid.build_pyramid along that axis (a Gaussian of OpenCV's kernel size
     for float input; bilinear resampling); replicated border for the steps, reflected for the first blur (as
-    photometric.affine_normalised), GAIN_ROWS impulses at a time: the whole n_0 x n_0 matrix at 1226 px cost ~0.1 s
-    in a fresh process (its pages), the blocks ~0.03 s; the gains agree to float32 rounding (OpenCV's float32
-    filters round a block of rows a little differently here and there: ~4e-9 relative, test_census_noise.py)."""
+    photometric.affine_normalised), GAIN_ROWS rows at a time: the whole n_0 x n_0 matrix at 1226 px cost ~0.1 s
+    in a fresh process (its pages), the blocks ~0.03 s. A row carries every :func:`comb_period`-th impulse: their
+    responses and the differences taken of them never share a sample on any level, so a column's sum of squares
+    over the rows is the one over single impulses (sums of exact zeros aside), n_0 / period times fewer rows. The
+    gains agree with the dense matrix's to float32 rounding (OpenCV's float32 filters round a block of rows a little
+    differently here and there: ~4e-9 relative, test_census_noise.py)."""
+    period = comb_period(lengths, sigmas, blur, lag)
     sq: list[np.ndarray | None] = [None] * len(lengths)  # per level, the column sums over the impulses so far
     dsq: list[np.ndarray | None] = [None] * len(lengths)
-    for start in range(0, lengths[0], GAIN_ROWS):  # the rows are independent: a block at a time, in cache
-        m = np.eye(min(GAIN_ROWS, lengths[0] - start), lengths[0], start, dtype=np.float32)
+    for start in range(0, period, GAIN_ROWS):  # the rows are independent: a block at a time, in cache
+        rows = min(GAIN_ROWS, period - start)
+        m = np.zeros((rows, lengths[0]), np.float32)
+        for row in range(rows):  # impulses at start + row, + period, + 2 period, ...
+            m[row, start + row::period] = 1.0
         if blur > 0:
             m = _blurred(m, blur, cv2.BORDER_REFLECT)
         for level, n in enumerate(lengths):
@@ -154,6 +162,24 @@ def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float
     return var, dvar
 
 
+def comb_period(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0, lag: int = 1) -> int:
+    """The spacing (input samples) of the impulses :func:`_axis_gains` puts in one row: more than twice the reach
+    of an impulse's response on the coarsest level plus ``lag`` samples of that level, in input samples, bounded
+    by n_0 (one impulse a row). The reach grows per step by the Gaussian's kernel radius (OpenCV's size for
+    float input) and the bilinear resampling's two taps, scaled to the input; the first ``blur`` adds its own."""
+    reach = _kernel_radius(blur) if blur > 0 else 0.0  # input samples
+    for level in range(1, len(lengths)):
+        finer, coarser = lengths[0] / lengths[level - 1], lengths[0] / lengths[level]  # input samples a sample
+        reach += _kernel_radius(sigmas[level - 1]) * finer + 2 * coarser
+    far = reach + (lag + 2) * lengths[0] / lengths[-1]
+    return min(lengths[0], 2 * math.ceil(far) + 1)
+
+
+def _kernel_radius(sigma: float) -> int:
+    """The radius of :func:`_blurred`'s kernel of sigma px."""
+    return (int(round(sigma * 4 * 2 + 1)) | 1) // 2
+
+
 def _column_sums(acc: np.ndarray | None, block: np.ndarray) -> np.ndarray:
     """acc (n,) plus the column sums of block (rows, n), float64."""
     return np.sum(block, axis=0) if acc is None else np.sum(np.concatenate((acc[None], block)), axis=0)
@@ -162,8 +188,7 @@ def _column_sums(acc: np.ndarray | None, block: np.ndarray) -> np.ndarray:
 def _blurred(m: np.ndarray, sigma: float, border: int) -> np.ndarray:
     """m (rows, n) float32 blurred along its rows by a Gaussian of sigma px (OpenCV's kernel size for float
     input, as cv2.GaussianBlur with size (0, 0))."""
-    size = int(round(sigma * 4 * 2 + 1)) | 1
-    kernel = cv2.getGaussianKernel(size, sigma, cv2.CV_32F)
+    kernel = cv2.getGaussianKernel(2 * _kernel_radius(sigma) + 1, sigma, cv2.CV_32F)
     return cv2.sepFilter2D(m, cv2.CV_32F, kernel, np.ones((1, 1), np.float32), borderType=border)
 
 
