@@ -1,8 +1,7 @@
 """Running the suite: every method on every pair of every regime, timed round-robin (docs/suite.md, "Timing":
 one scored run, then ``repeats`` timed rounds in rotating order, the median; ``slow_repeats`` for the slow
-TV-L1 peers and any method whose scored and first timed run both exceed ``slow_seconds``); on the wall clock or the
-process's CPU time (:data:`CLOCKS`, ``--clock cpu``: robust to other jobs' load, but it counts every thread, OpenCV's
-spinning second worker included)."""
+TV-L1 peers and any method whose scored and first timed run both exceed ``slow_seconds``), on the wall clock or the
+process's CPU time (:data:`CLOCKS`; ``--clock``: docs/suite.md, "Timing")."""
 
 from __future__ import annotations
 
