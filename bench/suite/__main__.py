@@ -5,6 +5,8 @@
     python -m bench.suite --regimes fine_320,exposure --split tune --quick
     python -m bench.suite --regimes photometric_real,real_exact --split report --quick --peers dis_medium,dualtvl1
     python -m bench.suite --quick --split tune --method cand=realtime,alpha=0.03 --method realtime=realtime
+    python -m bench.suite --regimes middlebury --peers none --clock cpu --method census=fastest,threads=1 \
+        --method grey=fastest,threads=1,photometric=normalise   # census against grey values, CPU time
     python -m bench.suite --update-benchmarks   # also rewrite the generated part of BENCHMARKS.md
     python -m bench.suite --from-json bench/results/suite/suite.json --update-benchmarks   # re-render only
 """
@@ -23,7 +25,7 @@ from ..common import REPO, run_record, write_json
 from . import report, targets
 from .methods import PEERS, parse_method
 from .regimes import REGIMES
-from .runner import run_suite
+from .runner import CLOCKS, run_suite
 
 RESULTS = REPO / "bench" / "results" / "suite"
 
@@ -58,6 +60,8 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--repeats", type=int, default=None, help="timed runs per pair (default 5; quick 3)")
     ap.add_argument("--slow-repeats", type=int, default=None,
                     help="timed runs per pair of a method slower than 0.25 s per pair (default 1)")
+    ap.add_argument("--clock", choices=tuple(CLOCKS), default="wall",
+                    help="time on the wall clock or the process's CPU time (robust to other jobs' load)")
     ap.add_argument("--out", type=Path, default=None, help="JSON path (default bench/results/suite/suite[_quick].json;"
                     " the .md and .png go beside it)")
     ap.add_argument("--update-benchmarks", action="store_true", help="rewrite the generated suite section "
@@ -76,7 +80,8 @@ def main(argv: list[str] | None = None) -> int:
         peers = None if not args.peers else ([] if args.peers == "none" else args.peers.split(","))
         head = {**run_record("bench.suite", argv), "versions": versions()}  # as the run starts
         res = {**head, **run_suite(dict(map(parse_method, args.method)) or None, regimes, args.split, args.quick, peers,
-                                   args.repeats, args.slow_repeats, log=lambda s: print(s, flush=True))}
+                                   args.repeats, args.slow_repeats, log=lambda s: print(s, flush=True),
+                                   clock=args.clock)}
         out = args.out or RESULTS / ("suite_quick.json" if args.quick else "suite.json")
         res["load_average_end"] = os.getloadavg()
     res["targets"] = targets.all_checks(res)

@@ -173,10 +173,11 @@ def markdown(res: dict[str, Any]) -> str:
     """The whole report: how it was run, every regime's table, then the target checks."""
     v = res.get("versions", {})
     quick = " (QUICK: fewer pairs, indicative only)" if res["quick"] else ""
+    clock = ", the process's CPU time" if res.get("clock") == "cpu" else ""
     head = (run_line(res, quick) + f"; numpy {v.get('numpy', '?')}, "
             f"OpenCV {v.get('opencv', '?')}, scikit-image {v.get('scikit-image', '?')}, numba {v.get('numba', '?')}; "
             f"per pair the median of {res['repeats']} interleaved timed runs ({res['slow_repeats']} for the TV-L1 "
-            f"peers and a method slower than {res['slow_seconds']} s per pair). Times in ms, ratios against DIS "
+            f"peers and a method slower than {res['slow_seconds']} s per pair){clock}. Times in ms, ratios against DIS "
             "in the same run.")
     parts = [head, "**Summary**: mean AEE (px) per regime and, in brackets, time / DIS medium (same run)",
              summary_table(res)] + [regime_table(n, r) for n, r in res["regimes"].items()]

@@ -1,6 +1,7 @@
 """Running the suite: every method on every pair of every regime, timed round-robin (docs/suite.md, "Timing":
 one scored run, then ``repeats`` timed rounds in rotating order, the median; ``slow_repeats`` for the slow
-TV-L1 peers and any method whose scored and first timed run both exceed ``slow_seconds``)."""
+TV-L1 peers and any method whose scored and first timed run both exceed ``slow_seconds``), on the wall clock or the
+process's CPU time (:data:`CLOCKS`; ``--clock``: docs/suite.md, "Timing")."""
 
 from __future__ import annotations
 
@@ -20,14 +21,17 @@ QUICK_REGIMES = ("middlebury", "fine_320", "fine_640", "bit_depth", "noise", "ex
                  "flat", "bags")
 
 
-def _timed(method: Method, prepared: Any) -> tuple[float, Any]:
-    start = time.perf_counter()
+CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
+
+
+def _timed(method: Method, prepared: Any, clock: Callable[[], float]) -> tuple[float, Any]:
+    start = clock()
     out = method.run(prepared)
-    return time.perf_counter() - start, out
+    return clock() - start, out
 
 
 def run_pair(made: Mapping[str, Method], sample: Any, repeats: int, slow_repeats: int, slow_seconds: float,
-             turn: int) -> dict[str, dict[str, Any]]:
+             turn: int, clock: Callable[[], float] = time.perf_counter) -> dict[str, dict[str, Any]]:
     """Score and time every method on one sample (see the module docstring); ``turn`` rotates the order."""
     names = list(made)
     prepared = {n: made[n].prepare(sample) for n in names}
@@ -36,7 +40,7 @@ def run_pair(made: Mapping[str, Method], sample: Any, repeats: int, slow_repeats
     scores: dict[str, dict[str, Any]] = {}
     first: dict[str, float] = {}
     for n in names[turn % len(names):] + names[:turn % len(names)]:
-        first[n], out = _timed(made[n], prepared[n])
+        first[n], out = _timed(made[n], prepared[n], clock)
         scores[n] = metrics.score_pair(out, sample.gt, sample.occluded, sample.valid)
         if n in SLOW_PEERS:
             times[n].append(first[n])
@@ -45,7 +49,7 @@ def run_pair(made: Mapping[str, Method], sample: Any, repeats: int, slow_repeats
         k = (turn + r + 1) % len(names)
         for n in names[k:] + names[:k]:
             if len(times[n]) < want[n]:
-                times[n].append(_timed(made[n], prepared[n])[0])
+                times[n].append(_timed(made[n], prepared[n], clock)[0])
                 if r == 0 and n not in SLOW_PEERS and min(first[n], times[n][0]) > slow_seconds:
                     want[n] = max(1, slow_repeats)
     return {n: {**scores[n], "seconds": float(np.median(times[n])), "runs": len(times[n]),
@@ -53,7 +57,7 @@ def run_pair(made: Mapping[str, Method], sample: Any, repeats: int, slow_repeats
 
 
 def run_regime(name: str, made: Mapping[str, Method], split: str, quick: bool, repeats: int, slow_repeats: int,
-               slow_seconds: float, log: Callable[[str], None]) -> dict[str, Any]:
+               slow_seconds: float, log: Callable[[str], None], clock: str = "wall") -> dict[str, Any]:
     """One regime: per method the per-pair scores and their summary, ratios vs DIS, similar-time flags."""
     regime = REGIMES[name]
     made = {n: m for n, m in made.items() if n not in regime.exclude}
@@ -63,7 +67,7 @@ def run_regime(name: str, made: Mapping[str, Method], split: str, quick: bool, r
     for k, sample in enumerate(regime.build(split, quick)):
         pairs.append({"name": sample.name, "variant": sample.variant, "size": sample.size, "bits": sample.bits})
         t0 = time.perf_counter()
-        rows = run_pair(made, sample, repeats, slow_repeats, slow_seconds, k)
+        rows = run_pair(made, sample, repeats, slow_repeats, slow_seconds, k, CLOCKS[clock])
         for n, row in rows.items():
             per[n][sample.name] = row
         slowest = max(rows, key=lambda n: rows[n]["seconds"])
@@ -84,7 +88,7 @@ def run_regime(name: str, made: Mapping[str, Method], split: str, quick: bool, r
 def run_suite(methods: Mapping[str, FlowConfig | Method] | None = None, regimes: Sequence[str] | None = None,
               split: str = "report", quick: bool = False, peers: Sequence[str] | None = None,
               repeats: int | None = None, slow_repeats: int | None = None, slow_seconds: float = 0.25,
-              log: Callable[[str], None] = print) -> dict[str, Any]:
+              log: Callable[[str], None] = print, clock: str = "wall") -> dict[str, Any]:
     """Run the suite and return ``{"regimes": {regime: {"methods": {method: {"aee", "ae", "seconds",
     "time_vs_dis_medium", "aee_vs_dis_medium", ..., "per_variant", "per_pair"}}, "beaten_by", ...}}, ...}``.
 
@@ -92,7 +96,7 @@ def run_suite(methods: Mapping[str, FlowConfig | Method] | None = None, regimes:
     plain FlowConfig() ('default'). ``regimes``: names from REGIMES (None = all; quick: all but 'large').
     ``split``: 'tune', 'report' or 'all' seeds for the synthetic regimes. ``quick``: fewer pairs and
     repeats, a 1-3 minute loop. ``peers``: default DIS ultrafast and medium when quick, all four otherwise.
-    Seconds are the mean over pairs of each pair's median time.
+    Seconds are the mean over pairs of each pair's median time on ``clock`` (:data:`CLOCKS`).
     """
     names = list(regimes) if regimes is not None else list(QUICK_REGIMES if quick else REGIMES)
     unknown = [r for r in names if r not in REGIMES]
@@ -106,9 +110,10 @@ def run_suite(methods: Mapping[str, FlowConfig | Method] | None = None, regimes:
     started = time.time()
     res: dict[str, Any] = {
         "split": split, "quick": quick, "repeats": repeats, "slow_repeats": slow_repeats,
-        "slow_seconds": slow_seconds, "methods": {n: describe(m) for n, m in made.items()},
+        "slow_seconds": slow_seconds, "clock": clock, "methods": {n: describe(m) for n, m in made.items()},
         "slow_peers": [p for p in SLOW_PEERS if p in made], "regimes": {}}
     for name in names:
-        res["regimes"][name] = run_regime(name, made, split, quick, repeats, slow_repeats, slow_seconds, log)
+        res["regimes"][name] = run_regime(name, made, split, quick, repeats, slow_repeats, slow_seconds, log,
+                                           clock)
     res["wall_seconds"] = time.time() - started
     return res
