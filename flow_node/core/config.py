@@ -89,11 +89,12 @@ class FlowConfig:
                                       "illumination is left (0 = off; fastest sets 0.005, realtime 0.002, both beside "
                                       "the width rule, chosen on the suite's tune split, docs/engine.md 'Presets')",
                                       lo=0.0, hi=1.0)
-    census_noise_k: float = _f(2.0, "photometric census: the signature's EPS is at least this many times the pair's "
+    census_noise_k: float = _f(3.0, "photometric census: the signature's EPS is at least this many times the pair's "
                                "noise std (estimated once per frame at full resolution, the larger of the two, "
                                "used in both frames, carried down the pyramid by its filters' noise gain; 0 = "
-                               "off). Damps flat areas whose contrast is noise (low light); 2 chosen on the suite's "
-                               "tune split (docs/engine.md, 'The census data term')", lo=0.0, hi=100.0)
+                               "off). Damps flat areas whose contrast is noise (low light); 3 chosen on the suite's "
+                               "tune split (2 before task noisek; docs/engine.md, 'The census data term')",
+                               lo=0.0, hi=100.0)
     census_finest_radius: int = _f(1, "photometric census: the distance (px) of the signature's eight neighbours "
                                    "on the finest solved level: 1 = the 3 x 3 neighbourhood, as on every coarser "
                                    "level; 2 = the ring at distance 2 (the 5 x 5 window's corners and edge "
