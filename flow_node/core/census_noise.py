@@ -182,7 +182,8 @@ def _kernel_radius(sigma: float) -> int:
 
 def _column_sums(acc: np.ndarray | None, block: np.ndarray) -> np.ndarray:
     """acc (n,) plus the column sums of block (rows, n), float64."""
-    return np.sum(block, axis=0) if acc is None else np.sum(np.concatenate((acc[None], block)), axis=0)
+    sums = np.sum(block, axis=0)
+    return sums if acc is None else acc + sums
 
 
 def _blurred(m: np.ndarray, sigma: float, border: int) -> np.ndarray:
