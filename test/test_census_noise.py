@@ -88,7 +88,7 @@ def test_the_carried_noise_matches_the_pyramid_of_white_noise(cfg: FlowConfig, b
         noise = cv2.GaussianBlur(noise, (0, 0), blur, borderType=cv2.BORDER_REFLECT)
     shapes = pyramid_shapes(noise.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
     steps = antialias_steps(cfg, len(shapes))
-    gains = difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, steps), blur, lag)
+    gains = difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, steps), blur, (lag,))[lag]
     assert gains[0] == pytest.approx(1.0) if not blur else gains[0] < (0.3 if lag == 1 else 0.6)
     for level, gain in zip(build_pyramid(noise, shapes, cfg.scale_factor, steps), gains, strict=True):
         inner = level[2:-2, 2:-2].astype(np.float64)
@@ -98,7 +98,7 @@ def test_the_carried_noise_matches_the_pyramid_of_white_noise(cfg: FlowConfig, b
     assert gains[-1] < 0.25  # and it falls: the coarse levels' EPS floor is far below the input's
     if blur and lag == 2:  # presmoothed noise differs more between far pixels than between neighbours
         assert gains[0] > 1.5 * difference_noise_gains(shapes, step_sigmas(len(shapes) - 1, cfg.scale_factor, steps),
-                                                       blur)[0]
+                                                       blur)[1][0]
 
 
 # the floor reaching the form (numpy and numba): test_census_schedule.test_census_problem_uses_the_level_eps
@@ -142,7 +142,7 @@ def test_the_gains_built_in_blocks_are_the_dense_matrix_s(size: tuple[int, int],
         shapes.append((int(round(shapes[-1][0] * 0.5)), int(round(shapes[-1][1] * 0.5))))
     sigmas = tuple([1.4] * (len(shapes) - 1))
     dense = _dense_gains(shapes, sigmas, blur, lag)
-    np.testing.assert_allclose(difference_noise_gains(shapes, sigmas, blur, lag), dense, rtol=1e-7, atol=0.0)
+    np.testing.assert_allclose(difference_noise_gains(shapes, sigmas, blur, (lag,))[lag], dense, rtol=1e-7, atol=0.0)
 
 
 @pytest.mark.parametrize("preset,size", [("fastest", (375, 1242)), ("realtime", (388, 584)), ("realtime", (240, 320))])
@@ -151,15 +151,18 @@ def test_the_gains_of_impulses_combed_into_rows_are_the_dense_matrix_s(preset: s
                                                                     lag: int) -> None:
     """On a preset's pyramid (a few levels) every row carries several impulses, comb_period apart (fewer rows:
     ~3x faster at 1242 px), and the gains are still the dense matrix's: no two impulses' responses or differences
-    meet on any level. The period is a bound, ~1.6x the reach measured of one impulse's response: a third of it
-    lets them meet here (some gains then read low), a quarter everywhere."""
+    meet on any level, also when both lags take one pass (the larger lag's period). The period is a bound, ~1.6x
+    the reach measured of one impulse's response: a third of it lets them meet here (some gains then read low), a
+    quarter everywhere."""
     cfg = FlowConfig.preset(preset)
     shapes = pyramid_shapes(size, cfg.levels, cfg.scale_factor, cfg.min_size)
     for steps in (0, len(shapes) - 1):  # plain steps; every step anti-aliased (wider kernels)
         sigmas = tuple(step_sigmas(len(shapes) - 1, cfg.scale_factor, steps))
         assert comb_period(tuple(s[1] for s in shapes), sigmas, blur, lag) < size[1]  # some rows hold two or more
         dense = _dense_gains(shapes, sigmas, blur, lag)
-        np.testing.assert_allclose(difference_noise_gains(shapes, sigmas, blur, lag), dense, rtol=1e-7, atol=0.0)
+        for lags in ((lag,), (1, 2)):  # alone, and in one pass with the other lag (the pyramid's call, radius 2)
+            gains = difference_noise_gains(shapes, sigmas, blur, lags)[lag]
+            np.testing.assert_allclose(gains, dense, rtol=1e-7, atol=0.0)
 
 
 def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
@@ -186,7 +189,7 @@ def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
     cfg = CENSUS_RT.replace(census_noise_k=2.0, census_finest_radius=1)  # the 3 x 3 signature; the ring below
     pyr = make_pyramid(n0, n1, cfg, noise=noise)
     assert pyr.census_eps is not None
-    gains = difference_noise_gains(pyr.shapes, step_sigmas(len(pyr.shapes) - 1, 0.5, 3), QUANT_SIGMA)
+    gains = difference_noise_gains(pyr.shapes, step_sigmas(len(pyr.shapes) - 1, 0.5, 3), QUANT_SIGMA)[1]
     assert pyr.census_eps == pytest.approx([2.0 * noise.sigma * g for g in gains])
     assert pyr.census_eps[0] > CENSUS.eps
     assert all(a > b for a, b in zip(pyr.census_eps, pyr.census_eps[1:], strict=False))
@@ -195,8 +198,9 @@ def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
     assert make_pyramid(n0, n1, cfg, noise=PairNoise(noise.sigma, QUANT_SIGMA)).census_eps == pyr.census_eps
     assert pyr.census_eps_far is None and pyr.eps_floor(0, 2) == 0.0
     far = make_pyramid(n0, n1, cfg.replace(census_finest_radius=2), noise=PairNoise(noise.sigma, QUANT_SIGMA))
-    assert far.census_eps == pyr.census_eps  # the 3 x 3 floors unchanged
-    gains2 = difference_noise_gains(pyr.shapes, step_sigmas(len(pyr.shapes) - 1, 0.5, 3), QUANT_SIGMA, 2)
+    # the 3 x 3 floors unchanged, to the float32 rounding of another comb: both lags' gains take one pass then
+    assert far.census_eps == pytest.approx(pyr.census_eps, rel=1e-7, abs=0.0)
+    gains2 = difference_noise_gains(pyr.shapes, step_sigmas(len(pyr.shapes) - 1, 0.5, 3), QUANT_SIGMA, (2,))[2]
     assert far.census_eps_far == pytest.approx([2.0 * noise.sigma * g for g in gains2])
     assert far.eps_floor(0, 2) > 1.5 * far.eps_floor(0)  # presmoothed: far differences carry more noise
 

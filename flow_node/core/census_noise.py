@@ -104,44 +104,48 @@ def channel_noise(raw: tuple[np.ndarray, np.ndarray], normalised: tuple[np.ndarr
     return PairNoise(max(n.sigma for n in noises), max(n.blur for n in noises))
 
 
-def difference_noise_gains(shapes: list[tuple[int, int]], sigmas: list[float], blur: float = 0.0, lag: int = 1
-                           ) -> tuple[float, ...]:
-    """Per pyramid level (finest first), the RMS of white noise's differences between pixels ``lag`` px apart
-    (along x and y) on that level over the RMS of its neighbour differences on the input (1 on level 0 without
-    ``blur``, for any lag). ``shapes`` (h, w) per level; ``sigmas``: the Gaussian blur (px of the finer level) of
-    each step before its bilinear resampling (pyramid.build_pyramid), one per step; ``blur``: a Gaussian (px) on
-    the input first (the photometric stage's presmoothing; 0: none). Computed exactly from the separable linear
-    map of each axis (:func:`_axis_gains`), cached per argument set."""
-    return _difference_noise_gains(tuple(tuple(s) for s in shapes), tuple(float(s) for s in sigmas), float(blur),
-                                   int(lag))
+def difference_noise_gains(shapes: list[tuple[int, int]], sigmas: list[float], blur: float = 0.0,
+                           lags: tuple[int, ...] = (1,)) -> dict[int, tuple[float, ...]]:
+    """Per lag in ``lags``, per pyramid level (finest first): the RMS of white noise's differences between pixels
+    ``lag`` px apart (along x and y) on that level over the RMS of its neighbour differences on the input (1 on
+    level 0 without ``blur``, for any lag). ``shapes`` (h, w) per level; ``sigmas``: the Gaussian blur (px of the
+    finer level) of each step before its bilinear resampling (pyramid.build_pyramid), one per step; ``blur``: a
+    Gaussian (px) on the input first (the photometric stage's presmoothing; 0: none). Computed exactly from the
+    separable linear map of each axis (:func:`_axis_gains`; one pass for every lag), cached per argument set."""
+    lags = tuple(sorted({int(lag) for lag in lags}))
+    gains = _difference_noise_gains(tuple(tuple(s) for s in shapes), tuple(float(s) for s in sigmas), float(blur),
+                                    lags)
+    return dict(zip(lags, gains, strict=True))
 
 
 @lru_cache(maxsize=64)
-def _difference_noise_gains(shapes: tuple[tuple[int, int], ...], sigmas: tuple[float, ...], blur: float, lag: int
-                            ) -> tuple[float, ...]:
-    """:func:`difference_noise_gains` on hashable arguments."""
-    vy, dy = _axis_gains(tuple(s[0] for s in shapes), sigmas, blur, lag)
-    vx, dx = _axis_gains(tuple(s[1] for s in shapes), sigmas, blur, lag)
+def _difference_noise_gains(shapes: tuple[tuple[int, int], ...], sigmas: tuple[float, ...], blur: float,
+                            lags: tuple[int, ...]) -> tuple[tuple[float, ...], ...]:
+    """:func:`difference_noise_gains` on hashable arguments, a tuple of gains per lag."""
+    vy, dys = _axis_gains(tuple(s[0] for s in shapes), sigmas, blur, lags)
+    vx, dxs = _axis_gains(tuple(s[1] for s in shapes), sigmas, blur, lags)
     # white noise through a separable map: Var(x difference) = dx * vy, Var(y difference) = vx * dy; 2 on level 0
-    return tuple(float(np.sqrt((dx[k] * vy[k] + vx[k] * dy[k]) / 4.0)) for k in range(len(shapes)))
+    return tuple(tuple(float(np.sqrt((dx[k] * vy[k] + vx[k] * dy[k]) / 4.0)) for k in range(len(shapes)))
+                 for dx, dy in zip(dxs, dys, strict=True))
 
 
-def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0, lag: int = 1
-                ) -> tuple[list[float], list[float]]:
+def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0, lags: tuple[int, ...] = (1,)
+                ) -> tuple[list[float], list[list[float]]]:
     """For one axis of lengths n_0 > n_1 > ..., the step blurs ``sigmas`` and a first ``blur`` on n_0: per
     level, the mean over interior samples of the variance of (white noise of variance 1 through the axis's
-    linear map) and of its difference between samples ``lag`` apart. The map is built as a matrix (rows: input
-    impulses) by the very operations of pyramid.build_pyramid along that axis (a Gaussian of OpenCV's kernel size
-    for float input; bilinear resampling); replicated border for the steps, reflected for the first blur (as
-    photometric.affine_normalised), GAIN_ROWS rows at a time: the whole n_0 x n_0 matrix at 1226 px cost ~0.1 s
-    in a fresh process (its pages), the blocks ~0.03 s. A row carries every :func:`comb_period`-th impulse: their
-    responses and the differences taken of them never share a sample on any level, so a column's sum of squares
-    over the rows is the one over single impulses (sums of exact zeros aside), n_0 / period times fewer rows. The
-    gains agree with the dense matrix's to float32 rounding (OpenCV's float32 filters round a block of rows a little
-    differently here and there: ~4e-9 relative, test_census_noise.py)."""
-    period = comb_period(lengths, sigmas, blur, lag)
+    linear map), and per lag in ``lags`` that of its difference between samples ``lag`` apart. The map is built as a
+    matrix (rows: input impulses) by the very operations of pyramid.build_pyramid along that axis (a Gaussian of
+    OpenCV's kernel size for float input; bilinear resampling); replicated border for the steps, reflected for the
+    first blur (as photometric.affine_normalised), GAIN_ROWS rows at a time: the whole n_0 x n_0 matrix at 1226 px
+    cost ~0.1 s in a fresh process (its pages), the blocks ~0.03 s. A row carries every :func:`comb_period`-th
+    impulse (the period of the largest lag): their responses and the differences taken of them never share a
+    sample on any level, so a column's sum of squares over the rows is the one over single impulses (sums of
+    exact zeros aside), n_0 / period times fewer rows. The gains agree with the dense matrix's to float32 rounding
+    (OpenCV's float32 filters round a block of rows a little differently here and there: ~4e-9 relative,
+    test_census_noise.py)."""
+    period = max(comb_period(lengths, sigmas, blur, lag) for lag in lags)
     sq: list[np.ndarray | None] = [None] * len(lengths)  # per level, the column sums over the impulses so far
-    dsq: list[np.ndarray | None] = [None] * len(lengths)
+    dsq: list[list[np.ndarray | None]] = [[None] * len(lengths) for _ in lags]  # per lag, the same of differences
     for start in range(0, period, GAIN_ROWS):  # the rows are independent: a block at a time, in cache
         rows = min(GAIN_ROWS, period - start)
         m = np.zeros((rows, lengths[0]), np.float32)
@@ -154,11 +158,12 @@ def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float
                 m = _blurred(m, sigmas[level - 1], cv2.BORDER_REPLICATE)
                 m = cv2.resize(m, (n, m.shape[0]), interpolation=cv2.INTER_LINEAR)
             inner = (m[:, 2:-2] if n > 8 else m).astype(np.float64)
-            diff = inner[:, lag:] - inner[:, :-lag]
             sq[level] = _column_sums(sq[level], inner ** 2)
-            dsq[level] = _column_sums(dsq[level], diff * diff)
+            for sums, lag in zip(dsq, lags, strict=True):
+                diff = inner[:, lag:] - inner[:, :-lag]
+                sums[level] = _column_sums(sums[level], diff * diff)
     var = [float(np.mean(v)) for v in sq]
-    dvar = [float(np.mean(v)) if v.size else 0.0 for v in dsq]
+    dvar = [[float(np.mean(v)) if v.size else 0.0 for v in sums] for sums in dsq]
     return var, dvar
 
 

@@ -191,9 +191,9 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
     if compares_signatures(cfg.photometric) and cfg.census_noise_k > 0:
         noise = PairNoise(max(noise_sigma(i0), noise_sigma(i1))) if noise is None else noise
         sigmas = step_sigmas(len(shapes) - 1, cfg.scale_factor, antialias)
-        for lag in sorted({1, cfg.census_finest_radius}):
-            floors[lag - 1] = eps_floors(noise, cfg.census_noise_k, difference_noise_gains(shapes, sigmas, noise.blur,
-                                                                                          lag))
+        gains = difference_noise_gains(shapes, sigmas, noise.blur, (1, cfg.census_finest_radius))
+        for lag, lag_gains in gains.items():
+            floors[lag - 1] = eps_floors(noise, cfg.census_noise_k, lag_gains)
     return Pyramid(shapes, *grey, *colour, *masks, census_eps=floors[0], census_eps_far=floors[1])
 
 
