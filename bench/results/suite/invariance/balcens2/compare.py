@@ -35,4 +35,5 @@ for m, row in aee.items():
         if reg != "photometric_real" and m != base and 100 * (ratio - 1) > worst[0]:
             worst = (100 * (ratio - 1), reg)
     g = math.exp(sum(logs) / len(logs)) if logs else float("nan")
-    print(f"| {m} | {g:.3f} | {worst[1]} {worst[0]:+.1f} % | " + " | ".join(cells) + " |")
+    worst_cell = f"{worst[1]} {worst[0]:+.1f} %" if worst[1] else "-"
+    print(f"| {m} | {g:.3f} | {worst_cell} | " + " | ".join(cells) + " |")
