@@ -13,7 +13,8 @@ Array layout (models.py): v (2, H, W), y (2, 2, H, W) [dir, comp], w (2, 2, H, W
 [dir2, dir, comp], a (2, H, W), c (H, W), b (2, H, W); all float32 C-contiguous. Models without w/z
 pass 1x1 dummies of the same rank where only a row function reads them (w, z, m, sp), zero rows where a
 pixel loop indexes them (w_bar (2, 2, 1, W); without mass p (1, W), tv (2, 1, W), qpad (2, 2, 1, W + 2));
-without a Bregman term b is a (2, 1, W) zero row.
+without a Bregman term b is a (2, 1, W) zero row; without an edge weight
+g (H, W) (the radius of y's ball, edges.py) a (1, W) row of ones.
 
 Every load stays inside the array it indexes, whatever the flags (``mass``, ``quad``, ``ext``): LLVM turns the
 flag branches of a pixel loop into AVX-512 masked loads, and a masked-off lane whose address lies on a page
