@@ -324,7 +324,9 @@ def test_fastest_census_damps_the_empty_coarsest_level(monkeypatch: pytest.Monke
     assert (fastest.census_coarse_eps, fastest.census_empty_contrast) == (0.03, 0.005)
     neither = dict(census_empty_contrast=0.0, census_coarse_width=0)
     check_empty_level_damping(monkeypatch, scene, fastest, {40}, good=0.05, bad=None)
-    former = fastest.replace(census_delta=0.05, census_alpha=0.2)
+    # with plain TV: the edge-weighted TV (task edgetv) takes the former undamped flow out of most of that minimum
+    # (0.29 px)
+    former = fastest.replace(census_delta=0.05, census_alpha=0.2, tv_edge_weight=0.0)
     check_empty_level_damping(monkeypatch, scene, former, {40}, good=0.1, bad=0.3, without=former.replace(**neither))
 
 
@@ -373,4 +375,6 @@ def test_realtime_census_damps_the_empty_80px_level_at_640(monkeypatch: pytest.M
     assert label == "zoom/band3"
     realtime = FlowConfig.preset("realtime")
     assert (realtime.census_coarse_width, realtime.census_empty_contrast) == (50, 0.002)
-    check_empty_level_damping(monkeypatch, scene, realtime, {80, 40}, good=0.03, bad=0.1)
+    check_empty_level_damping(monkeypatch, scene, realtime, {80, 40}, good=0.03, bad=None)
+    # the failure with plain TV: the edge-weighted TV (task edgetv) leaves 0.066 px of it undamped
+    check_empty_level_damping(monkeypatch, scene, realtime.replace(tv_edge_weight=0.0), {80, 40}, good=0.03, bad=0.1)

@@ -168,6 +168,18 @@ class FlowConfig:
                             choices=(0, 3, 5))
     level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
                                    "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
+    tv_edge_weight: float = _f(0.0, "images only: a of the edge weight g = max(tv_edge_floor, "
+                               "exp(-a (|grad I0_s| / s)^b)) of the first TV term, g |grad v| (Wedel et al. / "
+                               "Werlberger et al. 2009): I0_s the level's frame 0 smoothed (Gaussian sigma 1), s the "
+                               "mean of |grad I0_s| on that level (so g does not change with the image's contrast); "
+                               "0 = off (plain TV)", lo=0.0, hi=100.0)
+    tv_edge_power: float = _f(3.0, "b of the edge weight (tv_edge_weight): with 3 g falls at gradients 2-3 times "
+                              "the level's mean", lo=0.1, hi=4.0)
+    tv_edge_floor: float = _f(0.1, "least edge weight g (tv_edge_weight): the regulariser never drops below this "
+                              "share of alpha", lo=0.01, hi=1.0)
+    tv_edge_min_level: int = _f(1, "the edge weight (tv_edge_weight) on pyramid levels >= this only (0 = every "
+                                "level; the default 1 keeps plain TV at full resolution, where it cost the fine "
+                                "synthetic textures and helped no regime)", lo=0, hi=29)
     incompressibility: float = _f(0.0, "volumes only (3-D flow): weight beta of the penalty (beta/2)|div v|^2 "
                                   "that makes the flow divergence-free (0 = off; the 2-D engine does not use it)",
                                   lo=0.0, hi=1000.0)

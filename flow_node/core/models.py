@@ -241,13 +241,15 @@ def quadratic_data(v: np.ndarray, q: np.ndarray) -> float:
 
 
 # ------------------------------------------------------------------------------- regulariser (dual side)
-def prox_dual_l2(yt: np.ndarray, sigma: float, alpha: float) -> np.ndarray:
-    """prox of sigma F* with F = (alpha/2)|.|^2, F* = |y|^2 / (2 alpha): yt / (1 + sigma/alpha)."""
+def prox_dual_l2(yt: np.ndarray, sigma: float, alpha: float | np.ndarray) -> np.ndarray:
+    """prox of sigma F* with F = (alpha/2)|.|^2, F* = |y|^2 / (2 alpha): yt / (1 + sigma/alpha) (alpha may be
+    per pixel)."""
     return yt / (1.0 + sigma / alpha)
 
 
-def project_dual_tv(yt: np.ndarray, alpha: float, tv_norm: str, spatial: int = 2) -> np.ndarray:
-    """prox of sigma F* with F = alpha |.|_1: projection onto the dual-norm ball of radius alpha.
+def project_dual_tv(yt: np.ndarray, alpha: float | np.ndarray, tv_norm: str, spatial: int = 2) -> np.ndarray:
+    """prox of sigma F* with F = alpha |.|_1: projection onto the dual-norm ball of radius alpha; ``alpha`` may
+    be per pixel (an array of the grid's shape: the edge-weighted TV sum_x g(x) |grad v(x)|, edges.py).
 
     isotropic: pointwise Euclidean ball over all leading components (the paper's "fully isotropic");
     anisotropic: componentwise clip to [-alpha, alpha] (max-norm ball). yt: (..., H, W), or (..., Z, Y, X)

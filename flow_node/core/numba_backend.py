@@ -131,6 +131,14 @@ def zero_rows(width: int, volume: bool = False) -> dict[str, np.ndarray]:
     return rows
 
 
+def unit_row(width: int) -> np.ndarray:
+    """A (1, ``width``) row of ones, float32: what the dual pass reads as the radius of y's ball without an edge
+    weight (the unit ball; numba_kernels.prox_dual4). The calling thread's scratch array, written on every call."""
+    row = scratch("numba.unit_row", (1, width))
+    row.fill(1.0)
+    return row
+
+
 @lru_cache(maxsize=64)
 def _row_shapes(width: int, volume: bool) -> tuple[tuple[str, tuple[int, ...]], ...]:
     """The (name, shape) of each of :func:`zero_rows`' rows for ``width`` (:data:`ZERO_ROWS` or
@@ -193,7 +201,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
         mass, _f32c(problem.m) if mass else _DUMMY4, state.p if mass else rows["p"], qpad if mass else rows["qpad"],
         sp if mass else _DUMMY2,
         tv if mass else rows["tv"], _F32(1.0 / p.alpha),
-        _f32c(problem.ab) if bc else _DUMMY3, _f32c(problem.cb) if bc else _DUMMY2))
+        _f32c(problem.ab) if bc else _DUMMY3, _f32c(problem.cb) if bc else _DUMMY2,
+        unit_row(state.v.shape[2]) if problem.g is None else _f32c(problem.g)))
     if mass:
         shift_slow_modes(problem, state, p)
     return k

@@ -13,7 +13,8 @@ Array layout (models.py): v (2, H, W), y (2, 2, H, W) [dir, comp], w (2, 2, H, W
 [dir2, dir, comp], a (2, H, W), c (H, W), b (2, H, W); all float32 C-contiguous. Models without w/z
 pass 1x1 dummies of the same rank where only a row function reads them (w, z, m, sp), zero rows where a
 pixel loop indexes them (w_bar (2, 2, 1, W); without mass p (1, W), tv (2, 1, W), qpad (2, 2, 1, W + 2));
-without a Bregman term b is a (2, 1, W) zero row.
+without a Bregman term b is a (2, 1, W) zero row; without an edge weight
+g (H, W) (the radius of y's ball, edges.py) a (1, W) row of ones.
 
 Every load stays inside the array it indexes, whatever the flags (``mass``, ``quad``, ``ext``): LLVM turns the
 flag branches of a pixel loop into AVX-512 masked loads, and a masked-off lane whose address lies on a page
@@ -59,18 +60,19 @@ _ZERO = np.float32(0.0)
 
 # ------------------------------------------------------------------------------- scalar pixel helpers
 @njit(**_JIT)
-def prox_dual4(t0, t1, t2, t3, reg, iso):  # noqa: ANN001, ANN201
+def prox_dual4(t0, t1, t2, t3, reg, iso, r):  # noqa: ANN001, ANN201
     """prox of sigma F* for the four components of y at one pixel (t = y + sigma K x).
 
-    reg 0 (quadratic regulariser): t / (1 + sigma) is done by the caller's ``l2_scale``; here: TV ball of
-    radius 1, Euclidean over the four components (iso) or componentwise clip."""
+    reg 0 (quadratic regulariser): t / (1 + sigma / r) is done by the caller's ``l2_scale``; here: TV ball of
+    radius r (1, or the pixel's edge weight g: models.project_dual_tv), Euclidean over the four components (iso)
+    or componentwise clip. With r = 1 the same values bit for bit as the unit ball (x / 1 is exact)."""
     if reg == 0:
         return t0, t1, t2, t3
     if iso:
-        m = max(_ONE, math.sqrt(t0 * t0 + t1 * t1 + t2 * t2 + t3 * t3))
+        m = max(_ONE, math.sqrt(t0 * t0 + t1 * t1 + t2 * t2 + t3 * t3) / r)
         return t0 / m, t1 / m, t2 / m, t3 / m
-    return (min(max(t0, -_ONE), _ONE), min(max(t1, -_ONE), _ONE),
-            min(max(t2, -_ONE), _ONE), min(max(t3, -_ONE), _ONE))
+    return (min(max(t0, -r), r), min(max(t1, -r), r),
+            min(max(t2, -r), r), min(max(t3, -r), r))
 
 
 @njit(**_JIT)
@@ -228,13 +230,15 @@ def _make_passes(parallel: bool, data: int | None = None, regulariser: int = 0):
     Distinct function names keep the on-disk cache entries of the variants apart."""
     bc = data == BC
 
-    def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1):  # noqa: ANN001, ANN202
-        """One dual step over the whole image, in place on y (and z, and with ``mass`` the data dual p)."""
+    def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1, g):  # noqa: ANN001, ANN202
+        """One dual step over the whole image, in place on y (and z, and with ``mass`` the data dual p). ``g``: the
+        edge weight (H, W) of the first regulariser term (the radius of y's ball, :func:`prox_dual4`), or without
+        one a (1, W) row of ones (row index clamped, like ``b``'s)."""
         h, wd = v_bar.shape[1], v_bar.shape[2]
         reg = regulariser  # the argument agrees with this variant's constant
         ext = reg >= 2
-        l2_scale = _ONE / (_ONE + sigma) if reg == 0 else _ONE
         for i in prange(h):
+            ig = min(np.int64(i), g.shape[0] - 1)
             ir = min(i + 1, h - 1)
             rm = _ONE if i < h - 1 else _ZERO
             iw = min(np.int64(i), w_bar.shape[2] - 1)  # w_bar is a (2, 2, 1, W) zero row without w
@@ -251,10 +255,12 @@ def _make_passes(parallel: bool, data: int | None = None, regulariser: int = 0):
                         g01 -= w_bar[0, 1, iw, j]
                         g10 -= w_bar[1, 0, iw, j]
                         g11 -= w_bar[1, 1, iw, j]
+                    r = g[ig, j]
+                    l2_scale = _ONE / (_ONE + sigma / r) if reg == 0 else _ONE
                     t0, t1, t2, t3 = prox_dual4(
                         (y[0, 0, i, j] + sigma * g00) * l2_scale, (y[0, 1, i, j] + sigma * g01) * l2_scale,
                         (y[1, 0, i, j] + sigma * g10) * l2_scale, (y[1, 1, i, j] + sigma * g11) * l2_scale,
-                        reg, iso)
+                        reg, iso, r)
                     y[0, 0, i, j] = t0
                     y[0, 1, i, j] = t1
                     y[1, 0, i, j] = t2
@@ -365,7 +371,7 @@ def _make_iterate(data: int):  # noqa: ANN202
 
     def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN202
                 data_l1, soft, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad,
-                mass, m, p, qpad, sp, tv, lam, ab, cb):
+                mass, m, p, qpad, sp, tv, lam, ab, cb, g):
         """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
         per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
         cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass); ``soft``: the joint
@@ -374,12 +380,13 @@ def _make_iterate(data: int):  # noqa: ANN202
         M p (zero ring), the steps ``sp`` (H, W) and ``tv`` (2, H, W) (models.mass_steps) and the data weight
         ``lam`` (else dummies; zero rows for p, qpad and tv: numba_backend.zero_rows); in ``iterate_bc``, with
         mass, the brightness term ``ab`` (2, H, W), ``cb`` (H, W) beside it (models.prox_data_metric; else
-        dummies). Returns the number of iterations run."""
+        dummies); ``g`` the edge weight (H, W) of the first regulariser term, or a (1, W) row of ones
+        (:func:`prox_dual4`). Returns the number of iterations run."""
         n = 2.0 * v.shape[1] * v.shape[2]
         k = 0
         head = (v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad, soft, mass, p,
                 qpad, tv)
-        dual = (v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1)
+        dual = (v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1, g)
         for k in range(1, iterations + 1):
             measure = tolerance > 0.0 and k % check_every == 0
             tail = (measure, ab, cb, lam)

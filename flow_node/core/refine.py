@@ -20,6 +20,7 @@ from .backends import Backend
 from .bregman import bregman
 from .census import CENSUS, CensusParams, median_contrast
 from .config import FlowConfig
+from .edges import level_edge_weight
 from .layout import interleaved_flow
 from .models import MODEL_SPECS, weight_coefficient, weight_data, weight_quadratic
 from .operators import gain_linearise, mass_gain, mass_linearise, warp_source
@@ -118,10 +119,14 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level, radius), on_finest)
     else:
         linearised = problem_source(cfg)(pyr.i0[level], pyr.i1[level], cfg, backend, robust)
-    if pyr.valid(level) is not None:
-        linearised = masked_problem(linearised, *pyr.valid(level), params.spec.data)
-    iterations = 0
     valid = pyr.valid(level)
+    if valid is not None:
+        linearised = masked_problem(linearised, *valid, params.spec.data)
+    # the edge-weighted TV's g, once per level (None: off); plain TV on and near frame 0's invalid pixels
+    g = level_edge_weight(pyr.i0[level], cfg, level, None if valid is None else valid[0])
+    if g is not None:
+        linearised = edge_weighted(linearised, g)
+    iterations = 0
     sizes = warp_medians(cfg, inner_median)
     for warp in range(warps):
         if valid is not None and warp == 0:  # the level's start: masked pixels from their neighbours' flow
@@ -238,6 +243,15 @@ def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
 
     def around(v0: np.ndarray) -> Problem:
         return Problem(a, c, q=backend.census_form(f0, g0, coefs, c1, v0, cfg.warp_kernel, robust, params, out=form))
+
+    return around
+
+
+def edge_weighted(linearised: Linearisation, g: np.ndarray) -> Linearisation:
+    """A level's linearisation whose problems carry the edge weight ``g`` (h, w) of the TV term (edges.py)."""
+
+    def around(v0: np.ndarray) -> Problem:
+        return replace(linearised(v0), g=g)
 
     return around
 

@@ -98,7 +98,9 @@ class Problem:
     it is dualised (p, models.prox_dual_data) with diagonally preconditioned steps (models.mass_steps).
     ``ab`` (2, H, W), ``cb`` (H, W), only with ``m``: a brightness-constancy term ab . v + cb beside the mass term,
     the model's data penalty on it with its weight folded in (FlowConfig.mass_brightness, models.weight_data),
-    pointwise, so it stays in G (models.prox_data_metric with the per-pixel steps)."""
+    pointwise, so it stays in G (models.prox_data_metric with the per-pixel steps).
+    ``g`` (H, W), when given, weights the first regulariser term per pixel, g |grad v| (edges.py): the dual ball
+    of y has radius g (for the quadratic regulariser, (g/2)|grad v|^2: y / (1 + sigma / g)); None = 1."""
 
     a: np.ndarray
     c: np.ndarray
@@ -107,6 +109,7 @@ class Problem:
     m: np.ndarray | None = None
     ab: np.ndarray | None = None
     cb: np.ndarray | None = None
+    g: np.ndarray | None = None
 
     @property
     def brightness_term(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -147,6 +150,7 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
         def prox_data(vt: np.ndarray, a: np.ndarray, c: np.ndarray, t: float) -> np.ndarray:
             return prox_data_joint(vt, a, c, t, p.gamma)
     a, c, q = problem.a, problem.c, problem.q
+    radius = 1.0 if problem.g is None else problem.g  # the dual ball of y: 1, or the edge weight g (H, W)
     shift = None if problem.b is None else tau * problem.b  # linear term -<b, v> of E / alpha
     mass = problem.m is not None
     if mass:  # K = [regulariser; A]: the data dual p and per-pixel steps (sigma_p, tau_v) replace prox_{tau G}
@@ -161,9 +165,9 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
         gv = grad(v_bar, dims=dims)
         ky = gv if w_bar is None else gv - w_bar
         if spec.regulariser == "l2":
-            y = prox_dual_l2(y + sigma * ky, sigma, 1.0)
+            y = prox_dual_l2(y + sigma * ky, sigma, radius)
         else:
-            y = project_dual_tv(y + sigma * ky, 1.0, p.tv_norm, dims)
+            y = project_dual_tv(y + sigma * ky, radius, p.tv_norm, dims)
         if z is not None:
             z = project_dual_tv(z + sigma * grad(w_bar, dims=dims), rel1, p.tv_norm, dims)
         if incompressible:
