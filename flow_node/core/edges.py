@@ -24,14 +24,19 @@ def edge_weight(i0: np.ndarray, a: float, b: float, floor: float) -> np.ndarray:
     s = mean |grad I0_s| over the level. A constant level (s = 0) gives g = 1 everywhere."""
     img = np.ascontiguousarray(i0, dtype=np.float32)
     smooth = cv2.GaussianBlur(img, (0, 0), EDGE_SIGMA, borderType=cv2.BORDER_REPLICATE)
-    gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)
+    g = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)
-    mag = np.sqrt(gx * gx + gy * gy)
-    scale = float(np.mean(mag, dtype=np.float64))
+    # in place from here, g holding |grad|, then the weight: a level's temporaries of a few hundred kB are fresh
+    # pages each (glibc's mmap threshold) where an executable has not set process.keep_freed_memory
+    np.multiply(g, g, out=g)
+    np.multiply(gy, gy, out=gy)
+    np.sqrt(np.add(g, gy, out=g), out=g)
+    scale = float(np.mean(g, dtype=np.float64))
     if scale <= _TINY:
         return np.ones(img.shape, np.float32)
-    g = np.exp(-a * np.power(mag / np.float32(scale), np.float32(b)))
-    return np.maximum(g, np.float32(floor)).astype(np.float32, copy=False)
+    np.power(np.divide(g, np.float32(scale), out=g), np.float32(b), out=g)
+    np.exp(np.multiply(g, np.float32(-a), out=g), out=g)
+    return np.maximum(g, np.float32(floor), out=g)
 
 
 def level_edge_weight(i0: np.ndarray, cfg: FlowConfig, level: int = 0, valid0: np.ndarray | None = None
