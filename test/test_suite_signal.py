@@ -55,3 +55,15 @@ def test_signal_table_counts_each_side_of_the_level() -> None:
     # a method without the fraction gets no row; none at all: no table
     del r["methods"]["ours"]
     assert report.signal_table(r) == ""
+
+
+def test_family_ratios_take_white_balance_over_the_rgb_pairs() -> None:
+    """bench.suite.report.family_ratios (BENCHMARKS' invariance tables, bench.suite.invariance_tables): a family's
+    mean AEE over the same method's on the unchanged pairs, white balance over the unchanged RGB ones."""
+    pairs = [_pair("a_unchanged", "unchanged"), _pair("a_g1", "gamma/0.5"), _pair("a_g2", "gamma/2"),
+             _pair("a_rgb_unchanged", "unchanged rgb"), _pair("a_wb", "white_balance/gains")]
+    aee = {"a_unchanged": 1.0, "a_g1": 1.5, "a_g2": 2.5, "a_rgb_unchanged": 4.0, "a_wb": 5.0}
+    r = {"pairs": pairs, "methods": {"ours": {"per_pair": {k: {"aee": a} for k, a in aee.items()}}}}
+    ratios = report.family_ratios(report.family_means(r))
+    assert ratios["gamma"]["ours"] == 2.0 and ratios["white_balance"]["ours"] == 1.25
+    assert ratios["unchanged"]["ours"] == 1.0

@@ -64,21 +64,30 @@ def regime_table(name: str, r: dict[str, Any]) -> str:
     return "\n".join(out)
 
 
-def family_table(r: dict[str, Any]) -> str:
-    """Markdown table of a regime whose variants are 'family/variant' (the photometric regimes): per family,
-    each method's mean AEE and its ratio to the same method's mean AEE on the unchanged pairs."""
+def family_means(r: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """A regime whose variants are 'family/variant' (the photometric regimes): family -> method -> mean AEE."""
     methods = r["methods"]
     by_family: dict[str, dict[str, list[float]]] = {}
     for pair in r["pairs"]:
         per = by_family.setdefault(pair["variant"].split("/")[0], {n: [] for n in methods})
         for n, m in methods.items():
             per[n].append(m["per_pair"][pair["name"]]["aee"])
-    means = {f: {n: float(np.mean(v)) for n, v in per.items()} for f, per in by_family.items()}
-    rows = []
-    for family, mean in means.items():
-        base = means.get(UNCHANGED_RGB if family in COLOUR else UNCHANGED, means[UNCHANGED])
-        rows.append([family, *(f"{mean[n]:.3f} ({mean[n] / base[n]:.2f}x)" for n in methods)])
-    return "\n".join(md_table(["family", *methods], rows, right=True))
+    return {f: {n: float(np.mean(v)) for n, v in per.items()} for f, per in by_family.items()}
+
+
+def family_ratios(means: dict[str, dict[str, float]]) -> dict[str, dict[str, float]]:
+    """:func:`family_means` over the same method's mean on the unchanged pairs (white balance: the RGB ones)."""
+    return {family: {n: v / means.get(UNCHANGED_RGB if family in COLOUR else UNCHANGED, means[UNCHANGED])[n]
+                     for n, v in mean.items()} for family, mean in means.items()}
+
+
+def family_table(r: dict[str, Any]) -> str:
+    """Markdown table of a photometric regime: per family, each method's mean AEE and its ratio to the same
+    method's mean AEE on the unchanged pairs."""
+    means = family_means(r)
+    ratios = family_ratios(means)
+    rows = [[family, *(f"{mean[n]:.3f} ({ratios[family][n]:.2f}x)" for n in mean)] for family, mean in means.items()]
+    return "\n".join(md_table(["family", *r["methods"]], rows, right=True))
 
 
 def _unchanged_of(r: dict[str, Any]) -> dict[str, str]:
@@ -109,23 +118,31 @@ def misread(kind: str, unexplained: float) -> bool:
     return unexplained < UNRELIABLE if kind == "wrong" else unexplained >= UNRELIABLE
 
 
+def signal_groups(r: dict[str, Any], method: str) -> dict[str, list[float]]:
+    """The unexplained fractions of ``method``'s pairs on a photometric regime, by :func:`pair_kind` ('unchanged',
+    'handled', 'wrong'; pairs in between left out)."""
+    base = _unchanged_of(r)
+    pp = r["methods"][method]["per_pair"]
+    groups: dict[str, list[float]] = {"unchanged": [], "handled": [], "wrong": []}
+    for name, q in pp.items():
+        kind = pair_kind(q["aee"], pp[base[name]]["aee"], name == base[name])
+        if kind:
+            groups[kind].append(q["unexplained"])
+    return groups
+
+
 def signal_table(r: dict[str, Any]) -> str:
     """Markdown table of how well each flow_node method's unexplained fraction (FlowResult.unexplained, per pair)
     tells a wrong flow from a right one on a photometric regime: per method the unchanged pairs and the families'
     pairs handled or wrong (module constants), each 'n (k)', k the pairs on the wrong side of UNRELIABLE (an
     unchanged or handled pair at or above it, a wrong pair below it), and the range of the fraction. Empty when
     no method recorded the fraction."""
-    base = _unchanged_of(r)
     rows = []
     for n, m in r["methods"].items():
         pp = m["per_pair"]
         if n in PEER_NAMES or not all("unexplained" in q for q in pp.values()):
             continue
-        groups: dict[str, list[float]] = {"unchanged": [], "handled": [], "wrong": []}
-        for name, q in pp.items():
-            kind = pair_kind(q["aee"], pp[base[name]]["aee"], name == base[name])
-            if kind:
-                groups[kind].append(q["unexplained"])
+        groups = signal_groups(r, n)
         cells = []
         for g, vals in groups.items():
             off = sum(misread(g, u) for u in vals)
