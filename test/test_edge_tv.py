@@ -162,3 +162,21 @@ def test_a_flow_jump_moves_to_the_image_edge_with_the_weight() -> None:
             errors.append(float(np.mean(np.linalg.norm(st.v - truth, axis=0)[:, 10:22])))
     assert errors[0] == pytest.approx(errors[1], abs=1e-3) and errors[2] == pytest.approx(errors[3], abs=1e-3)
     assert errors[2] < 0.5 * errors[0], errors
+
+
+@pytest.mark.parametrize("model", ["l2_l2", "l1_tv", "l1_tv_tv"])
+@pytest.mark.parametrize("tv_norm", ["isotropic", "anisotropic"])
+def test_the_energy_weighs_its_first_regulariser_term(model: str, tv_norm: str) -> None:
+    """models.energy with the edge weight (what the mass model's slow-mode step compares, solver.shift_slow_modes):
+    a weight of ones is the plain energy, and a weight of one half halves the first regulariser term only."""
+    from flow_node.core.models import energy
+
+    problem, st = case(model, None)
+    spec = MODEL_SPECS[model]
+    args = (spec, st.v, st.w, problem.a, problem.c, 0.05, 0.5, tv_norm)
+    plain = energy(*args)
+    assert energy(*args, weight=np.ones((H, W), np.float32)) == pytest.approx(plain, rel=1e-12)
+    zero_reg = energy(spec, st.v, st.w, problem.a, problem.c, 0.0, 0.5, tv_norm)  # data (+ second term) alone
+    half = energy(*args, weight=np.full((H, W), 0.5, np.float32))
+    assert half - zero_reg == pytest.approx(0.5 * (plain - zero_reg), rel=1e-9)
+    assert plain - zero_reg > 0.0

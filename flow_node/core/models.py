@@ -262,13 +262,15 @@ def project_dual_tv(yt: np.ndarray, alpha: float | np.ndarray, tv_norm: str, spa
     return yt / np.maximum(1.0, norm / alpha)
 
 
-def tv_norm_of(g: np.ndarray, tv_norm: str, spatial: int = 2) -> float:
-    """sum over pixels of |g(x)| in the primal norm (isotropic: Euclidean over components; anisotropic: l1);
-    the last ``spatial`` axes are the pixel grid."""
-    if tv_norm == "anisotropic":
+def tv_norm_of(g: np.ndarray, tv_norm: str, spatial: int = 2, weight: np.ndarray | None = None) -> float:
+    """sum over pixels of |g(x)| in the primal norm (isotropic: Euclidean over components; anisotropic: l1),
+    each pixel's times ``weight`` (the grid's shape: the edge-weighted TV, edges.py; None: 1); the last ``spatial``
+    axes are the pixel grid."""
+    if tv_norm == "anisotropic" and weight is None:
         return float(np.abs(g).sum())
     lead = tuple(range(g.ndim - spatial))
-    return float(np.sqrt(np.sum(g * g, axis=lead)).sum())
+    per_pixel = np.abs(g).sum(axis=lead) if tv_norm == "anisotropic" else np.sqrt(np.sum(g * g, axis=lead))
+    return float(per_pixel.sum() if weight is None else np.sum(weight * per_pixel))
 
 
 # ------------------------------------------------------------------- incompressibility (volumes, docs/engine.md)
@@ -350,12 +352,13 @@ def data_penalty(r: np.ndarray, data: str) -> float:
 def energy(spec: ModelSpec, v: np.ndarray, w: np.ndarray | None, a: np.ndarray, c: np.ndarray,
            alpha: float, alpha1: float, tv_norm: str, q: np.ndarray | None = None,
            incompressibility: float = 0.0, m: np.ndarray | None = None,
-           bc: tuple[np.ndarray, np.ndarray] | None = None) -> float:
+           bc: tuple[np.ndarray, np.ndarray] | None = None, weight: np.ndarray | None = None) -> float:
     """The primal energy G + F(K .) of the model at (v, w) (sums over pixels, float64); with a quadratic
     data term ``q`` (:func:`prox_data_quadratic`) that one instead of the model's data term on (a, c); with
     ``m`` the mass-preservation residual (:func:`mass_residual`), and with ``bc`` = (ab, cb) the model's data
     term on the brightness residual ab . v + cb added (its weight folded in, :func:`weight_data`); plus the
-    incompressibility penalty (beta/2)|div v|^2 with beta = ``incompressibility``."""
+    incompressibility penalty (beta/2)|div v|^2 with beta = ``incompressibility``. ``weight``: the edge weight g
+    (H, W) of the first regulariser term (solver.Problem.g; None: 1)."""
     spatial = v.shape[0]
     r = (residual(v, a, c) if m is None else mass_residual(v.astype(np.float64), a, m, c)).astype(np.float64)
     if q is not None:
@@ -366,9 +369,9 @@ def energy(spec: ModelSpec, v: np.ndarray, w: np.ndarray | None, a: np.ndarray, 
         data += data_penalty(residual(v.astype(np.float64), *bc), spec.data)
     k1, k2 = apply_k(spec, v.astype(np.float64), None if w is None else w.astype(np.float64))
     if spec.regulariser == "l2":
-        reg = 0.5 * alpha * float(np.sum(k1 * k1))
+        reg = 0.5 * alpha * float(np.sum(k1 * k1 if weight is None else weight * k1 * k1))
     else:
-        reg = alpha * tv_norm_of(k1, tv_norm, spatial)
+        reg = alpha * tv_norm_of(k1, tv_norm, spatial, weight)
     if spec.regulariser == "tv_l2":
         reg += 0.5 * alpha1 * float(np.sum(w.astype(np.float64) ** 2))
     elif spec.regulariser == "tv_tv":

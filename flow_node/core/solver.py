@@ -233,7 +233,7 @@ def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
     if largest > MODE_STEP_MAX:  # a trust region: the linearisation holds within a fraction of a pixel
         step *= MODE_STEP_MAX / largest
     moved = (state.v + step).astype(np.float32)
-    before, after = (energy(p.spec, v, state.w, a, c, p.alpha, p.alpha1, p.tv_norm, m=m, bc=bc)
+    before, after = (energy(p.spec, v, state.w, a, c, p.alpha, p.alpha1, p.tv_norm, m=m, bc=bc, weight=problem.g)
                      - (0.0 if problem.b is None else p.alpha * float(np.sum(problem.b * v, dtype=np.float64)))
                      for v in (state.v, moved))
     if after < before:
