@@ -175,8 +175,9 @@ class FlowConfig:
                                "0 = off (plain TV)", lo=0.0, hi=100.0)
     tv_edge_power: float = _f(3.0, "b of the edge weight (tv_edge_weight): with 3 g falls at gradients 2-3 times "
                               "the level's mean", lo=0.1, hi=4.0)
-    tv_edge_floor: float = _f(0.1, "least edge weight g (tv_edge_weight): the regulariser never drops below this "
-                              "share of alpha", lo=0.01, hi=1.0)
+    tv_edge_floor: float = _f(0.6, "least edge weight g (tv_edge_weight): the regulariser never drops below this "
+                              "share of alpha (0.6: the value chosen for realtime; 0.1 failed the suite's report "
+                              "split and let fastest's wiper keep its own motion, docs/engine.md)", lo=0.01, hi=1.0)
     tv_edge_min_level: int = _f(1, "the edge weight (tv_edge_weight) on pyramid levels >= this only (0 = every "
                                 "level; the default 1 keeps plain TV at full resolution, where it cost the fine "
                                 "synthetic textures and helped no regime)", lo=0, hi=29)

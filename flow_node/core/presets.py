@@ -123,9 +123,9 @@ CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, c
 # keep plain TV: the weight gains there too (tune real_exact -17.5 %, report 0.3883 -> 0.3520, Middlebury 0.461 ->
 # 0.445) but its census term already costs 1.07-1.12x grey values' CPU time and the weight's +3-5 % took it to
 # 1.10-1.17x, over issue 25's 15 % (bench/results/suite/invariance/edgetv/summary.md, "At the merge");
-# fastest,tv_edge_weight=0.05, tv_edge_floor=0.6 is that trade. stream_lite keeps plain TV too (stream tune 0.0481 ->
+# fastest,tv_edge_weight=0.05 is that trade. stream_lite keeps plain TV too (stream tune 0.0481 ->
 # 0.0486).
-EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05, tv_edge_floor=0.6))
+EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05))  # tv_edge_floor 0.6: the field's default
 # fastest, and the stream presets' base (below)
 FASTEST: Mapping[str, Any] = MappingProxyType(dict(
     model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5, finest_level=1, median_filter=5,
