@@ -16,6 +16,7 @@ from .census import CensusForm, LevelSignature, census_form, level_signature, me
 from .census_noise import noise_sigma
 from .confidence import Confidence, ConfidenceAt, confidence, confidence_at
 from .densify import push_pull, splat_forward
+from .edges import EdgeWeight, edge_weight
 from .errors import ConfigError
 from .fusion import Fuse, LevelPlanes, fuse, level_planes
 from .initialise import Consistent, equalised, forward_backward_consistent
@@ -40,8 +41,9 @@ class Backend(NamedTuple):
     sample of a frame (photometric.sorted_sample; the same array in every backend), the data term's image
     gradient (operators.image_gradient), the stream stage's hole fill (densify.push_pull), the fusion's cost
     planes of a level's frame (fusion.level_planes), the census initialisation's mid-ranks of a frame
-    (initialise.equalised), a census level's contrast (census.median_contrast) and a frame's noise for the census
-    noise floor (census_noise.noise_sigma) (same semantics in every
+    (initialise.equalised), a census level's contrast (census.median_contrast), a frame's noise for the census
+    noise floor (census_noise.noise_sigma) and the edge-weighted TV's weight of a level (edges.edge_weight) (same
+    semantics in every
     backend; the defaults are the numpy references, the linearisation on ``warper``); the threads its kernels
     run on and the context that binds them (:meth:`running`).
     """
@@ -67,6 +69,7 @@ class Backend(NamedTuple):
     ranks: Callable[[np.ndarray], np.ndarray] = equalised  # a frame's mid-ranks for census's sources (equalised)
     contrast: Callable[[np.ndarray], float] = median_contrast  # a census level's contrast (census.median_contrast)
     noise: Callable[[np.ndarray], float] = noise_sigma  # a frame's white-noise std (census_noise.noise_sigma)
+    edge_weight: EdgeWeight = edge_weight  # the edge-weighted TV's g of a level (edges.edge_weight)
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -128,6 +131,11 @@ def _numba_confidence() -> ModuleType:
 def _numba_temporal() -> ModuleType:
     from . import numba_temporal
     return numba_temporal
+
+
+def _numba_edges() -> ModuleType:
+    from . import numba_edges
+    return numba_edges
 
 
 def _numba_sort() -> ModuleType:
@@ -196,4 +204,5 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    fill=Deferred(_numba_temporal, "push_pull_numba"),
                    cost_planes=numba_fusion.planes_numba, ranks=Deferred(_numba_sort, "ranks_numba"),
                    contrast=Deferred(_numba_census, "median_contrast_numba"),
-                   noise=Deferred(_numba_sort, "noise_sigma_numba"))
+                   noise=Deferred(_numba_sort, "noise_sigma_numba"),
+                   edge_weight=Deferred(_numba_edges, "edge_weight_numba"))

@@ -8,20 +8,24 @@ radius g(x) instead of 1 (models.project_dual_tv), step sizes unchanged (g <= 1 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
 from .config import FlowConfig
+from .workspace import scratch
 
 EDGE_SIGMA = 1.0  # px: the Gaussian that smooths a level's frame 0 before its gradient (noise must not read as edges)
-_TINY = 1e-12
+TINY = 1e-12  # a level whose mean gradient is at most this is constant: g = 1
 MASK_REACH = 2  # px around an invalid pixel of frame 0 that keep plain TV (:func:`unweighted_near_invalid`)
 
 
-def edge_weight(i0: np.ndarray, a: float, b: float, floor: float) -> np.ndarray:
+def edge_weight(i0: np.ndarray, a: float, b: float, floor: float, out: np.ndarray | None = None) -> np.ndarray:
     """g (H, W) float32 in [floor, 1] of a level's frame 0 ``i0`` (H, W): exp(-a (|grad I0_s| / s)^b) floored,
     I0_s = i0 smoothed by a Gaussian of EDGE_SIGMA, grad its central differences (border replicated),
-    s = mean |grad I0_s| over the level. A constant level (s = 0) gives g = 1 everywhere."""
+    s = mean |grad I0_s| over the level. A constant level (s = 0) gives g = 1 everywhere. Into ``out`` (float32
+    (H, W)) where given. The reference (OpenCV and numpy); the numba backend's is numba_edges.edge_weight_numba."""
     img = np.ascontiguousarray(i0, dtype=np.float32)
     smooth = cv2.GaussianBlur(img, (0, 0), EDGE_SIGMA, borderType=cv2.BORDER_REPLICATE)
     g = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)
@@ -32,21 +36,28 @@ def edge_weight(i0: np.ndarray, a: float, b: float, floor: float) -> np.ndarray:
     np.multiply(gy, gy, out=gy)
     np.sqrt(np.add(g, gy, out=g), out=g)
     scale = float(np.mean(g, dtype=np.float64))
-    if scale <= _TINY:
-        return np.ones(img.shape, np.float32)
-    np.power(np.divide(g, np.float32(scale), out=g), np.float32(b), out=g)
-    np.exp(np.multiply(g, np.float32(-a), out=g), out=g)
-    return np.maximum(g, np.float32(floor), out=g)
+    if scale <= TINY:
+        g.fill(1.0)  # floor <= 1: g = 1 below
+    else:
+        np.power(np.divide(g, np.float32(scale), out=g), np.float32(b), out=g)
+        np.exp(np.multiply(g, np.float32(-a), out=g), out=g)
+    return np.maximum(g, np.float32(floor), out=g if out is None else out)
 
 
-def level_edge_weight(i0: np.ndarray, cfg: FlowConfig, level: int = 0, valid0: np.ndarray | None = None
-                      ) -> np.ndarray | None:
-    """:func:`edge_weight` of pyramid level ``level``'s frame 0 with ``cfg``'s tv_edge_weight / tv_edge_power /
-    tv_edge_floor; None when tv_edge_weight is 0 or ``level`` is finer than ``cfg.tv_edge_min_level`` (plain TV:
-    the solvers take the unit ball, bit for bit today's flows)."""
+# what computes g: edge_weight(i0, a, b, floor, out) -> out (or a new array); a backend's (backends.Backend.edge_weight)
+EdgeWeight = Callable[..., np.ndarray]
+
+
+def level_edge_weight(i0: np.ndarray, cfg: FlowConfig, level: int = 0, valid0: np.ndarray | None = None,
+                      weight: EdgeWeight = edge_weight) -> np.ndarray | None:
+    """:func:`edge_weight` (or a backend's ``weight``) of pyramid level ``level``'s frame 0 with ``cfg``'s
+    tv_edge_weight / tv_edge_power / tv_edge_floor; None when tv_edge_weight is 0 or ``level`` is finer than
+    ``cfg.tv_edge_min_level`` (plain TV: the solvers take the unit ball, bit for bit today's flows). Without
+    ``valid0`` g is the calling thread's scratch array of the level's shape (workspace.py: valid until the next
+    level of that shape asks for it; a fresh one each level was fresh pages each, ~50 us at 292 x 194)."""
     if cfg.tv_edge_weight <= 0.0 or level < cfg.tv_edge_min_level:
         return None
-    g = edge_weight(i0, cfg.tv_edge_weight, cfg.tv_edge_power, cfg.tv_edge_floor)
+    g = weight(i0, cfg.tv_edge_weight, cfg.tv_edge_power, cfg.tv_edge_floor, out=scratch("edges.g", i0.shape))
     return g if valid0 is None else unweighted_near_invalid(g, valid0)
 
 

@@ -112,20 +112,18 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
     warps, per_warp = level_schedule(cfg, on_finest)
     params = level_params(cfg, level, per_warp)
     robust = params.spec.data == "l1"
+    valid = pyr.valid(level)
+    # the edge-weighted TV's g, once per level (None: off); plain TV on and near frame 0's invalid pixels
+    g = level_edge_weight(pyr.i0[level], cfg, level, None if valid is None else valid[0], backend.edge_weight)
     if compares_signatures(cfg.photometric):
         colour = pyr.c0 is not None and pyr.c1 is not None
         frames = (pyr.c0[level], pyr.c1[level]) if colour else (pyr.i0[level][None], pyr.i1[level][None])
         radius = cfg.census_finest_radius if on_finest else 1  # the signature's neighbours' distance here
-        linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level, radius), on_finest)
+        linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level, radius), on_finest, g)
     else:
-        linearised = problem_source(cfg)(pyr.i0[level], pyr.i1[level], cfg, backend, robust)
-    valid = pyr.valid(level)
+        linearised = problem_source(cfg)(pyr.i0[level], pyr.i1[level], cfg, backend, robust, g)
     if valid is not None:
         linearised = masked_problem(linearised, *valid, params.spec.data)
-    # the edge-weighted TV's g, once per level (None: off); plain TV on and near frame 0's invalid pixels
-    g = level_edge_weight(pyr.i0[level], cfg, level, None if valid is None else valid[0])
-    if g is not None:
-        linearised = edge_weighted(linearised, g)
     iterations = 0
     sizes = warp_medians(cfg, inner_median)
     for warp in range(warps):
@@ -144,9 +142,11 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
 Linearisation = Callable[[np.ndarray], Problem]
 
 
-def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
+def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
+                 g: np.ndarray | None = None) -> Linearisation:
     """The paper's data term on grey values: per warp rho(v) = a . v + c (operators.linearise, or the backend's
-    fused kernel) around v0."""
+    fused kernel) around v0; ``g`` the TV term's edge weight (edges.py), None for none (as in every builder of a
+    level's problems here: built in, not a dataclasses.replace per warp, ~2.6 us each)."""
     h, w = i0.shape
     src1 = warp_source(i1, cfg.gradient_scheme, cfg.warp_kernel, backend.warper,
                        out=scratch("refine.source", (3, h, w)), gradient=backend.gradient)
@@ -154,7 +154,7 @@ def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
           if cfg.gradient_scheme == "interpolated" else None)
 
     def around(v0: np.ndarray) -> Problem:
-        return Problem(*backend.linearise(i0, src1, g0, v0, cfg.gradient_scheme, cfg.warp_kernel, backend.warper))
+        return Problem(*backend.linearise(i0, src1, g0, v0, cfg.gradient_scheme, cfg.warp_kernel, backend.warper), g=g)
 
     return around
 
@@ -167,13 +167,14 @@ def grey_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
 MASS_BRIGHTNESS_MIN_SIDE = 60
 
 
-def mass_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool) -> Linearisation:
+def mass_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
+                 g: np.ndarray | None = None) -> Linearisation:
     """Mass preservation (the continuity equation, models.apply_a): per warp the grey-value linearisation
     around v0, turned into that of I1(x + v) det(Id + grad v) = I0(x) (operators.mass_linearise). With
     ``cfg.mass_brightness`` = beta > 0 the grey-value linearisation stays beside it as a brightness-constancy term
     of weight beta on the frames brought to equal mass (operators.mass_gain, gain_linearise; folded into (ab, cb)
     by models.weight_data), on levels whose smaller side is at least MASS_BRIGHTNESS_MIN_SIDE px (docs/engine.md,
-    "Mass preservation")."""
+    "Mass preservation"); ``g``: the TV term's edge weight (:func:`grey_problem`)."""
     grey = grey_problem(i0, i1, cfg, backend, robust)
     beta, data = cfg.mass_brightness, MODEL_SPECS[cfg.model].data
     with_term = beta > 0.0 and min(i0.shape) >= MASS_BRIGHTNESS_MIN_SIDE
@@ -183,9 +184,9 @@ def mass_problem(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backe
         lin = grey(v0)
         a, m, c = mass_linearise(i0, lin.a, lin.c, v0)
         if not with_term:
-            return Problem(a, c, m=m)
+            return Problem(a, c, m=m, g=g)
         ab, cb = weight_data(*gain_linearise(i0, lin.a, lin.c, v0, gain), np.float32(beta), data)
-        return Problem(a, c, m=m, ab=ab, cb=cb)
+        return Problem(a, c, m=m, ab=ab, cb=cb, g=g)
 
     return around
 
@@ -225,13 +226,13 @@ def level_contrast(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig,
 
 
 def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
-                   eps_floor: float = 0.0, finest: bool = False) -> Linearisation:
+                   eps_floor: float = 0.0, finest: bool = False, g: np.ndarray | None = None) -> Linearisation:
     """The census data term (census.py) on the frames' channels c0, c1 (C, h, w): the grey frames (C = 1) or
     colour channels (colour.py). Once per level frame 0's (stacked) signatures and frame 1's interpolation
     coefficients; per warp the backend's form around v0 (frame 1 sampled at x + v0, its signatures, the
     quadratic form: census.census_form). The form replaces (a, c) in the solve: they are zeros. ``eps_floor``:
     the least EPS of both frames' signatures on this level; ``finest``: this is the finest solved level
-    (:func:`level_census`, with :func:`level_contrast`)."""
+    (:func:`level_census`, with :func:`level_contrast`); ``g``: the TV term's edge weight (:func:`grey_problem`)."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
     params = level_census(cfg, c0.shape[2], eps_floor, level_contrast(c0, c1, cfg, backend.contrast), finest)
     f0, g0 = backend.signature(c0, params)
@@ -242,16 +243,8 @@ def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Bac
     # 320 x 240 (task fastcens)
 
     def around(v0: np.ndarray) -> Problem:
-        return Problem(a, c, q=backend.census_form(f0, g0, coefs, c1, v0, cfg.warp_kernel, robust, params, out=form))
-
-    return around
-
-
-def edge_weighted(linearised: Linearisation, g: np.ndarray) -> Linearisation:
-    """A level's linearisation whose problems carry the edge weight ``g`` (h, w) of the TV term (edges.py)."""
-
-    def around(v0: np.ndarray) -> Problem:
-        return replace(linearised(v0), g=g)
+        return Problem(a, c, q=backend.census_form(f0, g0, coefs, c1, v0, cfg.warp_kernel, robust, params, out=form),
+                       g=g)
 
     return around
 
