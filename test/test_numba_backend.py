@@ -28,6 +28,7 @@ from flow_node.core.census_noise import noise_sigma
 from flow_node.core.confidence import confidence, confidence_at
 from flow_node.core.config import MODELS, FlowConfig
 from flow_node.core.densify import push_pull, splat_forward
+from flow_node.core.edges import edge_weight
 from flow_node.core.errors import ConfigError
 from flow_node.core.fusion import fuse, level_planes
 from flow_node.core.initialise import equalised, forward_backward_consistent
@@ -36,6 +37,7 @@ from flow_node.core.models import MODEL_SPECS
 from flow_node.core.numba_backend import WARPER, image_gradient_numba, linearise_numba, solve_numba
 from flow_node.core.numba_census import census_form_numba, level_signature_numba, median_contrast_numba
 from flow_node.core.numba_confidence import confidence_at_numba, confidence_numba
+from flow_node.core.numba_edges import edge_weight_numba
 from flow_node.core.numba_fusion import consistent_numba, fuse_numba, planes_numba
 from flow_node.core.numba_judge import reliability_numba as census_reliability_numba
 from flow_node.core.numba_sort import noise_sigma_numba, ranks_numba, sorted_sample_numba
@@ -323,12 +325,12 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
 NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, census_reliability, fuse, forward_backward_consistent,
                 level_signature, census_form, confidence, 1, NUMPY.on_threads, splat_forward,
                 confidence_at, sorted_sample, image_gradient, push_pull, level_planes, equalised,
-                median_contrast, noise_sigma)
+                median_contrast, noise_sigma, edge_weight)
 NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, census_reliability_numba, fuse_numba, consistent_numba,
                 level_signature_numba, census_form_numba, confidence_numba,
                 numba.config.NUMBA_NUM_THREADS, numba_backend.thread_count, splat_numba,
                 confidence_at_numba, sorted_sample_numba, image_gradient_numba, push_pull_numba,
-                planes_numba, ranks_numba, median_contrast_numba, noise_sigma_numba)
+                planes_numba, ranks_numba, median_contrast_numba, noise_sigma_numba, edge_weight_numba)
 
 
 def test_backend_selection_and_log() -> None:
