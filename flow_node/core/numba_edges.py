@@ -19,12 +19,16 @@ import math
 import cv2
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from .edges import EDGE_SIGMA, TINY
 from .numba_kernels import FASTMATH
 from .workspace import scratch
 
 _JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)  # the solver's flags
+# the kernel's parts: compiled into it, not dispatchers of their own (a cached dispatcher costs a fresh process's
+# import 1-2 ms on a loaded machine, docs/engine.md "Compiled kernels"); exp_parts is callable from Python too
+_INLINE = dict(fastmath=FASTMATH, error_model="numpy")
 _F32 = np.float32
 _ONE = _F32(1.0)
 _LOG2E = _F32(1.4426950408889634)
@@ -45,7 +49,7 @@ TAPS = gaussian_taps(EDGE_SIGMA)  # 2 RADIUS + 1 of them (test_numba_edges)
 _HALF = tuple(_F32(t) for t in TAPS[RADIUS:])  # centre, then the taps at distance 1 .. RADIUS (symmetric)
 
 
-@njit(**_JIT)
+@register_jitable(**_INLINE)
 def exp_parts(y, lo):  # noqa: ANN001, ANN201
     """exp(max(y, lo)) for lo >= EXP_MIN, y <= 0, as (p, e): exp = p * 2^-k with e = (127 - k) << 23 the bits of
     the float32 2^-k (the caller reads them as a float32). t = -k ln 2 + r, |r| <= ln 2 / 2, p = exp(r) by its
@@ -59,7 +63,7 @@ def exp_parts(y, lo):  # noqa: ANN001, ANN201
     return p, (np.int32(127) - np.int32(k)) << np.int32(23)
 
 
-@njit(**_JIT)
+@register_jitable(**_INLINE)
 def _blur_rows(img, c0, c1, c2, c3, c4, out, pad):  # noqa: ANN001, ANN201
     """The 9-tap symmetric Gaussian (centre c0, c1 .. c4 at distance 1 .. 4) along each row of ``img`` into
     ``out``, ends replicated (``pad``: W + 8 scratch)."""
@@ -80,7 +84,7 @@ def _blur_rows(img, c0, c1, c2, c3, c4, out, pad):  # noqa: ANN001, ANN201
                     + c4 * (s0[j] + s8[j]))
 
 
-@njit(**_JIT)
+@register_jitable(**_INLINE)
 def _blur_columns(img, c0, c1, c2, c3, c4, out):  # noqa: ANN001, ANN201
     """:func:`_blur_rows` along the columns (rows clamped to the image: its ends replicated)."""
     h, w = img.shape
@@ -95,7 +99,7 @@ def _blur_columns(img, c0, c1, c2, c3, c4, out):  # noqa: ANN001, ANN201
                     + c4 * (r0[j] + r8[j]))
 
 
-@njit(**_JIT)
+@register_jitable(**_INLINE)
 def _gradient_magnitude(img, out, colsum):  # noqa: ANN001, ANN201
     """|grad img| by central differences halved (cv2.Sobel ksize 1, scale 0.5), ends replicated, into ``out``;
     ``colsum`` (W,) float64 gets each column's sum of it."""
