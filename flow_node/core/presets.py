@@ -113,17 +113,18 @@ from typing import Any
 #   photometric=normalise gives the grey-value term back.
 CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, census_coarse_eps=0.03,
                                                            census_coarse_width=50))
-# The edge-weighted TV (issue 25, task edgetv; docs/engine.md "Edge-weighted TV"): realtime weighs its TV term by g =
-# max(0.6, exp(-0.05 (|grad I0_s| / s)^3)) on every level but full resolution (tv_edge_min_level 1), so the
-# foreground's motion spills less into the background beside a motion boundary that is an image edge. Tune split:
-# real_exact -8.5 %, Middlebury -2.6 %, every other tune regime within 0.0003 px; report split: real_exact 0.3156 ->
-# 0.3019 (DualTVL1 0.3130), the worst regime photometric +0.0007 px; with census and the weight 0.99-1.11x grey
-# values' CPU time (bench/results/suite/invariance/edgetv/). A floor of 0.1 gained more on tune (real_exact -20 %) but
-# not on the report split (-9.5 %, synthetic photometric +17 %, fine_320 +18 %). fastest (and stream_fast, its fields)
-# keep plain TV: the weight gains there too (tune real_exact -17.5 %, report 0.3883 -> 0.3520, Middlebury 0.461 ->
-# 0.445) but its census term already costs 1.07-1.12x grey values' CPU time and the weight's +3-5 % took it to
-# 1.10-1.17x, over issue 25's 15 % (bench/results/suite/invariance/edgetv/summary.md, "At the merge");
-# fastest,tv_edge_weight=0.05 is that trade. stream_lite keeps plain TV too (stream tune 0.0481 ->
+# The edge-weighted TV (issue 25, task edgetv; docs/engine.md "Edge-weighted TV"): realtime and fastest weigh their TV
+# term by g = max(0.6, exp(-0.05 (|grad I0_s| / s)^3)) on every level but full resolution (tv_edge_min_level 1), so
+# the foreground's motion spills less into the background beside a motion boundary that is an image edge. realtime,
+# tune split: real_exact -8.5 %, Middlebury -2.6 %, every other tune regime within 0.0003 px; report split:
+# real_exact 0.3156 -> 0.3019 (DualTVL1 0.3130), the worst regime photometric +0.0007 px; with census and the weight
+# 0.99-1.11x grey values' CPU time (bench/results/suite/invariance/edgetv/). A floor of 0.1 gained more on tune
+# (real_exact -20 %) but not on the report split (-9.5 %, synthetic photometric +17 %, fine_320 +18 %).
+# fastest (and stream_fast, its fields) since task edgecost: the weight gained there too (tune real_exact -17.5 %,
+# Middlebury -3.7 %), but g by OpenCV / numpy calls cost +4-7 % CPU time and took census + weight over issue 25's
+# 15 % on the bags; g's kernel (numba_edges, 3.2x cheaper) made the weight +0-3 % (the bags 1.07x -> 1.01x census
+# alone), census + weight 1.04-1.16x grey values under load 2.4-4.3 (the bags 1.10-1.16x, census alone 1.09-1.15x
+# there; bench/results/suite/invariance/edgecost/summary.md). stream_lite keeps plain TV (stream tune 0.0481 ->
 # 0.0486).
 EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05))  # tv_edge_floor 0.6: the field's default
 # fastest, and the stream presets' base (below)
@@ -131,7 +132,7 @@ FASTEST: Mapping[str, Any] = MappingProxyType(dict(
     model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5, finest_level=1, median_filter=5,
     gradient_scheme="interpolated", tolerance=0.0, initialisation="dis_ultrafast", init_finest_level=2,
     census_median_filter=3, census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005,
-    census_delta=0.02, census_alpha=0.35, photometric="census"))
+    census_delta=0.02, census_alpha=0.35, photometric="census", **EDGE_TV))
 PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
@@ -163,7 +164,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=2, stream_iterations=10, stream_finest_warps=3,
                         stream_finest_iterations=8, stream_inner_median=3, stream_check_samples=5000),
     "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=8, stream_iterations=10,
-                        photometric="normalise"),
+                        photometric="normalise", tv_edge_weight=0.0),
 }
 
 # The general-purpose presets, in order of cost: what the suite judges against the peers on every regime. The
