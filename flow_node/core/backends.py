@@ -89,9 +89,10 @@ NUMPY = Backend("numpy", solve_numpy, NUMPY_WARPER)
 
 class Deferred:
     """A numba backend function whose module is imported on the first call, not when the backend is
-    selected: the census, confidence and stream-splat kernels, which a call without the census data term,
-    the confidence or a stream does not run (and the sort of the photometric stage's sample, numba_sort.py,
-    which every call runs: deferred like the others, so that selecting a backend stays cheap). Importing a
+    selected: the census, confidence, stream-splat and edge-weight kernels, which a call without the census data
+    term, the confidence, a stream or the edge-weighted TV does not run (and the sort of the photometric stage's
+    sample, numba_sort.py, which every call runs: deferred like the others, so that selecting a backend stays
+    cheap). Importing a
     kernel module creates its dispatchers, and numba checks each one's cache folder by writing a file there
     (1-2 ms a dispatcher on a loaded machine): these 18 dispatchers cost a fresh process's first call 25-50 ms
     at load 6-9 before (docs/engine.md, "Compiled kernels")."""
