@@ -15,7 +15,8 @@ solved one, with ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` primal-
 finest solved level ``cfg.stream_finest_warps`` x ``cfg.stream_finest_iterations`` where set).
 
 A pair's second frame is the next pair's first: what the pair computed of it -- its sorted sample, and where the
-pair's normalising map repeats its pyramid -- is handed on (:class:`Seen`, ``Prior.seen``) and not computed again.
+frame's normalising map repeats (``normalise``: the pair's map; census: the frame's own, so always) its normalised
+image, pyramid and noise std -- is handed on (:class:`Seen`, ``Prior.seen``) and not computed again.
 
 A per-frame check decides whether the prediction holds (:func:`prediction_fails`, :func:`result_fails`); when
 it does not, the caller runs the full single-pair solve (engine.estimate_pair) instead:
