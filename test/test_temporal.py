@@ -181,6 +181,7 @@ def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: p
     assert shared == [False, True, True, last]
     if photometric == "census":  # the frame's own map and noise std go on too
         assert carried.seen is not None and carried.seen.map is not None and carried.seen.sigma is not None
+        assert carried.seen.contrasts  # frame 1's level contrasts, which the census term measured
 
 
 def test_an_exposure_step_is_solved_in_full() -> None:

@@ -94,7 +94,8 @@ class Seen:
     normalised image depends on besides the frame (``key``: :func:`frame_keys`), the frame's normalised pyramid
     (``levels``, finest first, as pyramid.make_pyramid built it; level 0, the normalised frame itself, is the
     next pair's normalised frame 0), its normalised image on the stream's start level by area average (``area``:
-    temporal.judged_on) and, with the census noise floor, its noise std (``sigma``: census_noise.pair_noise). The
+    temporal.judged_on), with the census noise floor its noise std (``sigma``: census_noise.pair_noise) and with the
+    census term its level contrasts (``contrasts``: pyramid.Pyramid.contrasts, refine.level_contrast). The
     next pair takes those only when its own key for the frame is the same -- the normalised frame is then the
     same, bit for bit --, else it builds them again."""
 
@@ -104,6 +105,7 @@ class Seen:
     area: np.ndarray | None = None
     map: FrameMap | None = None
     sigma: float | None = None
+    contrasts: dict[int, float] | None = None
 
 
 def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,

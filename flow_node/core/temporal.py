@@ -199,7 +199,8 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         return "exposure step"
     key, key1 = judged.keys
     same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
-    pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None, noise=judged.noise)
+    pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None, noise=judged.noise,
+                       contrasts0=seen.contrasts if same else None)
     start, _ = stream_span(pyr, schedule)
     predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat, backend.fill)
     frames = judged_on(judged, pyr.shapes[start], seen.area if same else None)
@@ -210,4 +211,4 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
     state = refine_prediction(pyr, schedule, backend, predicted, stats)
     sigma = None if judged.noise is None or judged.noise.frames is None else judged.noise.frames[1]
     return state, stats, judged, Seen(judged.samples[1], key1, pyr.i1, frames[1],
-                                      None if judged.maps is None else judged.maps[0][1], sigma)
+                                      None if judged.maps is None else judged.maps[0][1], sigma, pyr.contrasts[1])
