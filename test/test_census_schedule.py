@@ -266,6 +266,27 @@ def test_level_contrast_decides_as_both_frames_full_contrast() -> None:
     assert level_contrast(rich, rich, CENSUS_RT.replace(census_coarse_width=100)) == np.inf  # damped by width
 
 
+def test_level_contrast_memo_measures_each_frame_once() -> None:
+    """refine.level_contrast with a memo (Pyramid.contrasts): each frame's contrast on a level is measured once and
+    kept there; a value already known (a stream's previous pair measured it on its frame 1) is taken as it is."""
+    rng = np.random.default_rng(3)
+    c0, c1 = (rng.random((1, 30, 80), dtype=np.float32) for _ in range(2))
+    cfg = CENSUS_RT.replace(census_coarse_width=0, census_empty_contrast=0.005)
+    calls: list[int] = []
+
+    def counted(frames: np.ndarray) -> float:
+        calls.append(1)
+        return median_contrast(frames)
+
+    memo: tuple[dict[int, float], dict[int, float], int] = ({}, {}, 2)
+    first = level_contrast(c0, c1, cfg, counted, memo)
+    assert first == level_contrast(c0, c1, cfg) and len(calls) == 2
+    assert memo[0] == {2: median_contrast(c0)} and memo[1] == {2: median_contrast(c1)}
+    assert level_contrast(c0, c1, cfg, counted, memo) == first and len(calls) == 2  # known: not measured again
+    known = ({2: 0.001}, {}, 2)  # frame 0 known to be empty on level 2: frame 1 not measured, the value taken
+    assert level_contrast(c0, c1, cfg, counted, known) == 0.001 and len(calls) == 2 and known[1] == {}
+
+
 def test_empty_levels_get_the_coarse_eps() -> None:
     cfg = CENSUS_RT.replace(census_coarse_width=0, census_coarse_eps=0.03, census_empty_contrast=0.005)
     assert level_census(cfg, 400, 0.0, 0.004) == CensusParams(eps=0.03)

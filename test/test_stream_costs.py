@@ -22,6 +22,14 @@ def test_stages_timed_and_restored() -> None:
     assert stages["  solver iterations"] + stages["  linearisation"] <= stages["refinement"] * 1.001
 
 
+def test_census_stages_timed() -> None:
+    """stream_fast (census signatures): the census term's level setup and forms are timed inside the refinement."""
+    stages = stream_costs.measure("fast=stream_fast", (96, 72), 1)["stages"]
+    parts = stages["  census level setup"] + stages["  census forms"] + stages["  solver iterations"]
+    assert stages["  census level setup"] > 0 and stages["  census forms"] > 0 and stages["  linearisation"] == 0
+    assert parts <= stages["refinement"] * 1.001
+
+
 
 def test_cpu_counts_the_predicted_frames_of_a_pan() -> None:
     """bench.suite.stream_costs --cpu: every pair of a report pan after the first is predicted and timed."""

@@ -140,12 +140,16 @@ def test_stream_mode_off_is_the_single_pair_solve() -> None:
         np.testing.assert_array_equal(*flows)
 
 
-def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: pytest.MonkeyPatch) -> None:
-    """temporal.Seen: a pair's second frame's sorted sample, and (with the same normalising map) its normalised
-    frame, pyramid and start-level image, start the next pair; its flows are those of a pair that computes them
-    again, bit for bit.
+@pytest.mark.parametrize("photometric", ["normalise", "census"])
+def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: pytest.MonkeyPatch,
+                                                                   photometric: str) -> None:
+    """temporal.Seen: a pair's second frame's sorted sample, and (with the same key for the frame: the same
+    normalising map) its normalised frame, pyramid and start-level image (census: and its own map and noise std),
+    start the next pair; its flows are those of a pair that computes them again, bit for bit.
     A texture rolled by 3 px per frame: the same grey values on the sampled grid, so the same map every pair;
-    the last frame is 0.002 brighter (no exposure step, another map): its pair builds everything again."""
+    the last frame is 0.002 brighter (no exposure step, another map): in ``normalise`` mode (one map for the
+    pair) its pair builds everything again; the census term maps each frame on its own, so that pair still takes
+    its frame 0 from the previous pair."""
     base = cv2.GaussianBlur(np.random.default_rng(4).random((120, 162), dtype=np.float32), (0, 0), 1.5)
     seq = [np.roll(base, 3 * t, axis=1) + np.float32(0.002 if t == 5 else 0.0) for t in range(6)]
     reused: list[bool] = []
@@ -156,8 +160,7 @@ def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: p
         return build(*args, **kwargs)
 
     monkeypatch.setattr(temporal, "make_pyramid", spy)
-    # the grey-value term's normalising map (stream_fast compares census signatures by default)
-    est = FlowEstimator(FlowConfig.preset("stream_fast").replace(backend="numpy", photometric="normalise"))
+    est = FlowEstimator(FlowConfig.preset("stream_fast").replace(backend="numpy", photometric=photometric))
     first = est.estimate_next(seq[0], seq[1], None)
     assert first.seen is not None and first.seen.levels is None  # a full solve hands on the sample only
     carried, fresh = first, first
@@ -172,9 +175,13 @@ def test_the_next_pair_reuses_its_first_frame_and_nothing_changes(monkeypatch: p
         assert carried.frames is not None and fresh.frames is not None and previous.frames is not None
         np.testing.assert_array_equal(carried.frames[0], fresh.frames[0])
         shared.append(carried.frames[0] is previous.frames[1])
-    # carried pairs after the first predicted one, but not the last
-    assert reused == [False, False, True, False, True, False, False, False]
-    assert shared == [False, True, True, False]
+    # carried pairs after the first predicted one, but in normalise mode not the last
+    last = photometric == "census"
+    assert reused == [False, False, True, False, True, False, last, False]
+    assert shared == [False, True, True, last]
+    if photometric == "census":  # the frame's own map and noise std go on too
+        assert carried.seen is not None and carried.seen.map is not None and carried.seen.sigma is not None
+        assert carried.seen.contrasts  # frame 1's level contrasts, which the census term measured
 
 
 def test_an_exposure_step_is_solved_in_full() -> None:

@@ -22,7 +22,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from flow_node.core import api, numba_backend, refine, temporal
+from flow_node.core import api, numba_backend, numba_census, refine, temporal
 from flow_node.core.config import FlowConfig
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 from flow_node.process import keep_freed_memory
@@ -31,10 +31,13 @@ from ..common import machine, md_table, run_record, write_result, wxh
 from .sequences import Sequence, sequences
 from .streams import PERIOD_NS, parse_method
 
-# (module, function, label): the stages timed; the refinement's parts are indented under it
+# (module, function, label): the stages timed; the refinement's parts are indented under it (the grey-value
+# linearisation, or the census term's: a level's setup -- frame 0's signatures, frame 1's coefficients, the
+# contrasts -- and the per-warp form kernel, which numba_census.census_form_numba looks up by its global name)
 STAGES = ((temporal, "photometric_stage", "photometric stage"), (temporal, "make_pyramid", "pyramid"),
           (temporal, "predict", "prediction (splat, holes)"), (temporal, "predicted_cost", "prediction check"),
           (temporal, "refine_prediction", "refinement"), (numba_backend, "linearise_numba", "  linearisation"),
+          (refine, "census_problem", "  census level setup"), (numba_census, "census_kernel", "  census forms"),
           (numba_backend, "solve_numba", "  solver iterations"), (refine, "median_filter", "  median filter"),
           (api, "interleaved_flow", "upsampling to the input grid"),
           (api, "unexplained_of", "result check (unexplained)"))

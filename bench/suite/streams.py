@@ -32,7 +32,8 @@ from .sequences import FRAMES, KINDS, Sequence, bag_sequences, sequences
 
 RESULTS = REPO / "bench" / "results" / "suite" / "stream"
 PERIOD_NS = 33_333_333  # 30 Hz stamps
-# each stream preset's own single-pair solve (the preset with stream_levels 0), run beside it for event_ratio
+# each stream preset's own single-pair solve (the preset with stream_levels 0), run beside it for event_ratio; a
+# --method named PRESET+LABEL (a candidate stream schedule of PRESET) is compared with PRESET's
 STREAM_BASE = {"stream_fast": "fastest", "stream_lite": "stream_lite/single"}
 DEFAULT_METHODS = {"stream_fast": ("stream_fast", {}), "stream_lite": ("stream_lite", {}), "realtime": ("realtime", {}),
                    "fastest": ("fastest", {}), "stream_lite/single": ("stream_lite", {"stream_levels": 0})}
@@ -133,7 +134,7 @@ def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Se
                   "fallbacks": sum(x.startswith("full") for x in labels)}
     add_ratios(out)
     for n, m in out.items():
-        base = STREAM_BASE.get(n)
+        base = STREAM_BASE.get(n.partition("+")[0])
         if base in out:
             m["event_ratio"] = {}
             for s in (s for s in seqs if s.event > 0):

@@ -71,25 +71,30 @@ def noise_sigma(img: np.ndarray) -> float:
 class PairNoise:
     """A pair's noise for the census EPS floor: ``sigma``, the larger of both frames' white-noise std in
     normalised units (before presmoothing), and ``blur``, the presmoothing Gaussian (px; 0: none) both frames
-    then got (photometric.normalise_frames)."""
+    then got (photometric.normalise_frames); ``frames``: each frame's std where :func:`pair_noise` measured them
+    (a stream hands frame 1's to its next pair: temporal.Seen), else None."""
 
     sigma: float
     blur: float = 0.0
+    frames: tuple[float, float] | None = None
 
 
 def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_gain: float,
                solver_pair: tuple[np.ndarray, np.ndarray], sigma: Callable[[np.ndarray], float] = noise_sigma,
-               maps: FrameMaps | None = None) -> PairNoise:
+               maps: FrameMaps | None = None, sigma0: float | None = None) -> PairNoise:
     """The :class:`PairNoise` of the census stage's pair: ``frames`` (H, W) as they came, their sorted
     ``samples``, the stage's ``noise_gain`` and what it made of them (``solver_pair``). Where the stage did not
     presmooth, its pair is the normalised one and is measured as it is; where it did, the frames are mapped
     again without the blur (one affine map each) and measured, by ``sigma`` (:func:`noise_sigma` or a backend's:
-    the same value). ``maps``: photometric.frame_maps(samples, noise_gain) when known (the stage took them)."""
+    the same value). ``maps``: photometric.frame_maps(samples, noise_gain) when known (the stage took them);
+    ``sigma0``: frame 0's std when known (a stream's previous pair measured it as its frame 1's, with the same
+    photometric.frame_key: temporal.Seen)."""
     (map0, map1), smooth = frame_maps(samples, noise_gain) if maps is None else maps
-    if smooth:
-        solver_pair = tuple(affine_normalised(f, *m, noise_gain, False)
-                            for f, m in zip(frames, (map0, map1), strict=True))
-    return PairNoise(max(sigma(solver_pair[0]), sigma(solver_pair[1])), QUANT_SIGMA if smooth else 0.0)
+    todo = ((0, map0), (1, map1)) if sigma0 is None else ((1, map1),)
+    measured = [sigma(affine_normalised(frames[k], *m, noise_gain, False) if smooth else solver_pair[k])
+                for k, m in todo]
+    both = (measured[0], measured[1]) if sigma0 is None else (sigma0, measured[0])
+    return PairNoise(max(both), QUANT_SIGMA if smooth else 0.0, both)
 
 
 def channel_noise(raw: tuple[np.ndarray, np.ndarray], normalised: tuple[np.ndarray, np.ndarray], noise_gain: float,

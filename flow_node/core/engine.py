@@ -41,10 +41,13 @@ from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
 from .layout import interleaved_flow
 from .models import MODEL_SPECS
 from .photometric import (
+    FrameMap,
+    FrameMaps,
     PairMap,
     Reliability,
     Samples,
     compares_signatures,
+    frame_key,
     frame_maps,
     frame_samples,
     pair_map,
@@ -63,16 +66,18 @@ class Judged:
     census signatures whatever the data term, so a flow is judged by what no tone change alters: a grey-value
     flow bent by a tone curve reads as unexplained, a right one does not); ``samples``: the input frames'
     sorted samples the stage took its ranges from (photometric.frame_samples; a stream hands frame 1's to its
-    next pair, temporal.Prior); ``key``: the pair's :func:`map_key` (its normalising map and noise gain; None
-    outside ``normalise`` mode), computed once here for the stream stage's reuse (temporal.Seen); ``noise``: with
-    the census data term and ``census_noise_k`` > 0, the pair's noise for the signature's EPS floor
-    (census_noise.pair_noise, handed to make_pyramid), else None."""
+    next pair, temporal.Prior); ``keys``: what each frame's normalised image depends on besides the frame
+    (:func:`frame_keys`; None outside the ``normalise`` and census modes), computed once here for the stream
+    stage's reuse (:class:`Seen`); ``noise``: with the census data term and ``census_noise_k`` > 0, the pair's
+    noise for the signature's EPS floor (census_noise.pair_noise, handed to make_pyramid), else None; ``maps``:
+    with the census data term, the frames' own maps (photometric.frame_maps), else None."""
 
     frames: tuple[np.ndarray, np.ndarray]
     judge: Reliability
     samples: Samples
-    key: MapKey | None = None
+    keys: tuple[MapKey | None, MapKey | None] = (None, None)
     noise: PairNoise | None = None
+    maps: FrameMaps | None = None
 
     def unexplained(self, flow: np.ndarray, samples: int | None = None) -> float:
         """The fraction of sampled pixels (about ``samples``) ``flow`` (H, W, 2) px does not explain
@@ -80,43 +85,79 @@ class Judged:
         return self.judge(*self.frames, flow, samples=samples)
 
 
+@dataclass(frozen=True)
+class Seen:
+    """What a pair computed of its second frame that the next pair, whose first frame it is, need not compute
+    again (a stream: temporal.Prior): its sorted ``sample`` (photometric.sorted_sample: the photometric stage's
+    ranges come from it) and, with the census data term, its own ``map`` (photometric.frame_map, of that
+    sample); and, from a pair the stream stage refined in ``normalise`` or a census mode, what the frame's
+    normalised image depends on besides the frame (``key``: :func:`frame_keys`), the frame's normalised pyramid
+    (``levels``, finest first, as pyramid.make_pyramid built it; level 0, the normalised frame itself, is the
+    next pair's normalised frame 0), its normalised image on the stream's start level by area average (``area``:
+    temporal.judged_on), with the census noise floor its noise std (``sigma``: census_noise.pair_noise) and with the
+    census term its level contrasts (``contrasts``: pyramid.Pyramid.contrasts, refine.level_contrast). The
+    next pair takes those only when its own key for the frame is the same -- the normalised frame is then the
+    same, bit for bit --, else it builds them again."""
+
+    sample: np.ndarray
+    key: MapKey | None = None
+    levels: list[np.ndarray] | None = None
+    area: np.ndarray | None = None
+    map: FrameMap | None = None
+    sigma: float | None = None
+    contrasts: dict[int, float] | None = None
+
+
 def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
-                      sample0: np.ndarray | None = None, known0: tuple[MapKey, np.ndarray] | None = None,
+                      sample0: np.ndarray | None = None, known0: Seen | None = None,
                       colour: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
                       ) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
     """The photometric stage (photometric.stage with the pyramid's noise gain) and its own judge: what the
     solver sees of the pair (H, W) float32, and the :class:`Judged` pair (every data term judged on census
     signatures, the backend's census.reliability). ``sample0``: frame 0's sorted sample when
-    known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1); ``known0``: frame 0
-    normalised by a previous pair, with that pair's :func:`map_key`, taken when this pair's key is the same
-    (the normalised frame is then the same bit for bit: temporal.Seen). ``colour``: both frames' channels as
+    known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1); ``known0``: what a
+    previous pair computed of frame 0 (:class:`Seen`, of the same sample): its map, and its normalised image and
+    noise std, taken when this pair's key for frame 0 is the same (the normalised frame is then the same bit for
+    bit). ``colour``: both frames' channels as
     they came and as :func:`colour_stage` normalised them, when the census term compares them: the noise floor
     is then the channels' (census_noise.channel_noise), not the luma's."""
     samples = frame_samples(i0, i1, sample0, backend.sample)
     signatures = compares_signatures(cfg.photometric)
     pmap = None if signatures else pair_map(samples)
-    key = map_key(pmap, i0.shape, cfg)
-    n0 = known0[1] if known0 is not None and key is not None and key == known0[0] else None
     gain = noise_gain(i0.shape, cfg)
-    maps = frame_maps(samples, gain) if signatures else None  # once, for the stage and the noise floor
+    # once, for the stage and the noise floor
+    maps = frame_maps(samples, gain, None if known0 is None else known0.map) if signatures else None
+    keys = frame_keys(pmap, maps, i0.shape, cfg)
+    same = known0 is not None and keys[0] is not None and keys[0] == known0.key
+    n0 = known0.levels[0] if same and known0.levels else None
     solver_pair, frames = stage(i0, i1, cfg.photometric, gain, samples, pmap, n0, maps)
     judge = backend.reliability
     noise = None
     if signatures and cfg.census_noise_k > 0:
-        noise = (pair_noise((i0, i1), samples, gain, solver_pair, backend.noise, maps) if colour is None
-                 else channel_noise(*colour, gain, backend.noise))
-    return solver_pair, Judged(frames, judge, samples, key, noise)
+        noise = (pair_noise((i0, i1), samples, gain, solver_pair, backend.noise, maps, known0.sigma if same else None)
+                 if colour is None else channel_noise(*colour, gain, backend.noise))
+    return solver_pair, Judged(frames, judge, samples, keys, noise, maps)
 
 
-# what a pair's normalised frames depend on besides the frames: its pair_map and the noise gain (map_key)
+# what a frame's normalised image depends on besides the frame (frame_keys)
 MapKey = tuple[float, ...]
 
 
-def map_key(pmap: PairMap | None, shape: tuple[int, int], cfg: FlowConfig) -> MapKey | None:
-    """In ``normalise`` mode, the pair's normalising map (photometric.pair_map) with the noise gain for
-    ``shape``: two pairs with equal keys map a frame they share to the same normalised frame (temporal.Seen).
-    None in other modes (the stream stage then builds everything again)."""
-    return (*pmap, noise_gain(shape, cfg)) if cfg.photometric == "normalise" and pmap else None
+def frame_keys(pmap: PairMap | None, maps: FrameMaps | None, shape: tuple[int, int], cfg: FlowConfig
+               ) -> tuple[MapKey | None, MapKey | None]:
+    """Per frame, what its normalised image depends on besides the frame: in ``normalise`` mode the pair's
+    normalising map (photometric.pair_map) with the noise gain for ``shape``, the same for both frames; with the
+    census data term (each frame normalised on its own: photometric.normalise_frames) the frame's own map, the
+    presmoothing and the noise gain (photometric.frame_key). Two pairs that give a frame they share equal keys map
+    it to the same normalised frame (:class:`Seen`). None in other modes (the stream stage then builds everything
+    again)."""
+    if cfg.photometric == "normalise" and pmap:
+        key = (*pmap, noise_gain(shape, cfg))
+        return key, key
+    if maps is not None:
+        gain = noise_gain(shape, cfg)
+        return frame_key(maps, 0, gain), frame_key(maps, 1, gain)
+    return None, None
 
 
 def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray] | None, cfg: FlowConfig

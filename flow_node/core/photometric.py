@@ -157,7 +157,8 @@ def relative_step(lo: float, hi: float, step: float, noise_gain: float) -> float
 
 
 def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 1.0,
-                     samples: Samples | None = None, maps: FrameMaps | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     samples: Samples | None = None, maps: FrameMaps | None = None, n0: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """Both frames (H, W) float32, each by its own robust range (its 2nd and 98th percentiles mapped to [0, 1],
     coarsely quantised content's contrast shrunk as in :func:`normalise_pair`: the ``census`` mode's map; its
     data term is invariant to each frame's gain and offset, and the map gives EPS the same meaning in both
@@ -166,12 +167,14 @@ def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 
     one frame blurred and the other not differ wherever there is texture; issue 25's low light, frame 2
     darkened 0.4x: docs/engine.md). ``samples``: the frames' :func:`sorted_sample` when known; ``maps``: their
     :func:`frame_maps` at this ``noise_gain`` when known (the engine takes them once for this and the noise floor,
-    census_noise.pair_noise)."""
+    census_noise.pair_noise). ``n0``: frame 0 already normalised by its map, presmoothing and noise gain (a stream's
+    previous pair normalised it as its frame 1: temporal.Seen, keyed by :func:`frame_key`), taken as it is."""
     if maps is None:
         maps = frame_maps(frame_samples(*frames) if samples is None else samples, noise_gain)
     (map0, map1), smooth = maps
-    n0, n1 = (affine_normalised(img, *m, noise_gain, smooth) for img, m in zip(frames, (map0, map1), strict=True))
-    return n0, n1
+    if n0 is None:
+        n0 = affine_normalised(frames[0], *map0, noise_gain, smooth)
+    return n0, affine_normalised(frames[1], *map1, noise_gain, smooth)
 
 
 # a frame's own map: (lo, hi, step), its robust range and quantisation step
@@ -180,15 +183,27 @@ FrameMap = tuple[float, float, float]
 FrameMaps = tuple[tuple[FrameMap, FrameMap], bool]
 
 
-def frame_maps(samples: Samples, noise_gain: float = 1.0) -> FrameMaps:
-    """Each frame's own map from its sorted sample, and whether :func:`normalise_frames` presmooths both: when
-    either's quantisation step is coarse (rel > STEP_REF) and noise_gain >= 1."""
-    maps = []
-    for ordered in samples:
-        lo, hi = quantiles(ordered, PERCENTILES)
-        maps.append((float(lo), float(hi), quantisation_step(ordered)))
+def frame_map(ordered: np.ndarray) -> FrameMap:
+    """A frame's own map from its sorted sample: its robust range (PERCENTILES) and quantisation step."""
+    lo, hi = quantiles(ordered, PERCENTILES)
+    return float(lo), float(hi), quantisation_step(ordered)
+
+
+def frame_maps(samples: Samples, noise_gain: float = 1.0, map0: FrameMap | None = None) -> FrameMaps:
+    """Each frame's own map from its sorted sample (:func:`frame_map`; frame 0's ``map0`` when known: a stream's
+    previous pair took it of the same sample as its frame 1's), and whether :func:`normalise_frames` presmooths
+    both: when either's quantisation step is coarse (rel > STEP_REF) and noise_gain >= 1."""
+    maps = (frame_map(samples[0]) if map0 is None else map0, frame_map(samples[1]))
     smooth = noise_gain >= 1.0 and any(relative_step(*m, noise_gain) > STEP_REF for m in maps)
-    return (maps[0], maps[1]), smooth
+    return maps, smooth
+
+
+def frame_key(maps: FrameMaps, k: int, noise_gain: float) -> tuple[float, ...]:
+    """What :func:`normalise_frames` makes of frame ``k`` depends on besides the frame: its own map, the pair's
+    presmoothing and the noise gain. Two pairs that share a frame and give it equal keys normalise it to the same
+    image, bit for bit (a stream's frame 1, then the next pair's frame 0: temporal.Seen)."""
+    (m0, m1), smooth = maps
+    return (*(m0, m1)[k], float(smooth), noise_gain)
 
 
 def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -290,11 +305,12 @@ def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, sa
     ``noise_gain``: see :func:`normalise_pair`. ``samples``: both frames' :func:`sorted_sample` when known (a
     stream knows its new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise;
     every mode's ranges come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census``
-    uses it); ``n0``: i0 normalised by that map when known (:func:`normalise_pair`; not used by ``census``);
-    ``maps``: their :func:`frame_maps` at this ``noise_gain`` when known (only ``census`` uses them)."""
+    uses it); ``n0``: i0 normalised by that map when known (:func:`normalise_pair`; ``census``: by its own map,
+    :func:`normalise_frames`); ``maps``: their :func:`frame_maps` at this ``noise_gain`` when known (only
+    ``census`` uses them)."""
     s0, s1 = frame_samples(i0, i1) if samples is None else samples
     if compares_signatures(mode):
-        pair = normalise_frames((i0, i1), noise_gain, (s0, s1), maps)
+        pair = normalise_frames((i0, i1), noise_gain, (s0, s1), maps, n0)
         return pair, pair
     n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, pair_map((s0, s1)) if pmap is None else pmap, n0)
     if mode == "density":

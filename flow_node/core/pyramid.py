@@ -9,7 +9,7 @@ levels is :mod:`flow_node.core.refine`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import cv2
@@ -102,7 +102,9 @@ class Pyramid:
     a validity mask (validity.py) ``valid0[l]`` and ``valid1[l]`` float32 in [0, 1] (None: every pixel valid);
     with the census data term and ``census_noise_k`` > 0, ``census_eps[l]``: the floor of the signature's EPS on
     level l from the pair's noise (census_noise.py; None: no floor), and with ``census_finest_radius`` 2 also
-    ``census_eps_far[l]``, the floor for neighbours at distance 2."""
+    ``census_eps_far[l]``, the floor for neighbours at distance 2. ``contrasts``: per frame, the census term's level
+    contrasts measured so far ({level: value}, refine.level_contrast fills them; frame 0's may come from a stream's
+    previous pair with its pyramid: temporal.Seen)."""
 
     shapes: list[tuple[int, int]]
     i0: list[np.ndarray]
@@ -113,6 +115,7 @@ class Pyramid:
     valid1: list[np.ndarray] | None = None
     census_eps: tuple[float, ...] | None = None
     census_eps_far: tuple[float, ...] | None = None
+    contrasts: tuple[dict[int, float], dict[int, float]] = field(default_factory=lambda: ({}, {}))
 
     def eps_floor(self, level: int, radius: int = 1) -> float:
         """The census EPS floor on ``level`` for the signature's neighbours at distance ``radius`` (0 without one)."""
@@ -163,7 +166,7 @@ def _noise_gain(shape: tuple[int, int], levels: int, scale: float, min_size: int
 def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
                  channels: tuple[np.ndarray, np.ndarray] | None = None,
                  valid: tuple[np.ndarray, np.ndarray] | None = None, levels0: list[np.ndarray] | None = None,
-                 noise: PairNoise | None = None) -> Pyramid:
+                 noise: PairNoise | None = None, contrasts0: dict[int, float] | None = None) -> Pyramid:
     """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
     level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
     finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
@@ -174,7 +177,9 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
     both frames' colour channels (C, H, W), pyramids of each built the same way (Pyramid.c0, c1). ``valid``:
     the frames' validity masks (H, W) bool, carried down with the same blur (validity.mask_levels). ``levels0``:
     i0's pyramid for ``cfg`` when known (a stream's previous pair built it as its frame 1's: temporal.Seen);
-    used when its shapes are these. With the census data term and ``cfg.census_noise_k`` > 0, the floor of
+    used when its shapes are these, with its grey levels' census contrasts ``contrasts0`` when known
+    (Pyramid.contrasts; taken without colour channels, whose contrasts the census term measures instead). With the
+    census data term and ``cfg.census_noise_k`` > 0, the floor of
     the signature's EPS per level (Pyramid.census_eps) from ``noise``, the pair's noise as the photometric stage
     measured it (census_noise.pair_noise; None: measured here on i0 and i1, taken as white).
     """
@@ -194,7 +199,9 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
         gains = difference_noise_gains(shapes, sigmas, noise.blur, (1, cfg.census_finest_radius))
         for lag, lag_gains in gains.items():
             floors[lag - 1] = eps_floors(noise, cfg.census_noise_k, lag_gains)
-    return Pyramid(shapes, *grey, *colour, *masks, census_eps=floors[0], census_eps_far=floors[1])
+    contrasts = (dict(contrasts0) if known and contrasts0 is not None and channels is None else {}, {})
+    return Pyramid(shapes, *grey, *colour, *masks, census_eps=floors[0], census_eps_far=floors[1],
+                   contrasts=contrasts)
 
 
 def antialias_steps(cfg: FlowConfig, levels: int) -> int:

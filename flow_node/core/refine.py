@@ -119,7 +119,8 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         colour = pyr.c0 is not None and pyr.c1 is not None
         frames = (pyr.c0[level], pyr.c1[level]) if colour else (pyr.i0[level][None], pyr.i1[level][None])
         radius = cfg.census_finest_radius if on_finest else 1  # the signature's neighbours' distance here
-        linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level, radius), on_finest, g)
+        linearised = census_problem(*frames, cfg, backend, robust, pyr.eps_floor(level, radius), on_finest, g,
+                                    (*pyr.contrasts, level))
     else:
         linearised = problem_source(cfg)(pyr.i0[level], pyr.i1[level], cfg, backend, robust, g)
     if valid is not None:
@@ -212,29 +213,46 @@ def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: 
     return replace(params, eps=eps_floor) if eps_floor > params.eps else params
 
 
+# per frame, the contrasts measured so far ({level: value}: Pyramid.contrasts), and the level
+ContrastMemo = tuple[dict[int, float], dict[int, float], int]
+
+
 def level_contrast(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig,
-                   contrast: Callable[[np.ndarray], float] = median_contrast) -> float:
+                   contrast: Callable[[np.ndarray], float] = median_contrast, memo: ContrastMemo | None = None
+                   ) -> float:
     """What :func:`level_census` needs of a level's contrast (census.median_contrast of the channels c0, c1
     (C, h, w), by ``contrast``: a backend's): the smaller of both frames', measured
     only where it decides -- inf when ``cfg.census_empty_contrast`` is off or the level is narrower than
     ``cfg.census_coarse_width`` (damped by width anyway), and frame 0's alone when that is already below the
-    threshold (the level is empty whatever frame 1's is)."""
+    threshold (the level is empty whatever frame 1's is). ``memo``: each frame's contrasts measured so far (taken
+    from there, and added to it; a stream hands frame 1's to the next pair: Pyramid.contrasts)."""
     if cfg.census_empty_contrast <= 0 or c0.shape[2] < cfg.census_coarse_width:
         return math.inf
-    first = contrast(c0)
-    return first if first < cfg.census_empty_contrast else min(first, contrast(c1))
+
+    def of(k: int, frames: np.ndarray) -> float:
+        if memo is None:
+            return contrast(frames)
+        known, level = memo[k], memo[2]
+        if level not in known:
+            known[level] = contrast(frames)
+        return known[level]
+
+    first = of(0, c0)
+    return first if first < cfg.census_empty_contrast else min(first, of(1, c1))
 
 
 def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
-                   eps_floor: float = 0.0, finest: bool = False, g: np.ndarray | None = None) -> Linearisation:
+                   eps_floor: float = 0.0, finest: bool = False, g: np.ndarray | None = None,
+                   memo: ContrastMemo | None = None) -> Linearisation:
     """The census data term (census.py) on the frames' channels c0, c1 (C, h, w): the grey frames (C = 1) or
     colour channels (colour.py). Once per level frame 0's (stacked) signatures and frame 1's interpolation
     coefficients; per warp the backend's form around v0 (frame 1 sampled at x + v0, its signatures, the
     quadratic form: census.census_form). The form replaces (a, c) in the solve: they are zeros. ``eps_floor``:
     the least EPS of both frames' signatures on this level; ``finest``: this is the finest solved level
-    (:func:`level_census`, with :func:`level_contrast`); ``g``: the TV term's edge weight (:func:`grey_problem`)."""
+    (:func:`level_census`, with :func:`level_contrast` and its ``memo``); ``g``: the TV term's edge weight
+    (:func:`grey_problem`)."""
     coefs = backend.warper.coefficients(c1, cfg.warp_kernel)
-    params = level_census(cfg, c0.shape[2], eps_floor, level_contrast(c0, c1, cfg, backend.contrast), finest)
+    params = level_census(cfg, c0.shape[2], eps_floor, level_contrast(c0, c1, cfg, backend.contrast, memo), finest)
     f0, g0 = backend.signature(c0, params)
     h, w = c0.shape[1:]
     a, c = np.zeros((2, h, w), np.float32), np.zeros((h, w), np.float32)

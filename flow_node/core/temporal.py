@@ -15,7 +15,8 @@ solved one, with ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` primal-
 finest solved level ``cfg.stream_finest_warps`` x ``cfg.stream_finest_iterations`` where set).
 
 A pair's second frame is the next pair's first: what the pair computed of it -- its sorted sample, and where the
-pair's normalising map repeats its pyramid -- is handed on (:class:`Seen`, ``Prior.seen``) and not computed again.
+frame's normalising map repeats (``normalise``: the pair's map; census: the frame's own, so always) its normalised
+image, pyramid and noise std -- is handed on (:class:`Seen`, ``Prior.seen``) and not computed again.
 
 A per-frame check decides whether the prediction holds (:func:`prediction_fails`, :func:`result_fails`); when
 it does not, the caller runs the full single-pair solve (engine.estimate_pair) instead:
@@ -46,7 +47,7 @@ import numpy as np
 from .backends import Backend
 from .config import FlowConfig
 from .densify import push_pull
-from .engine import Judged, photometric_stage
+from .engine import Judged, Seen, photometric_stage
 from .layout import interleaved_flow
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .refine import SolveStats, finest_level, refine_levels
@@ -58,22 +59,6 @@ FULL = "full"  # ... of a pair the stream solved from scratch; followed by ": <r
 # splat(flow (2, h, w), carried (C, h, w)) -> (flow, carried, weight (h, w)): densify.splat_forward (the numpy
 # reference) or a backend's kernel (numba_temporal.splat_numba)
 Splat = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
-
-
-@dataclass(frozen=True)
-class Seen:
-    """What a pair computed of its second frame that the next pair, whose first frame it is, need not compute
-    again: its sorted ``sample`` (photometric.sorted_sample: the photometric stage's ranges come from it); and,
-    from a pair the stream stage refined in ``normalise`` mode, the pair's normalising map (``key``:
-    engine.map_key), the frame's normalised pyramid (``levels``, finest first, as pyramid.make_pyramid built
-    it; level 0, the normalised frame itself, is the next pair's normalised frame 0) and its normalised image
-    on the start level by area average (``area``: :func:`judged_on`). The next pair takes those only when its
-    own map is the same -- the normalised frame is then the same, bit for bit --, else it builds them again."""
-
-    sample: np.ndarray
-    key: tuple[float, ...] | None = None
-    levels: list[np.ndarray] | None = None
-    area: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -206,16 +191,16 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         return reason
     schedule = stream_schedule(cfg)
     seen = prior.seen
-    known0 = None if seen is None or seen.key is None or not seen.levels else (seen.key, seen.levels[0])
-    (s0, s1), judged = photometric_stage(i0, i1, cfg, backend, None if seen is None else seen.sample, known0)
+    (s0, s1), judged = photometric_stage(i0, i1, cfg, backend, None if seen is None else seen.sample, seen)
     normalised = judged.frames
     if cfg.photometric == "normalise" and s0 is not normalised[0]:
         # the stage hands the solver the normalised pair itself unless it found an exposure change between the
         # frames (then: local contrast, a data term of another scale than the carried state was solved on)
         return "exposure step"
-    key = judged.key
+    key, key1 = judged.keys
     same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
-    pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None, noise=judged.noise)
+    pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None, noise=judged.noise,
+                       contrasts0=seen.contrasts if same else None)
     start, _ = stream_span(pyr, schedule)
     predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat, backend.fill)
     frames = judged_on(judged, pyr.shapes[start], seen.area if same else None)
@@ -224,4 +209,6 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         return reason
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes), stream=PREDICTED)
     state = refine_prediction(pyr, schedule, backend, predicted, stats)
-    return state, stats, judged, Seen(judged.samples[1], key, pyr.i1, frames[1])
+    sigma = None if judged.noise is None or judged.noise.frames is None else judged.noise.frames[1]
+    return state, stats, judged, Seen(judged.samples[1], key1, pyr.i1, frames[1],
+                                      None if judged.maps is None else judged.maps[0][1], sigma, pyr.contrasts[1])
