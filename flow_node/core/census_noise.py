@@ -72,7 +72,7 @@ class PairNoise:
     """A pair's noise for the census EPS floor: ``sigma``, the larger of both frames' white-noise std in
     normalised units (before presmoothing), and ``blur``, the presmoothing Gaussian (px; 0: none) both frames
     then got (photometric.normalise_frames); ``frames``: each frame's std where :func:`pair_noise` measured them
-    (a stream hands frame 1's to its next pair: temporal.Seen), else None."""
+    (a stream hands frame 1's to its next pair: engine.Seen), else None."""
 
     sigma: float
     blur: float = 0.0
@@ -88,7 +88,7 @@ def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_ga
     again without the blur (one affine map each) and measured, by ``sigma`` (:func:`noise_sigma` or a backend's:
     the same value). ``maps``: photometric.frame_maps(samples, noise_gain) when known (the stage took them);
     ``sigma0``: frame 0's std when known (a stream's previous pair measured it as its frame 1's, with the same
-    photometric.frame_key: temporal.Seen)."""
+    photometric.frame_key: engine.Seen)."""
     (map0, map1), smooth = frame_maps(samples, noise_gain) if maps is None else maps
     todo = ((0, map0), (1, map1)) if sigma0 is None else ((1, map1),)
     measured = [sigma(affine_normalised(frames[k], *m, noise_gain, False) if smooth else solver_pair[k])

@@ -168,7 +168,7 @@ def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 
     darkened 0.4x: docs/engine.md). ``samples``: the frames' :func:`sorted_sample` when known; ``maps``: their
     :func:`frame_maps` at this ``noise_gain`` when known (the engine takes them once for this and the noise floor,
     census_noise.pair_noise). ``n0``: frame 0 already normalised by its map, presmoothing and noise gain (a stream's
-    previous pair normalised it as its frame 1: temporal.Seen, keyed by :func:`frame_key`), taken as it is."""
+    previous pair normalised it as its frame 1: engine.Seen, keyed by :func:`frame_key`), taken as it is."""
     if maps is None:
         maps = frame_maps(frame_samples(*frames) if samples is None else samples, noise_gain)
     (map0, map1), smooth = maps
@@ -201,7 +201,7 @@ def frame_maps(samples: Samples, noise_gain: float = 1.0, map0: FrameMap | None 
 def frame_key(maps: FrameMaps, k: int, noise_gain: float) -> tuple[float, ...]:
     """What :func:`normalise_frames` makes of frame ``k`` depends on besides the frame: its own map, the pair's
     presmoothing and the noise gain. Two pairs that share a frame and give it equal keys normalise it to the same
-    image, bit for bit (a stream's frame 1, then the next pair's frame 0: temporal.Seen)."""
+    image, bit for bit (a stream's frame 1, then the next pair's frame 0: engine.Seen)."""
     (m0, m1), smooth = maps
     return (*(m0, m1)[k], float(smooth), noise_gain)
 
@@ -228,7 +228,7 @@ def normalise_pair(i0: np.ndarray, i1: np.ndarray, noise_gain: float = 1.0, pmap
     on the level the data term lives on; both together take a low-contrast texture's signal too).
     ``pmap``: the pair's :func:`pair_map` when known (computed from :func:`frame_samples` otherwise). ``n0``:
     i0 already mapped by this very map and noise gain (a stream's previous pair mapped it as its frame 1:
-    temporal.Seen), taken as it is."""
+    engine.Seen), taken as it is."""
     gain, offset, lo, hi, step = pair_map(frame_samples(i0, i1)) if pmap is None else pmap
     if (gain, offset) != (1.0, 0.0):
         i1 = i1 * np.float32(gain) + np.float32(offset)

@@ -104,7 +104,7 @@ class Pyramid:
     level l from the pair's noise (census_noise.py; None: no floor), and with ``census_finest_radius`` 2 also
     ``census_eps_far[l]``, the floor for neighbours at distance 2. ``contrasts``: per frame, the census term's level
     contrasts measured so far ({level: value}, refine.level_contrast fills them; frame 0's may come from a stream's
-    previous pair with its pyramid: temporal.Seen)."""
+    previous pair with its pyramid: engine.Seen)."""
 
     shapes: list[tuple[int, int]]
     i0: list[np.ndarray]
@@ -176,7 +176,7 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
     as much as real structure there. ``channels``:
     both frames' colour channels (C, H, W), pyramids of each built the same way (Pyramid.c0, c1). ``valid``:
     the frames' validity masks (H, W) bool, carried down with the same blur (validity.mask_levels). ``levels0``:
-    i0's pyramid for ``cfg`` when known (a stream's previous pair built it as its frame 1's: temporal.Seen);
+    i0's pyramid for ``cfg`` when known (a stream's previous pair built it as its frame 1's: engine.Seen);
     used when its shapes are these, with its grey levels' census contrasts ``contrasts0`` when known
     (Pyramid.contrasts; taken without colour channels, whose contrasts the census term measures instead). With the
     census data term and ``cfg.census_noise_k`` > 0, the floor of
