@@ -124,8 +124,8 @@ CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, c
 # Middlebury -3.7 %), but g by OpenCV / numpy calls cost +4-7 % CPU time and took census + weight over issue 25's
 # 15 % on the bags; g's kernel (numba_edges, 3.2x cheaper) made the weight +1-2 % (medians of six runs; the bags
 # 1.068x -> 1.009x census alone), census + weight 1.04-1.16x grey values under load 2.4-4.3 (the bags 1.10-1.16x,
-# census alone 1.09-1.15x there; at load 1-2.6 1.05-1.14x, the bags 1.12 / 1.14;
-# bench/results/suite/invariance/edgecost/summary.md). Report split: real_exact 0.3883
+# census alone 1.09-1.15x there; at load 1-2.6 1.05-1.14x, the bags 1.12 / 1.14; quiet, at the merge, 1.07-1.10x, the
+# bags 1.099 in both runs; bench/results/suite/invariance/edgecost/). Report split: real_exact 0.3883
 # -> 0.3520, Middlebury 0.4614 -> 0.4445, worst fine_320 +0.0003 px. stream_lite keeps plain TV (stream tune 0.0481
 # -> 0.0486).
 EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05))  # tv_edge_floor 0.6: the field's default
