@@ -31,7 +31,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from .photometric import QUANT_SIGMA, FrameMaps, Samples, affine_normalised, frame_maps, frame_samples
+from .photometric import QUANT_SIGMA, FrameMap, FrameMaps, Samples, affine_normalised, frame_maps, frame_samples
 
 NOISE_STRIDE = 4  # the estimate's median over every 4th interior pixel in each direction (1/16 of them)
 MAD_TO_STD = 1.4826  # std of a Gaussian over its median absolute deviation
@@ -90,10 +90,11 @@ def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_ga
     ``sigma0``: frame 0's std when known (a stream's previous pair measured it as its frame 1's, with the same
     photometric.frame_key: engine.Seen)."""
     (map0, map1), smooth = frame_maps(samples, noise_gain) if maps is None else maps
-    todo = ((0, map0), (1, map1)) if sigma0 is None else ((1, map1),)
-    measured = [sigma(affine_normalised(frames[k], *m, noise_gain, False) if smooth else solver_pair[k])
-                for k, m in todo]
-    both = (measured[0], measured[1]) if sigma0 is None else (sigma0, measured[0])
+
+    def measured(k: int, frame_map: FrameMap) -> float:
+        return sigma(affine_normalised(frames[k], *frame_map, noise_gain, False) if smooth else solver_pair[k])
+
+    both = (measured(0, map0) if sigma0 is None else sigma0, measured(1, map1))
     return PairNoise(max(both), QUANT_SIGMA if smooth else 0.0, both)
 
 

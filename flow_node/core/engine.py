@@ -127,7 +127,7 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     gain = noise_gain(i0.shape, cfg)
     # once, for the stage and the noise floor
     maps = frame_maps(samples, gain, None if known0 is None else known0.map) if signatures else None
-    keys = frame_keys(pmap, maps, i0.shape, cfg)
+    keys = frame_keys(pmap, maps, gain, cfg.photometric)
     same = known0 is not None and keys[0] is not None and keys[0] == known0.key
     n0 = known0.levels[0] if same and known0.levels else None
     solver_pair, frames = stage(i0, i1, cfg.photometric, gain, samples, pmap, n0, maps)
@@ -143,19 +143,19 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
 MapKey = tuple[float, ...]
 
 
-def frame_keys(pmap: PairMap | None, maps: FrameMaps | None, shape: tuple[int, int], cfg: FlowConfig
+def frame_keys(pmap: PairMap | None, maps: FrameMaps | None, gain: float, photometric: str
                ) -> tuple[MapKey | None, MapKey | None]:
-    """Per frame, what its normalised image depends on besides the frame: in ``normalise`` mode the pair's
-    normalising map (photometric.pair_map) with the noise gain for ``shape``, the same for both frames; with the
+    """Per frame, what its normalised image depends on besides the frame: in ``normalise`` mode (``photometric``)
+    the pair's normalising map (photometric.pair_map) with the pyramid's noise ``gain``
+    (pyramid.noise_gain), the same for both frames; with the
     census data term (each frame normalised on its own: photometric.normalise_frames) the frame's own map, the
     presmoothing and the noise gain (photometric.frame_key). Two pairs that give a frame they share equal keys map
     it to the same normalised frame (:class:`Seen`). None in other modes (the stream stage then builds everything
     again)."""
-    if cfg.photometric == "normalise" and pmap:
-        key = (*pmap, noise_gain(shape, cfg))
+    if photometric == "normalise" and pmap:
+        key = (*pmap, gain)
         return key, key
     if maps is not None:
-        gain = noise_gain(shape, cfg)
         return frame_key(maps, 0, gain), frame_key(maps, 1, gain)
     return None, None
 
