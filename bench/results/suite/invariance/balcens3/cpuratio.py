@@ -6,4 +6,5 @@ base, f = sys.argv[1], sys.argv[2]
 for reg, r in json.load(open(f))["regimes"].items():
     m = r["methods"]
     g = m[base]["seconds"]
-    print(f"{reg}: {base} {1000 * g:.1f} ms/pair, " + ", ".join(f"{k} {v['seconds'] / g:.3f}x" for k, v in m.items() if k != base))
+    ratios = ", ".join(f"{k} {v['seconds'] / g:.3f}x" for k, v in m.items() if k != base)
+    print(f"{reg}: {base} {1000 * g:.1f} ms/pair, {ratios}")
