@@ -17,6 +17,7 @@ from flow_node.core.models import MODEL_SPECS, prox_data_quadratic, quadratic_da
 from flow_node.core.numba_backend import WARPER, solve_numba, thread_count
 from flow_node.core.numba_census import census_form_numba, census_planes_numba, factor_numba, level_signature_numba
 from flow_node.core.numba_judge import reliability_numba as census_reliability_numba
+from flow_node.core.presets import GENERAL_PRESETS
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.warping import NUMPY_WARPER
 
@@ -226,6 +227,26 @@ def test_census_flow_holds_under_tone_curves_and_gain_fields(flow_kind: str) -> 
             assert err < max(1.5 * base, base + margin), (name, margin, errors)
     # the grey-value data term is thrown by the same gamma curve
     assert aee(interior(est_grey.estimate(i0, tone_variants(i1)["gamma 2"]).flow), interior(gt)) > 3 * base
+
+
+@pytest.mark.parametrize("preset", GENERAL_PRESETS)
+def test_every_general_preset_compares_census_and_holds_under_a_tone_curve(preset: str) -> None:
+    """Issue 25: every general preset is invariant to tone changes by construction (balanced since task balcens3,
+    with its own census schedule and the edge-weighted TV): its flow under a gamma curve stays near its flow on the
+    unchanged pair (balanced 0.009 -> 0.024 px), where its grey-value term (photometric=normalise) is thrown."""
+    h, w = 72, 96
+    tex = texture(h, w, seed=11)
+    gt = rotation_flow(h, w, 2.0)
+    i0, i1 = pair_from_flow(tex, gt)
+    curved = np.sqrt(i1).astype(np.float32)
+    cfg = FlowConfig.preset(preset).replace(initialisation="none")
+    assert cfg.photometric == "census"
+    est = FlowEstimator(cfg)
+    base = aee(interior(est.estimate(i0, i1).flow), interior(gt))
+    err = aee(interior(est.estimate(i0, curved).flow), interior(gt))
+    grey = aee(interior(FlowEstimator(cfg.replace(photometric="normalise")).estimate(i0, curved).flow), interior(gt))
+    assert base < 0.05 and err < max(1.5 * base, base + 0.035), (base, err)
+    assert grey > 1.5 * err, (err, grey)  # 0.09-0.10 px; census 0.021 (quality) - 0.047 (fastest, half size)
 
 
 def test_census_reliability_flags_a_wrong_flow_and_passes_a_right_one_under_gamma() -> None:

@@ -29,10 +29,10 @@ from typing import Any
 #   bounded cost").
 # - census schedule (issue 25, docs/engine.md "Presets", third round): with photometric=census, quality and realtime
 #   anti-alias only the three finest pyramid steps and use EPS 0.03 on levels under 50 px wide (chosen on the
-#   suite's tune split); balanced keeps every step anti-aliased (3 steps broke its fine textures on tune: 0.010 ->
-#   0.057), fastest solves at half size (every step anti-aliased anyway) and uses the coarse EPS on empty levels
-#   (census_empty_contrast; issue 25, task blob: on zoomed finest-band textures the texture-free 40 px coarsest
-#   level locked its flow into a wrong minimum, tune seed 62 0.68 px; a width rule cost real_exact 2 %; since task
+#   suite's tune split); balanced anti-aliases the four finest steps (below), fastest solves at half size (every
+#   step anti-aliased anyway) and uses the coarse EPS on empty levels (census_empty_contrast; issue 25, task blob:
+#   on zoomed finest-band textures the texture-free 40 px coarsest level locked its flow into a wrong minimum,
+#   tune seed 62 0.68 px; a width rule cost real_exact 2 %; since task
 #   flatcensus fastest has both rules, below). The two
 #   rules stay two (issue 25, task dampunify, tune split): for quality and realtime the contrast rule alone is
 #   worse at every threshold tried (0.001-0.02; geomean 1.003-1.22): the median contrast of a faint texture at
@@ -111,6 +111,16 @@ from typing import Any
 #   Middlebury 0.461 against 0.564. stream_lite keeps grey values: at quarter size census lost on the stream
 #   regime's tune split (0.048 -> 0.058-0.073 over six census settings; docs/engine.md "Presets").
 #   photometric=normalise gives the grey-value term back.
+# - balanced compares census signatures by default (issue 25, task balcens3, 2026-12-07), with the edge-weighted TV
+#   at a 0.08 (below): quality's census delta / alpha and finest ring, the coarse EPS rule, four anti-aliased steps,
+#   12 census iterations per warp and one finest warp of 30. Tune split (22 settings): with the weight, 3 steps
+#   aliased a 640x480 band-3 rotation (fine_640 +12 %) and 5 steps or all of them failed missing's unmasked wiper
+#   pair (+55 %, +97 %); 4 steps with a 0.065-0.10 kept both, and 12 iterations (of 15) the bags under 1.15x CPU
+#   time (0.95-1.09x grey balanced; with 15 1.12-1.17x on the bags). Report split once against grey balanced:
+#   real_exact +3.3 % (0.2533 -> 0.2616; without the weight, task balcens2, +9.1 %), every other regime better
+#   (Middlebury 0.338 -> 0.329, bit_depth -9 %, missing -9 %, the tone families 1.6-4.1 px -> 0.02-0.35 px)
+#   (bench/results/suite/invariance/balcens3/summary.md). photometric=normalise,tv_edge_weight=0 gives the former
+#   preset back.
 CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, census_coarse_eps=0.03,
                                                            census_coarse_width=50))
 # The edge-weighted TV (issue 25, task edgetv; docs/engine.md "Edge-weighted TV"): realtime and fastest weigh their TV
@@ -127,7 +137,8 @@ CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, c
 # census alone 1.09-1.15x there; at load 1-2.6 1.05-1.14x, the bags 1.12 / 1.14; quiet, at the merge, 1.07-1.10x, the
 # bags 1.099 in both runs; bench/results/suite/invariance/edgecost/). Report split: real_exact 0.3883
 # -> 0.3520, Middlebury 0.4614 -> 0.4445, worst fine_320 +0.0003 px. stream_lite keeps plain TV (stream tune 0.0481
-# -> 0.0486).
+# -> 0.0486). balanced weighs by a 0.08 (task balcens3, above: with its four anti-aliased census steps a 0.05 lost
+# the missing regime's wiper pair on tune).
 EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05))  # tv_edge_floor 0.6: the field's default
 # fastest, and the stream presets' base (below)
 FASTEST: Mapping[str, Any] = MappingProxyType(dict(
@@ -143,7 +154,10 @@ PRESETS: dict[str, dict[str, Any]] = {
                     photometric="census"),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
-                     finest_level=0, initialisation="dis_fast", init_finest_level=0),
+                     finest_level=0, initialisation="dis_fast", init_finest_level=0,
+                     **dict(CENSUS_SCHEDULE, census_antialias=4), census_iterations=12, census_finest_radius=2,
+                     census_finest_warps=1, census_finest_iterations=30, census_delta=0.05, census_alpha=0.10,
+                     photometric="census", tv_edge_weight=0.08),
     "realtime": dict(model="l1_tv", alpha=0.04, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
                      levels=5, finest_level=0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                      initialisation="dis_ultrafast", init_finest_level=2, **CENSUS_SCHEDULE,
