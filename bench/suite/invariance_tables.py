@@ -20,8 +20,8 @@ from .report import family_means, family_ratios, misread, signal_groups
 RESULTS = Path("bench/results/suite/invariance")
 # the columns: grey values, the census default, DIS medium (the methods' names in the run's command)
 COLUMNS = {"quality_normalise": "`quality`, grey", "realtime": "realtime", "fastest": "fastest",
-           "quality": "**`quality`**", "realtime_census": "realtime census", "fastest_census": "fastest census",
-           "dis_medium": "DIS medium"}
+           "quality": "**`quality`**", "balanced": "balanced census", "realtime_census": "realtime census",
+           "fastest_census": "fastest census", "dis_medium": "DIS medium"}
 GROUPS = {"photometric_real": "Middlebury + families (`photometric_real`)",
           "real_exact_photometric": "real photos moved exactly + families",
           "photometric": "fine textures + families (`photometric`)"}
