@@ -106,30 +106,51 @@ def _differences(img, ru, rc, rd, dy, dx, gain, eps, out, i, ss):  # noqa: ANN00
         ss[j] = gain / (math.sqrt(ss[j] * inv_k) + eps)
 
 
+@njit(**_JIT)
+def _factor_image_row(img, rc, dy, dx, rad, gain, eps, out, planes, sigs):  # noqa: ANN001, ANN201
+    """Row rc of :func:`factor_kernel`."""
+    h, w = img.shape
+    k_n = dy.shape[0]
+    ru, rd = max(rc - rad, 0), min(rc + rad, h - 1)
+    if sigs is not None:
+        _differences(img, ru, rc, rd, dy, dx, gain, eps, sigs, rc, out[rc])
+        for k in range(k_n):  # the same product as the planes' below
+            for j in range(w):
+                sigs[k, rc, j] = sigs[k, rc, j] * out[rc, j]
+    else:
+        tmp = np.empty((k_n, 1, w), np.float32)
+        _differences(img, ru, rc, rd, dy, dx, gain, eps, tmp, 0, out[rc])
+        if planes is not None:
+            for j in range(w):
+                for k in range(k_n):
+                    planes[rc, j, k] = tmp[k, 0, j] * out[rc, j]
+
+
 @njit(parallel=True, **_JIT)
-def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, sigs):  # noqa: ANN001, ANN201
+def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, sigs, parallel):  # noqa: ANN001, ANN201
     """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`) for the offsets (dy, dx)
     at distance ``rad``, neighbours clamped to the image (edge values), and the signature -- the neighbour
     differences times the factor; census.signature to float32 rounding -- into sigs (K, H, W) unless ``sigs`` is
     None (a compile-time case; a census level's, :func:`census_kernel` reads them), else into planes (H, W, K),
-    interleaved, unless ``planes`` is None (a compile-time case; fusion.census_planes). Rows in parallel."""
-    h, w = img.shape
-    k_n = dy.shape[0]
-    for i in prange(h):
-        rc = np.int64(i)  # (prange's index is unsigned: mixed with rad, float64)
-        ru, rd = max(rc - rad, 0), min(rc + rad, h - 1)
-        if sigs is not None:
-            _differences(img, ru, rc, rd, dy, dx, gain, eps, sigs, rc, out[rc])
-            for k in range(k_n):  # the same product as the planes' below
-                for j in range(w):
-                    sigs[k, rc, j] = sigs[k, rc, j] * out[rc, j]
-        else:
-            tmp = np.empty((k_n, 1, w), np.float32)
-            _differences(img, ru, rc, rd, dy, dx, gain, eps, tmp, 0, out[rc])
-            if planes is not None:
-                for j in range(w):
-                    for k in range(k_n):
-                        planes[i, j, k] = tmp[k, 0, j] * out[i, j]
+    interleaved, unless ``planes`` is None (a compile-time case; fusion.census_planes). Row by row
+    (:func:`_factor_image_row`), in parallel when ``parallel`` (:func:`factor_parallel`; each row the same
+    arithmetic either way)."""
+    if parallel:
+        for i in prange(img.shape[0]):
+            _factor_image_row(img, np.int64(i), dy, dx, rad, gain, eps, out, planes, sigs)  # (prange's index is
+            # unsigned: mixed with rad, float64)
+    else:
+        for i in range(img.shape[0]):
+            _factor_image_row(img, i, dy, dx, rad, gain, eps, out, planes, sigs)
+
+
+def factor_parallel(shape: tuple[int, ...]) -> bool:
+    """Whether :func:`factor_kernel` runs the rows of an image of ``shape`` (H, W) in parallel: from
+    LINEARISE_PARALLEL_MIN_PIXELS pixels on, as :func:`census_form_numba` does (a level's signatures cost about
+    one linearisation); on smaller levels a parallel region's start and join cost more than the rows' work
+    (task s320c: frame 0's signatures at 160 x 120 ~56 us serial, 32 us wall but ~2 x 32 us CPU on two threads,
+    and under load a worker that is not running holds the region up)."""
+    return shape[0] * shape[1] >= LINEARISE_PARALLEL_MIN_PIXELS and threads() > 1
 
 
 @njit(**_ROWS)
@@ -424,7 +445,7 @@ def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None =
     src = np.ascontiguousarray(img, dtype=_F32)
     out = np.empty(src.shape, _F32) if out is None else out
     factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps), out, None,
-                  sigs)
+                  sigs, factor_parallel(src.shape))
     return out
 
 
@@ -434,7 +455,7 @@ def census_planes_numba(img: np.ndarray, params: CensusParams) -> np.ndarray:
     src = np.ascontiguousarray(img, dtype=_F32)
     out = np.empty(src.shape + (_K,), _F32)
     factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps),
-                  np.empty(src.shape, _F32), out, None)
+                  np.empty(src.shape, _F32), out, None, factor_parallel(src.shape))
     return out
 
 
