@@ -330,16 +330,17 @@ def _make_passes(parallel: bool, data: int | None = None, regulariser: int = 0):
                                             tau_d)
                 else:
                     n0, n1 = prox_data(vt0, vt1, a[0, i, j], a[1, i, j], c[i, j], tau_d, data_l1, soft)
-                v_bar[0, i, j] = n0 - v0  # the change; the extrapolation v_new + change is made below
-                v_bar[1, i, j] = n1 - v1
+                e0, e1 = n0 - v0, n1 - v1  # the change; measured, the extrapolation v_new + change is made below
+                v_bar[0, i, j] = e0 if measure else e0 + n0
+                v_bar[1, i, j] = e1 if measure else e1 + n1
                 v[0, i, j] = n0
                 v[1, i, j] = n1
             if measure:  # the row's sum of squared changes (not inside the loop above: see the docstring)
                 for j in range(wd):
                     acc += v_bar[0, i, j] * v_bar[0, i, j] + v_bar[1, i, j] * v_bar[1, i, j]
-            for j in range(wd):
-                v_bar[0, i, j] += v[0, i, j]
-                v_bar[1, i, j] += v[1, i, j]
+                for j in range(wd):
+                    v_bar[0, i, j] += v[0, i, j]
+                    v_bar[1, i, j] += v[1, i, j]
             if reg >= 2:
                 w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg)
             total += acc

@@ -168,10 +168,10 @@ def _linearise_row(i0, src, g0, flow, kernel, interpolated, a, c, i, scratch, ba
 
 
 @njit(_nrt=False, **_JIT)  # no reference counts: a view per channel and row (task fastcens)
-def sample_row(coefs, frames, flow, i, kernel, weight, out, slot, keep, scratch, base):  # noqa: ANN001, ANN201
-    """Row i of every channel of frame 1 sampled at x + flow (census.warped_frames): out[:, slot] of out
-    (C, ., W) from the interpolation coefficients ``coefs`` (C, H, W), where x + flow leaves the image the
-    channels of ``frames`` (C, H, W) themselves; keep (W) = ``weight`` inside, 0 outside. ``scratch`` (9, W),
+def sample_row(coefs, frames, flow, i, kernel, weight, out, slot, col, keep, scratch, base):  # noqa: ANN001, ANN201
+    """Row i of every channel of frame 1 sampled at x + flow (census.warped_frames): out[:, slot, col:col + W] of
+    out (C, ., >= col + W) from the interpolation coefficients ``coefs`` (C, H, W), where x + flow leaves the image
+    the channels of ``frames`` (C, H, W) themselves; keep (W) = ``weight`` inside, 0 outside. ``scratch`` (9, W),
     ``base`` (2, W): row scratch of :func:`row_taps`. Channel by channel over the row (1-D views: 1.7x faster
     than the channels inside the pixel loop)."""
     h, w = coefs.shape[1], coefs.shape[2]
@@ -181,10 +181,10 @@ def sample_row(coefs, frames, flow, i, kernel, weight, out, slot, keep, scratch,
         dst, src = out[ch, slot], frames[ch, i]
         for j in range(w):
             if scratch[8, j] == zero:
-                dst[j] = src[j]
+                dst[col + j] = src[j]
             else:
                 wx, wy, cols, rows = row_block(scratch, base, j, h, w)
-                dst[j] = tap_sum(coefs, ch, wx, wy, cols, rows)
+                dst[col + j] = tap_sum(coefs, ch, wx, wy, cols, rows)
     for j in range(w):
         keep[j] = weight * scratch[8, j]
 
