@@ -147,7 +147,7 @@ def test_kernels_compute_the_same_compiled_or_cached(tmp_path: Path, code: str) 
     """A kernel computes the same bits in the process that compiles it (a new install's first process) as in a
     later one that reads it from numba's cache. With fastmath=True (reassoc, arcp) they did not: 28,958 of the
     census form's 96,000 values differed by up to 3e-8, and `realtime` census flows by 2e-3 px
-    (numba_census._JIT); the 3-D engine's flows differed for all five models (numba_volume._JIT). The 2-D
+    (numba_signature.JIT); the 3-D engine's flows differed for all five models (numba_volume._JIT). The 2-D
     grey-value paths (warp and confidence kernels, fastmath=True) were checked alike once, every preset, small and
     large motion: equal (docs/engine.md, "Compiled kernels")."""
     cache = {"NUMBA_CACHE_DIR": str(tmp_path / "numba_cache")}  # empty: the first child compiles

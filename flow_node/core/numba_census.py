@@ -29,7 +29,7 @@ from numba import get_thread_id, njit, prange
 
 from .census import CensusParams
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_base, threads
-from .numba_signature import _F32, _JIT, _K, _ROWS, _offset_arrays
+from .numba_signature import F32, JIT, ROWS, K, neighbour_row, offset_arrays
 
 # the level signatures and contrast, re-exported (numba_signature.py; backends.py and the tests take them from here)
 from .numba_signature import census_planes_numba as census_planes_numba
@@ -43,7 +43,7 @@ from .warping import KERNEL_CODES
 from .workspace import scratch
 
 
-@njit(**_ROWS)
+@njit(**ROWS)
 def _factor_row(warped, c, sm, s0, sp, rad, gain, eps, ss, zero):  # noqa: ANN001, ANN201
     """The factor GAIN / (RMS + EPS) of channel c's warped row in slot s0 into ss (W), from its K = 8 neighbour
     differences (census.OFFSETS at distance rad, in their order) in the rows of slots sm, s0, sp (rad rows above,
@@ -54,7 +54,7 @@ def _factor_row(warped, c, sm, s0, sp, rad, gain, eps, ss, zero):  # noqa: ANN00
     signatures 86 -> 50 us a 160 x 120 level). ``zero`` is 0.0, passed in from Python so that the compiler
     cannot fold it: it makes the first square a rounded sum of its own (else the first two squares would be one
     fused sum, another last bit on 2-3 % of the pixels)."""
-    inv_k = _F32(1.0) / _F32(_K)
+    inv_k = F32(1.0) / F32(K)
     for j in range(ss.shape[0]):
         x0, x1, x2 = np.uint64(j), np.uint64(j + rad), np.uint64(j + 2 * rad)
         e = warped[c, s0, x1]
@@ -77,7 +77,7 @@ def _factor_row(warped, c, sm, s0, sp, rad, gain, eps, ss, zero):  # noqa: ANN00
         ss[j] = gain / (math.sqrt(t * inv_k) + eps)
 
 
-@njit(inline="always", **_ROWS)
+@njit(inline="always", **ROWS)
 def _put(f0, q, rr, j, d, fac, pair, diff, sq):  # noqa: ANN001, ANN201
     """P and D of channel q at column j from the warped frame's neighbour difference d and its factor fac
     (:func:`_pair_diff`)."""
@@ -86,7 +86,7 @@ def _put(f0, q, rr, j, d, fac, pair, diff, sq):  # noqa: ANN001, ANN201
     diff[q, sq, j] = b - a
 
 
-@njit(**_ROWS)
+@njit(**ROWS)
 def _pair_diff(f0, q, rr, warped, c, s, o, s0, rad, ss, pair, diff, sq):  # noqa: ANN001, ANN201
     """Channels q .. q + 3 (of channel c's signature) of one row (image row rr) into ring slot sq of pair and
     diff: with F0 = frame 0's signature f0[q, rr] (:func:`level_signature_numba`) and F1 = d ss (the warped
@@ -110,13 +110,7 @@ def _pair_diff(f0, q, rr, warped, c, s, o, s0, rad, ss, pair, diff, sq):  # noqa
         pair[k, sq, w + 1] = pair[k, sq, max(w - 1, 1)]
 
 
-@njit(inline="always", **_ROWS)
-def _slot(dy, sm, s0, sp):  # noqa: ANN001, ANN201
-    """The ring slot of the warped row at vertical offset dy: sm above, s0 at, sp below."""
-    return sm if dy < 0 else (sp if dy > 0 else s0)
-
-
-@njit(**_ROWS)
+@njit(**ROWS)
 def _pad_row(warped, c, s, rad, w):  # noqa: ANN001, ANN201
     """The rad columns on either side of the warped row warped[c, s] (rad + W + rad long, the row from column
     rad) set to its edge values: what census.shifted's edge padding reads there."""
@@ -125,14 +119,14 @@ def _pad_row(warped, c, s, rad, w):  # noqa: ANN001, ANN201
         warped[c, s, rad + w + p] = warped[c, s, rad + w - 1]
 
 
-@njit(inline="always", **_ROWS)
+@njit(inline="always", **ROWS)
 def _sums4(pair, diff, q, su, sc, sd, j, d2, robust):  # noqa: ANN001, ANN201
     """The sums over four channels q .. q + 3 at column j, from P = F0 + F1 (``pair``, ring slots su, sc, sd: rows
     i - 1, i, i + 1, border-mirrored, column x at x + 1) at the pixel's left/right/up/down neighbours and
     D = F1 - F0 (``diff``, slot sc) at the pixel: with a channel's unscaled gradient ax = P(x + 1) - P(x - 1),
     ay = P(y + 1) - P(y - 1) (sums of both frames' central differences), the residual D at v0 and the weight wk,
     the sums of wk (ax ax, ax ay, ay ay, ax D, ay D)."""
-    one = _F32(1.0)
+    one = F32(1.0)
     ax, ay, r0 = pair[q, sc, j + 2] - pair[q, sc, j], pair[q, sd, j + 1] - pair[q, su, j + 1], diff[q, sc, j]
     bx, by, r1 = (pair[q + 1, sc, j + 2] - pair[q + 1, sc, j], pair[q + 1, sd, j + 1] - pair[q + 1, su, j + 1],
                   diff[q + 1, sc, j])
@@ -151,14 +145,14 @@ def _sums4(pair, diff, q, su, sc, sd, j, d2, robust):  # noqa: ANN001, ANN201
             (way * r0 + wby * r1) + (wcy * r2 + wdy * r3))
 
 
-@njit(inline="always", **_ROWS)
+@njit(inline="always", **ROWS)
 def _finish(out, i, j, ry, flow, keep, sk, s0, s1, s2, s3, s4):  # noqa: ANN001, ANN201
     """Pixel (i, j) of the form out (5, H, W) from its sums over the channels s0 .. s4 (:func:`_sums4`): the
     gradients' scales (x: 1/4, the mean of two central differences; y: ``ry``, 1/4 or 0 on the first and last
     rows) and the pixel's weight keep[sk, j], and the linearisation point flow (2, H, W): with rho_k(v) =
     a_k . (v - v0) + r0_k, g = sum_k w_k a_k r0_k - T v0 (census.signature_form's sum of w_k c_k a_k,
     c_k = r0_k - a_k . v0)."""
-    q = _F32(0.25)
+    q = F32(0.25)
     t11 = keep[sk, j] * q * q * s0
     t12 = keep[sk, j] * q * ry * s1
     t22 = keep[sk, j] * ry * ry * s2
@@ -194,14 +188,14 @@ def _make_form_row(first: bool, last: bool):  # noqa: ANN202
                 out[4, i, j] += t4
 
     form_row.__name__ = form_row.__qualname__ = "form_row_" + ("first" if first else "last" if last else "add")
-    return njit(**_ROWS)(form_row)
+    return njit(**ROWS)(form_row)
 
 
 _form_row_first, _form_row_add, _form_row_last = (_make_form_row(*f) for f in ((True, False), (False, False),
                                                                                  (False, True)))
 
 
-@njit(**_ROWS)
+@njit(**ROWS)
 def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, r0, r1,  # noqa: ANN001, ANN201
                  warped, keep, pair, diff, ss, taps, base, zero):
     """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, M, W + 2 rad) and keep
@@ -231,7 +225,7 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2,
             _form_rows(out, rr - 1, pair, diff, keep, (rr - 1 + 2 * m) % m, flow, d2, robust)
 
 
-@njit(**_ROWS)
+@njit(**ROWS)
 def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, ss, zero):  # noqa: ANN001, ANN201
     """P and D of one row (image row rr) into ring slot sq of pair and diff, from the warped rows in slots sm,
     s0, sp (rad rows above, at, rad below; padded) and frame 0's level f0 (C K, H, W): its channels' signatures
@@ -243,18 +237,19 @@ def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, ss
     for c in range(warped.shape[0]):
         _factor_row(warped, c, sm, s0, sp, rad, gain, eps, ss, zero)
         for k in range(0, k_n, 4):
-            _pair_diff(f0, c * k_n + k, rr, warped, c, (_slot(dy[k], sm, s0, sp), _slot(dy[k + 1], sm, s0, sp),
-                                                         _slot(dy[k + 2], sm, s0, sp), _slot(dy[k + 3], sm, s0, sp)),
-                       (rad + dx[k], rad + dx[k + 1], rad + dx[k + 2], rad + dx[k + 3]), s0, rad, ss, pair, diff, sq)
+            slots = (neighbour_row(dy[k], sm, s0, sp), neighbour_row(dy[k + 1], sm, s0, sp),
+                     neighbour_row(dy[k + 2], sm, s0, sp), neighbour_row(dy[k + 3], sm, s0, sp))
+            cols = (rad + dx[k], rad + dx[k + 1], rad + dx[k + 2], rad + dx[k + 3])
+            _pair_diff(f0, c * k_n + k, rr, warped, c, slots, cols, s0, rad, ss, pair, diff, sq)
 
 
-@njit(**_ROWS)
+@njit(**ROWS)
 def _form_rows(out, i, pair, diff, keep, sk, flow, d2, robust):  # noqa: ANN001, ANN201
     """Row i of the form out (5, H, W) from the rings' rows i - 1, i, i + 1 and the row's weight keep[sk] (W)
     (:func:`_census_rows`)."""
     h = out.shape[1]
     su, sc, sd = (i + 2) % 3, (i + 3) % 3, (i + 4) % 3
-    ry = _F32(0.25) if 0 < i < h - 1 else _F32(0.0)
+    ry = F32(0.25) if 0 < i < h - 1 else F32(0.0)
     n = pair.shape[0]
     for q in range(0, n, 4):  # C K channels: K = 8, four per pass
         if q == 0:
@@ -265,11 +260,11 @@ def _form_rows(out, i, pair, diff, keep, sk, flow, d2, robust):  # noqa: ANN001,
             _form_row_last(pair, diff, q, su, sc, sd, out, i, d2, robust, ry, flow, keep, sk)
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def _ring_ends(t, n_c, m, w):  # noqa: ANN001, ANN201
     """Where each of :func:`_ring_views`' rings ends in ``rings`` (the layout's one definition; the last is the
     length :func:`ring_floats` allocates)."""
-    q = n_c * _K
+    q = n_c * K
     o1 = t * n_c * m * (w + m - 1)
     o2 = o1 + t * m * w
     o3 = o2 + t * q * 3 * (w + 2)
@@ -284,21 +279,21 @@ def ring_floats(threads: int, n_c: int, m: int, w: int) -> int:
     return int(_ring_ends.py_func(threads, n_c, m, w)[-1])  # plain Python: no kernel to compile or read
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def _ring_views(rings, t, n_c, m, w):  # noqa: ANN001, ANN201
     """:func:`census_kernel`'s per-thread rings for T = ``t`` threads, C = ``n_c`` channels, M = ``m`` warped rows,
     W = ``w`` columns, cut in this order from ``rings`` (1-D float32, :func:`ring_floats` long): warped
     (T, C, M, W + M - 1: rad = (M - 1) / 2 edge values on either side), keep (T, M, W), pair (T, C K, 3, W + 2),
     diff (T, C K, 3, W), ss (T, W) and the warp's row scratch taps (T, 9, W). One array argument instead of six:
     each array argument costs ~0.25 us of numba's dispatch per call (task fastcens)."""
-    q = n_c * _K
+    q = n_c * K
     o1, o2, o3, o4, o5, o6 = _ring_ends(t, n_c, m, w)
     return (rings[:o1].reshape((t, n_c, m, w + m - 1)), rings[o1:o2].reshape((t, m, w)),
             rings[o2:o3].reshape((t, q, 3, w + 2)), rings[o3:o4].reshape((t, q, 3, w)),
             rings[o4:o5].reshape((t, w)), rings[o5:o6].reshape((t, 9, w)))
 
 
-@njit(parallel=True, **_JIT)
+@njit(parallel=True, **JIT)
 def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, weight, out,  # noqa: ANN001, ANN201
                   rings, base, blocks, zero):
     """census.census_form in one pass: out (5, H, W) from frame 0's level f0 (C K, H, W) (its channels'
@@ -338,10 +333,10 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
     blocks = min(threads(), h) if h * w >= LINEARISE_PARALLEL_MIN_PIXELS else 1  # (threads() costs ~0.6 us)
     n = numba.config.NUMBA_NUM_THREADS  # per-thread rings: get_thread_id's range
     rings = scratch("census.rings", (ring_floats(n, n_c, 2 * params.radius + 1, w),))
-    out = np.empty((5, h, w), _F32) if out is None else out
-    census_kernel(np.ascontiguousarray(f0, dtype=_F32), np.ascontiguousarray(coefs, dtype=_F32),
-                  np.ascontiguousarray(frames, dtype=_F32), np.ascontiguousarray(v0, dtype=_F32),
-                  KERNEL_CODES[kernel], *_offset_arrays(params.radius), _F32(params.gain), _F32(params.eps), robust,
-                  _F32(params.delta), _F32(1.0 / n_c), out, rings,
-                  row_base(w), blocks, _F32(0.0))
+    out = np.empty((5, h, w), F32) if out is None else out
+    census_kernel(np.ascontiguousarray(f0, dtype=F32), np.ascontiguousarray(coefs, dtype=F32),
+                  np.ascontiguousarray(frames, dtype=F32), np.ascontiguousarray(v0, dtype=F32),
+                  KERNEL_CODES[kernel], *offset_arrays(params.radius), F32(params.gain), F32(params.eps), robust,
+                  F32(params.delta), F32(1.0 / n_c), out, rings,
+                  row_base(w), blocks, F32(0.0))
     return out

@@ -27,13 +27,13 @@ from .workspace import scratch
 # the solver's fastmath flags, not fastmath=True: with reassoc/arcp the census kernels computed other last bits when
 # compiled in a process than when read from numba's cache (a new install's first process got census flows 2e-3 px
 # away from every later process's; test_cold_start.test_kernels_compute_the_same_compiled_or_cached)
-_JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
-_ROWS = dict(_JIT, _nrt=False)
-_F32 = np.float32
-_K = len(OFFSETS)
+JIT = dict(fastmath=FASTMATH, cache=True, error_model="numpy", nogil=True)
+ROWS = dict(JIT, _nrt=False)
+F32 = np.float32
+K = len(OFFSETS)
 
 
-def _offset_arrays(radius: int) -> tuple[np.ndarray, np.ndarray]:
+def offset_arrays(radius: int) -> tuple[np.ndarray, np.ndarray]:
     """The signature's neighbour offsets at distance ``radius`` (census.offsets) as (dy, dx) int64 arrays (K)."""
     return (OFFSETS_DY, OFFSETS_DX) if radius == 1 else (OFFSETS_DY * radius, OFFSETS_DX * radius)
 
@@ -55,13 +55,20 @@ def _make_diff_span(edge: bool):  # noqa: ANN202
             ss[c] += d * d
 
     diff_span.__name__ = diff_span.__qualname__ = "diff_edge" if edge else "diff_span"
-    return njit(**_ROWS)(diff_span)
+    return njit(**ROWS)(diff_span)
 
 
 _diff_span, _diff_edge = _make_diff_span(False), _make_diff_span(True)
 
 
-@njit(**_ROWS)
+@njit(inline="always", **ROWS)
+def neighbour_row(dy, above, at, below):  # noqa: ANN001, ANN201
+    """The row (an index or a ring slot) that holds the neighbours at vertical offset dy: ``above`` for dy < 0,
+    ``below`` for dy > 0, else ``at`` (here and numba_census._pair_rows)."""
+    return above if dy < 0 else (below if dy > 0 else at)
+
+
+@njit(**ROWS)
 def _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss):  # noqa: ANN001, ANN201
     """The K neighbour differences of the row ``rc`` of img (., W), whose neighbour rows are ``ru`` and ``rd``
     (rows y - r and y + r for offsets (dy, dx) of distance r, clamped to the image: edge values), into the rows
@@ -70,7 +77,7 @@ def _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss):  # noqa: ANN001
     w = img.shape[1]
     k_n = dy.shape[0]
     for k in range(k_n):
-        r = ru if dy[k] < 0 else (rd if dy[k] > 0 else rc)
+        r = neighbour_row(dy[k], ru, rc, rd)
         d = dx[k]
         m = min(abs(d), w)  # the columns whose neighbour is clamped to the row's end
         if d == 0:
@@ -83,19 +90,19 @@ def _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss):  # noqa: ANN001
             _diff_edge(img, r, rc, 0, 0, m, out, k, i, ss)
 
 
-@njit(**_ROWS)
+@njit(**ROWS)
 def _differences(img, ru, rc, rd, dy, dx, gain, eps, out, i, ss):  # noqa: ANN001, ANN201
     """:func:`_neighbour_differences` and into ss (W) the factor that makes them the signature,
     GAIN / (RMS + EPS) (census.signature)."""
     k_n = dy.shape[0]
     ss[:] = 0.0
     _neighbour_differences(img, ru, rc, rd, dy, dx, out, i, ss)
-    inv_k = _F32(1.0) / _F32(k_n)  # float32 throughout (ss / k_n, an int, promoted the row to float64)
+    inv_k = F32(1.0) / F32(k_n)  # float32 throughout (ss / k_n, an int, promoted the row to float64)
     for j in range(img.shape[1]):
         ss[j] = gain / (math.sqrt(ss[j] * inv_k) + eps)
 
 
-@njit(**_JIT)
+@njit(**JIT)
 def _factor_image_row(img, rc, dy, dx, rad, gain, eps, out, planes, sigs):  # noqa: ANN001, ANN201
     """Row rc of :func:`factor_kernel`."""
     h, w = img.shape
@@ -115,7 +122,7 @@ def _factor_image_row(img, rc, dy, dx, rad, gain, eps, out, planes, sigs):  # no
                     planes[rc, j, k] = tmp[k, 0, j] * out[rc, j]
 
 
-@njit(parallel=True, **_JIT)
+@njit(parallel=True, **JIT)
 def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, sigs, parallel):  # noqa: ANN001, ANN201
     """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`) for the offsets (dy, dx)
     at distance ``rad``, neighbours clamped to the image (edge values), and the signature -- the neighbour
@@ -147,9 +154,9 @@ def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None =
     """GAIN / (RMS + EPS) of an image (H, W) with :func:`factor_kernel`: (H, W) float32 (into ``out`` when
     given); census.signature = the neighbour differences (census.shifted) times it, which go into ``sigs``
     (K, H, W) float32 C-contiguous when given."""
-    src = np.ascontiguousarray(img, dtype=_F32)
-    out = np.empty(src.shape, _F32) if out is None else out
-    factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps), out, None,
+    src = np.ascontiguousarray(img, dtype=F32)
+    out = np.empty(src.shape, F32) if out is None else out
+    factor_kernel(src, *offset_arrays(params.radius), params.radius, F32(params.gain), F32(params.eps), out, None,
                   sigs, factor_parallel(src.shape))
     return out
 
@@ -157,10 +164,10 @@ def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None =
 def census_planes_numba(img: np.ndarray, params: CensusParams) -> np.ndarray:
     """fusion.census_planes with :func:`factor_kernel`: an image's (H, W) soft census signature, interleaved
     (H, W, K) float32 (census.signature's to float32 rounding)."""
-    src = np.ascontiguousarray(img, dtype=_F32)
-    out = np.empty(src.shape + (_K,), _F32)
-    factor_kernel(src, *_offset_arrays(params.radius), params.radius, _F32(params.gain), _F32(params.eps),
-                  np.empty(src.shape, _F32), out, None, factor_parallel(src.shape))
+    src = np.ascontiguousarray(img, dtype=F32)
+    out = np.empty(src.shape + (K,), F32)
+    factor_kernel(src, *offset_arrays(params.radius), params.radius, F32(params.gain), F32(params.eps),
+                  np.empty(src.shape, F32), out, None, factor_parallel(src.shape))
     return out
 
 
@@ -176,10 +183,10 @@ def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.
     valid until this thread's next level signature of that shape, i.e. for the level's warps."""
     stack = frames if frames.ndim == 3 else frames[None]
     n, h, w = stack.shape
-    out = scratch("census.f0", (_K * n, h, w))
+    out = scratch("census.f0", (K * n, h, w))
     factor = scratch("census.factor", (h, w))
     for c in range(n):
-        factor_numba(stack[c], params, out=factor, sigs=out[c * _K:(c + 1) * _K])
+        factor_numba(stack[c], params, out=factor, sigs=out[c * K:(c + 1) * K])
     return out, None
 
 
@@ -193,19 +200,19 @@ def contrast_kernel(frames, dy, dx, st, ny, nx):  # noqa: ANN001, ANN201
     n_c = frames.shape[0]
     k_n = dy.shape[0]
     values = np.empty(ny * nx, np.float32)
-    best = _F32(-1.0)
+    best = F32(-1.0)
     for c in range(n_c):
         for i in range(ny):
             y = 1 + st * i
             sq = values[i * nx:(i + 1) * nx]  # the row's sums, then its s(x)
-            sq[:] = _F32(0.0)
+            sq[:] = F32(0.0)
             for k in range(k_n):
                 yk, xk = y + dy[k], 1 + dx[k]
                 for j in range(nx):  # unsigned column indices (numba_census's module doc: signed ones wrap around)
                     d = frames[c, yk, np.uint64(xk + st * j)] - frames[c, y, np.uint64(1 + st * j)]
                     sq[j] += d * d
             for j in range(nx):
-                sq[j] = math.sqrt(sq[j] / _F32(k_n))
+                sq[j] = math.sqrt(sq[j] / F32(k_n))
         best = max(best, median_f32(values))  # np.median's value
     return best
 
@@ -216,5 +223,5 @@ def median_contrast_numba(frames: np.ndarray) -> float:
     if h < 3 or w < 3:
         return 0.0
     st = contrast_stride(h, w)
-    return float(contrast_kernel(np.ascontiguousarray(frames, dtype=_F32), OFFSETS_DY, OFFSETS_DX, st,
+    return float(contrast_kernel(np.ascontiguousarray(frames, dtype=F32), OFFSETS_DY, OFFSETS_DX, st,
                                  len(range(1, h - 1, st)), len(range(1, w - 1, st))))
