@@ -42,6 +42,11 @@ from .numba_warp import sample_row
 from .warping import KERNEL_CODES
 from .workspace import scratch
 
+# _form_rows works four channels a pass and finishes the form in the last pass: C K channels must be a multiple
+# of four and at least eight (K = 8 by construction, census.OFFSETS); a change of K has to revisit it
+if K % 4 or K < 8:
+    raise RuntimeError(f"numba_census._form_rows needs K a multiple of 4 and >= 8, got K = {K}")
+
 
 @njit(**ROWS)
 def _factor_row(warped, c, sm, s0, sp, rad, gain, eps, ss, zero):  # noqa: ANN001, ANN201
