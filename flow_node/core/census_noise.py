@@ -72,14 +72,11 @@ class PairNoise:
     """A pair's noise for the census EPS floor: ``sigma``, the larger of both frames' white-noise std in
     normalised units (before presmoothing), and ``blur``, the presmoothing Gaussian (px; 0: none) both frames
     then got (photometric.normalise_frames); ``frames``: each frame's std where :func:`pair_noise` measured them
-    (a stream hands frame 1's to its next pair: engine.Seen), else None; ``base_blur``: the blur before the
-    noise-adaptive presmoothing (engine.photometric_stage, FlowConfig.census_noise_smooth) raised it to ``blur``
-    (None: it did not)."""
+    (a stream hands frame 1's to its next pair: engine.Seen), else None."""
 
     sigma: float
     blur: float = 0.0
     frames: tuple[float, float] | None = None
-    base_blur: float | None = None
 
 
 def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_gain: float,

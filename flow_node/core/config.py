@@ -95,12 +95,6 @@ class FlowConfig:
                                "off). Damps flat areas whose contrast is noise (low light); 3 chosen on the suite's "
                                "tune split (2 before task noisek; docs/engine.md, 'The census data term')",
                                lo=0.0, hi=100.0)
-    census_noise_smooth: float = _f(0.0, "photometric census: noise-adaptive presmoothing; both frames are blurred "
-                                    "by the least Gaussian that takes the pair's measured noise's differences "
-                                    "(at the finest signature's distance, after the pyramid's noise gain) to "
-                                    "this fraction of the signature's EPS (0 = off; a pair whose noise is "
-                                    "already there is not blurred; docs/engine.md, 'The census data term')",
-                                    lo=0.0, hi=100.0)
     census_finest_radius: int = _f(1, "photometric census: the distance (px) of the signature's eight neighbours "
                                    "on the finest solved level: 1 = the 3 x 3 neighbourhood, as on every coarser "
                                    "level; 2 = the ring at distance 2 (the 5 x 5 window's corners and edge "

@@ -33,7 +33,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from .backends import Backend
-from .census import CENSUS
 from .census_noise import PairNoise, channel_noise, pair_noise
 from .colour import normalise_channel_pair
 from .config import FlowConfig
@@ -51,9 +50,7 @@ from .photometric import (
     frame_key,
     frame_maps,
     frame_samples,
-    noise_blur,
     pair_map,
-    presmoothed,
     stage,
 )
 from .pyramid import Pyramid, make_pyramid, noise_gain, resize_flow, resize_state
@@ -139,13 +136,6 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     if signatures and cfg.census_noise_k > 0:
         noise = (pair_noise((i0, i1), samples, gain, solver_pair, backend.noise, maps, known0.sigma if same else None)
                  if colour is None else channel_noise(*colour, gain, backend.noise))
-        if cfg.census_noise_smooth > 0:
-            blur = noise_blur(noise.sigma * gain, cfg.census_noise_smooth, CENSUS.eps, cfg.census_finest_radius)
-            if blur > noise.blur:
-                solver_pair = frames = (presmoothed(solver_pair[0], blur, noise.blur),
-                                        presmoothed(solver_pair[1], blur, noise.blur))
-                noise = PairNoise(noise.sigma, blur, noise.frames, noise.blur)
-                keys = (None, None)  # the frames' images now depend on the pair's noise: not reused by a stream
     return solver_pair, Judged(frames, judge, samples, keys, noise, maps)
 
 
@@ -323,9 +313,6 @@ def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend
     raw, channels = channels, colour_stage(i0.shape, channels, cfg)
     colour = None if raw is None or channels is None else (raw, channels)
     (i0, i1), judged = photometric_stage(i0, i1, cfg, backend, sample0, colour=colour)
-    if channels is not None and judged.noise is not None and judged.noise.base_blur is not None:
-        channels = tuple(np.stack([presmoothed(c, judged.noise.blur, judged.noise.base_blur) for c in frame])
-                         for frame in channels)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow, backend.ranks)
     pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid, noise=judged.noise)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -55,8 +54,6 @@ EXPOSURE_QUANTILES = np.arange(5.0, 96.0, 5.0)
 EXPOSURE_DEAD_ZONE = 0.1  # |gain - 1| below which frame 1 is left alone (see exposure_change)
 STEP_REF = 0.01  # quantisation step (of the pair's range) up to which the data term is left as it is
 QUANT_SIGMA = 1.0  # px: presmoothing of coarsely quantised pairs (turns their staircases back into ramps)
-NOISE_BLUR_STEP = 0.1  # px: the noise-adaptive presmoothing's blur is a multiple of this (the floor's gains cached)
-NOISE_BLUR_MAX = 4.0  # px: and at most this
 CLIP_MARGIN = 0.01  # quantiles this close to the encoding's 0 or 1 may be clipped: not used for the fit
 LOCAL_SIGMA = 4.0  # px: the window of the local contrast normalisation
 LOCAL_EPS = 0.02  # of the pair's range: local contrast below this is not amplified (noise in flat areas)
@@ -152,44 +149,6 @@ def affine_normalised(img: np.ndarray, lo: float, hi: float, step: float, noise_
     if presmooth:
         out = cv2.GaussianBlur(out, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)
     return out
-
-
-def noise_blur(sigma: float, fraction: float, eps: float, lag: int = 1) -> float:
-    """The census stage's noise-adaptive presmoothing (FlowConfig.census_noise_smooth = ``fraction``): the
-    smallest Gaussian blur b (px, a multiple of NOISE_BLUR_STEP, at most NOISE_BLUR_MAX) that takes the RMS of
-    white noise's differences between pixels ``lag`` px apart, sigma sqrt(2) :func:`difference_gain` (b, lag) for
-    noise of std ``sigma``, to at most ``fraction`` times the signature's ``eps``; 0 when the unblurred noise is
-    already there (or ``fraction`` <= 0): a clean pair is not touched."""
-    if fraction <= 0 or sigma * math.sqrt(2.0) <= fraction * eps:
-        return 0.0
-    steps = round(NOISE_BLUR_MAX / NOISE_BLUR_STEP)
-    for k in range(1, steps + 1):
-        b = round(k * NOISE_BLUR_STEP, 6)
-        if sigma * math.sqrt(2.0) * difference_gain(b, lag) <= fraction * eps:
-            return b
-    return NOISE_BLUR_MAX
-
-
-@lru_cache(maxsize=256)
-def difference_gain(blur: float, lag: int = 1) -> float:
-    """The RMS of white noise's differences between pixels ``lag`` px apart (along x and y) after a Gaussian
-    blur of ``blur`` px (OpenCV's kernel for float input, as cv2.GaussianBlur), over the unblurred noise's
-    (1 without blur): with the 1-D kernel k, sqrt(S D / 2), S = sum k^2 (the blurred noise's variance along
-    one axis), D = sum (k_i - k_(i - lag))^2 (its difference's), interior pixels."""
-    if blur <= 0:
-        return 1.0
-    k = cv2.getGaussianKernel((int(round(blur * 4 * 2 + 1)) | 1), blur, cv2.CV_64F).ravel()
-    padded = np.concatenate([np.zeros(lag), k, np.zeros(lag)])
-    d = padded[lag:] - padded[:-lag]
-    return float(math.sqrt(np.dot(k, k) * np.dot(d, d) / 2.0))
-
-
-def presmoothed(img: np.ndarray, blur: float, done: float = 0.0) -> np.ndarray:
-    """img (H, W) float32 blurred to a Gaussian of ``blur`` px in all when it had one of ``done`` px already
-    (Gaussians compose: the rest is sqrt(blur^2 - done^2)); img itself when blur <= done."""
-    if blur <= done:
-        return img
-    return cv2.GaussianBlur(img, (0, 0), math.sqrt(blur * blur - done * done), borderType=cv2.BORDER_REFLECT)
 
 
 def relative_step(lo: float, hi: float, step: float, noise_gain: float) -> float:
