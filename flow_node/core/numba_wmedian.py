@@ -16,22 +16,40 @@ import math
 import numpy as np
 from numba import njit
 
-from .wmedian import QUANTUM, median_filter, spatial_weights, window_range
+from .wmedian import QUANTUM, median_filter, spatial_weights
+from .workspace import scratch
 
 _JIT = dict(cache=True, error_model="numpy", nogil=True)  # no fastmath: the reference's float64 arithmetic
 
 
 @njit(**_JIT)
-def _occlusion(v, inv, out):  # noqa: ANN001, ANN202
-    """wmedian.occlusion_weight into ``out`` (H, W) float64; ``inv`` = 1 / (2 sigma_d^2)."""
-    h, w = out.shape
+def _prepare(v, tau, inv, occ, ys, xs):  # noqa: ANN001, ANN202
+    """One pass over the level: wmedian.occlusion_weight into ``occ`` (H, W) float64 (``inv`` = 1 / (2 sigma_d^2),
+    0: ones) and the pixels whose 3 x 3 window (border replicated) has a flow component's range over ``tau``
+    (wmedian.window_range with RANGE_WINDOW 3) into ``ys``, ``xs`` in row-major order; returns their count."""
+    h, w = occ.shape
+    count = 0
     for i in range(h):
         iu, idn = max(i - 1, 0), min(i + 1, h - 1)
         for j in range(w):
             jl, jr = max(j - 1, 0), min(j + 1, w - 1)
-            div = 0.5 * (np.float64(v[0, i, jr]) - np.float64(v[0, i, jl])) + \
-                0.5 * (np.float64(v[1, idn, j]) - np.float64(v[1, iu, j]))
-            out[i, j] = math.exp(-(div * div) * inv) if div < 0.0 else 1.0
+            if inv > 0.0:
+                div = 0.5 * (np.float64(v[0, i, jr]) - np.float64(v[0, i, jl])) + \
+                    0.5 * (np.float64(v[1, idn, j]) - np.float64(v[1, iu, j]))
+                occ[i, j] = math.exp(-(div * div) * inv) if div < 0.0 else 1.0
+            else:
+                occ[i, j] = 1.0
+            over = False
+            for c in range(2):
+                lo = hi = v[c, i, j]
+                for a in (iu, i, idn):
+                    for b in (jl, j, jr):
+                        lo, hi = min(lo, v[c, a, b]), max(hi, v[c, a, b])
+                over = over or np.float64(hi - lo) > tau  # the float32 range, as the reference's
+            if over:
+                ys[count], xs[count] = i, j
+                count += 1
+    return count
 
 
 @njit(**_JIT)
@@ -69,7 +87,7 @@ def _weighted(v, guide, occ, ys, xs, r, spatial, inv, out):  # noqa: ANN001, ANN
             for k in range(n):
                 vals[k] = v[c, iy[k], ix[k]]
             best = np.float32(np.inf)
-            for k in range(n):
+            for k in range(n):  # the least value whose weight of values <= it reaches half the total
                 below = 0
                 vk = vals[k]
                 for j in range(n):
@@ -85,11 +103,11 @@ def weighted_median_numba(v: np.ndarray, i0: np.ndarray, size: int, sigma_i: flo
     out = median_filter(v, size)
     if sigma_i <= 0.0:
         return out
-    ys, xs = np.nonzero(window_range(v, size) > tau)
-    if ys.size == 0:
-        return out
-    occ = np.ones(i0.shape)
-    if sigma_d > 0.0:
-        _occlusion(v, 1.0 / (2.0 * sigma_d * sigma_d), occ)
-    _weighted(v, i0, occ, ys, xs, size // 2, spatial_weights(size), 1.0 / (sigma_i * sigma_i), out)
+    h, w = i0.shape
+    occ = scratch("wmedian.occ", (h, w), np.float64)
+    ys, xs = scratch("wmedian.ys", (h * w,), np.int64), scratch("wmedian.xs", (h * w,), np.int64)
+    count = _prepare(v, float(tau), 1.0 / (2.0 * sigma_d * sigma_d) if sigma_d > 0.0 else 0.0, occ, ys, xs)
+    if count:
+        _weighted(v, i0, occ, ys[:count], xs[:count], size // 2, spatial_weights(size),
+                  1.0 / (sigma_i * sigma_i), out)
     return out
