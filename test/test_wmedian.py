@@ -72,7 +72,7 @@ def test_the_occlusion_state() -> None:
     u[:, 8] = -2.0  # compression at columns 7 and 9 (div = -1), expansion none where u is flat
     v = np.stack([u, np.zeros_like(u)])
     o = occlusion_weight(v, 0.15)
-    assert np.all(o[:, :6] == 1.0) and np.all(o[:, 7] < 1e-6) and np.all(o[:, 9] == 1.0)  # div(9) = +1
+    assert np.all(o[:, :6] == 1.0) and np.all(o[:, 7] < 0.05) and np.all(o[:, 9] == 1.0)  # div(9) = +1
     np.testing.assert_array_equal(occlusion_weight(v, 0.0), 1.0)
 
 

@@ -171,7 +171,7 @@ class FlowConfig:
                                     "that weighs a window's neighbours in the median after each warp; 0 = the plain "
                                     "median", lo=0.0, hi=10.0)
     median_occlusion_sigma: float = _f(0.15, "weighted median: sigma (1/frame) of the occlusion state "
-                                       "exp(-min(div v, 0)^2 / (2 sigma^2)) that weighs each neighbour (0 = none)",
+                                       "1 / (1 + min(div v, 0)^2 / sigma^2) that weighs each neighbour (0 = none)",
                                        lo=0.0, hi=100.0)
     median_weight_warps: str = _f("every", "weighted median: after 'every' warp, or after each level's 'last' warp "
                                   "only (the one whose flow the level hands on), or after the finest solved level's "

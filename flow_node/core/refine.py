@@ -74,7 +74,7 @@ def warp_median(v: np.ndarray, i0: np.ndarray, size: int, cfg: FlowConfig, backe
     if cfg.median_weight_sigma <= 0.0 or not weighted:
         return median_filter(v, size)
     return backend.weighted_median(v, i0, size, cfg.median_weight_sigma, cfg.median_occlusion_sigma,
-                                   cfg.median_weight_range)
+                                   cfg.median_weight_range, cfg.median_filter or size)
 
 
 def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:

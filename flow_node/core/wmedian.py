@@ -8,7 +8,7 @@ matches nothing) take whatever the solver left them. The weighted median gives n
     w(x, y) = exp(-|y - x|^2 / (2 SPATIAL_SIGMA^2)) / (1 + (I0(y) - I0(x))^2 / sigma_i^2) * o(y)
 
 (I0 the level's grey frame 0, ``sigma_i`` = FlowConfig.median_weight_sigma) with the occlusion state
-o(y) = exp(-min(div v(y), 0)^2 / (2 sigma_d^2)) (``sigma_d`` = FlowConfig.median_occlusion_sigma, 0: o = 1):
+o(y) = 1 / (1 + min(div v(y), 0)^2 / sigma_d^2) (``sigma_d`` = FlowConfig.median_occlusion_sigma, 0: o = 1):
 a pixel the flow compresses (negative divergence: the surface behind it is being covered) is likely occluded
 (Sand & Teller; Sun et al.'s o(x) without the brightness residual, which a photometric change would fake). Its
 neighbours on the same side of an image edge and not occluded decide its flow.
@@ -55,7 +55,7 @@ def window_range(v: np.ndarray, size: int) -> np.ndarray:
 
 
 def occlusion_weight(v: np.ndarray, sigma_d: float) -> np.ndarray:
-    """o (H, W) float64 in (0, 1]: exp(-min(div v, 0)^2 / (2 sigma_d^2)), div by central differences with the
+    """o (H, W) float64 in (0, 1]: 1 / (1 + min(div v, 0)^2 / sigma_d^2), div by central differences with the
     border replicated; 1 everywhere for sigma_d <= 0."""
     h, w = v.shape[1:]
     if sigma_d <= 0.0:
@@ -65,7 +65,7 @@ def occlusion_weight(v: np.ndarray, sigma_d: float) -> np.ndarray:
     yd, yu = np.minimum(np.arange(h) + 1, h - 1), np.maximum(np.arange(h) - 1, 0)
     div = 0.5 * (u[:, xr] - u[:, xl]) + 0.5 * (vv[yd] - vv[yu])
     d = np.minimum(div, 0.0)
-    return np.exp(-(d * d) * (1.0 / (2.0 * sigma_d * sigma_d)))
+    return 1.0 / (1.0 + (d * d) * (1.0 / (sigma_d * sigma_d)))
 
 
 @lru_cache(maxsize=4)
@@ -78,11 +78,11 @@ def spatial_weights(size: int) -> np.ndarray:
     return weights
 
 
-def weighted_median(v: np.ndarray, i0: np.ndarray, size: int, sigma_i: float, sigma_d: float,
-                    tau: float) -> np.ndarray:
+def weighted_median(v: np.ndarray, i0: np.ndarray, size: int, sigma_i: float, sigma_d: float, tau: float,
+                    window: int = 0) -> np.ndarray:
     """The flow ``v`` (2, H, W) float32 filtered: the plain median (:func:`median_filter`) where the range over the
-    RANGE_WINDOW window is at most ``tau``, elsewhere the weighted median of each component over the size x size
-    window with the module's weights (``i0``: the level's frame 0, (H, W)). The weights are integers,
+    RANGE_WINDOW window is at most ``tau``, elsewhere the weighted median of each component over the window x window
+    window (``window`` 0: ``size``) with the module's weights (``i0``: the level's frame 0, (H, W)). The weights are integers,
     q_k = floor(w_k QUANTUM) + 1 (exact sums in any order, so the numba kernel's values are the same); the weighted
     median of values x_k is the least x_k whose weight of values <= x_k is at least half the total."""
     out = median_filter(v, size)
@@ -92,14 +92,15 @@ def weighted_median(v: np.ndarray, i0: np.ndarray, size: int, sigma_i: float, si
     if ys.size == 0:
         return out
     h, w = i0.shape
-    r = size // 2
+    window = window or size
+    r = window // 2
     occ = occlusion_weight(v, sigma_d)
     guide = i0.astype(np.float64)
     offsets = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
     ny = np.stack([np.clip(ys + dy, 0, h - 1) for dy, _ in offsets])  # (n, m)
     nx = np.stack([np.clip(xs + dx, 0, w - 1) for _, dx in offsets])
     diff = guide[ny, nx] - guide[ys, xs][None]
-    weights = spatial_weights(size)[:, None] / (1.0 + (diff * diff) * (1.0 / (sigma_i * sigma_i))) * occ[ny, nx]
+    weights = spatial_weights(window)[:, None] / (1.0 + (diff * diff) * (1.0 / (sigma_i * sigma_i))) * occ[ny, nx]
     quanta = np.floor(weights * QUANTUM).astype(np.int64) + 1
     total = quanta.sum(axis=0)
     for c in range(2):
