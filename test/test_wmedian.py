@@ -110,3 +110,23 @@ def test_fields_and_the_warps_it_runs_after() -> None:
         np.testing.assert_array_equal(warp_median(v, i0, 5, cfg, backend, weighted=False), median_filter(v, 5))
         np.testing.assert_allclose(warp_median(v, i0, 5, cfg, backend), weighted_median(v, i0, 5, 0.06, 0.15, 0.5),
                                    rtol=0, atol=AGREE)
+
+
+@pytest.mark.parametrize("n", [1, 2, 9, 25, 49])
+def test_the_sorting_network(n: int) -> None:
+    """The kernel's network sorts: every 0/1 input for n <= 9 (the 0-1 principle: then it sorts anything), random
+    inputs with ties for the larger windows; 140 compare-exchanges for 5 x 5."""
+    from flow_node.core.numba_wmedian import sorting_network
+    pairs = sorting_network(n)
+    assert np.all(pairs[:, 0] < pairs[:, 1]) and (pairs.size == 0 or pairs.max() < n)
+    rng = np.random.default_rng(n)
+    inputs = ([[(m >> i) & 1 for i in range(n)] for m in range(2**n)] if n <= 9
+              else rng.integers(0, 7, (3000, n)).tolist())
+    for values in inputs:
+        a = list(values)
+        for i, j in pairs:
+            if a[i] > a[j]:
+                a[i], a[j] = a[j], a[i]
+        assert a == sorted(values)
+    if n == 25:
+        assert len(pairs) == 140

@@ -176,7 +176,7 @@ class FlowConfig:
     median_weight_warps: str = _f("every", "weighted median: after 'every' warp, or after each level's 'last' warp "
                                   "only (the one whose flow the level hands on), or after the finest solved level's "
                                   "last warp only ('finest'); the plain median after the others",
-                                  choices=("every", "last", "finest"))
+                                  choices=("every", "last", "finest", "coarse"))
     median_weight_range: float = _f(0.5, "weighted median: px; where both flow components' ranges over the "
                                     "3 x 3 window around a pixel are at most this the plain median stands (the "
                                     "weights only matter where a pixel is next to two motions; the cost goes there)",

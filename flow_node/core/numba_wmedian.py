@@ -5,13 +5,16 @@ The plain median stays OpenCV's vectorised filter. :func:`_flagged` finds the pi
 motions in one pass over the rows (the column and row extrema along a row at plain indices, which LLVM vectorises;
 numba_edges), :func:`_weighted` weighs BLOCK of them side by side: each window's neighbour k of the block's pixels
 in a row ``[k, p]``, so the weights (the occlusion state from the flow's central differences at the neighbour, the
-grey-value similarity) and the comparisons of the median run along p, vectorised, with no sort and no branch. The
+grey-value similarity), a sorting network on the (value, weight) pairs (:func:`sorting_network`: 140 compare-exchanges
+for a 5 x 5 window, against 625 comparisons of every value with every other) and the cumulative weight run along p,
+vectorised, with no branch. The
 weights are integers (wmedian.QUANTUM), so each pixel's sums are exact in any order: the reference's values.
 """
 
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -22,6 +25,36 @@ from .workspace import scratch
 BLOCK = 64  # pixels the kernel weighs side by side
 _JIT = dict(cache=True, error_model="numpy", nogil=True)  # no fastmath: the reference's float64 arithmetic
 assert RANGE_WINDOW == 3  # _flagged's window
+
+
+@lru_cache(maxsize=4)
+def sorting_network(n: int) -> np.ndarray:
+    """Batcher's odd-even merge sort of n values: (m, 2) int64 compare-exchange pairs (i < j: the smaller value to
+    i), the network of the next power of two without the comparators that touch a slot >= n (those only meet the
+    padding's +inf, which never moves a value)."""
+    size = 1 << max(n - 1, 0).bit_length()
+    pairs: list[tuple[int, int]] = []
+
+    def merge(lo: int, hi: int, r: int) -> None:
+        step = 2 * r
+        if step < hi - lo:
+            merge(lo, hi, step)
+            merge(lo + r, hi, step)
+            pairs.extend((i, i + r) for i in range(lo + r, hi - r, step))
+        else:
+            pairs.append((lo, lo + r))
+
+    def sort(lo: int, hi: int) -> None:
+        if hi > lo:
+            mid = (lo + hi) // 2
+            sort(lo, mid)
+            sort(mid + 1, hi)
+            merge(lo, hi, 1)
+
+    sort(0, size - 1)
+    network = np.array([p for p in pairs if p[1] < n], np.int64).reshape(-1, 2)
+    network.flags.writeable = False
+    return network
 
 
 @njit(**_JIT)
@@ -51,15 +84,18 @@ def _flagged(v, tau, ys, xs, lo, hi):  # noqa: ANN001, ANN202
 
 
 @njit(**_JIT)
-def _weighted(v, guide, ys, xs, r, spatial, inv, inv_d, out):  # noqa: ANN001, ANN202
+def _weighted(v, guide, ys, xs, r, spatial, inv, inv_d, pairs, out):  # noqa: ANN001, ANN202
     """The weighted median of each component at pixels (ys, xs) into ``out`` (2, H, W) (wmedian.weighted_median);
-    ``inv`` = 1 / sigma_i^2, ``inv_d`` = 1 / sigma_d^2 (0: no occlusion state)."""
+    ``inv`` = 1 / sigma_i^2, ``inv_d`` = 1 / sigma_d^2 (0: no occlusion state); ``pairs``: :func:`sorting_network`
+    of the window's size."""
     h, w = guide.shape
     n = (2 * r + 1) * (2 * r + 1)
     vals = np.zeros((2, n, BLOCK), np.float32)  # a last block's unused columns: zeros (ignored)
     dif = np.zeros((n, BLOCK))
     div = np.zeros((n, BLOCK))
     wq = np.empty((n, BLOCK), np.int32)
+    work_v = np.empty((n, BLOCK), np.float32)
+    work_q = np.empty((n, BLOCK), np.int32)
     total = np.empty(BLOCK, np.int32)
     below = np.empty(BLOCK, np.int32)
     best = np.empty(BLOCK, np.float32)
@@ -91,15 +127,22 @@ def _weighted(v, guide, ys, xs, r, spatial, inv, inv_d, out):  # noqa: ANN001, A
                 qk[p] = np.int32(math.floor(sk / (1.0 + (dk[p] * dk[p]) * inv) * o * QUANTUM)) + np.int32(1)
                 total[p] += qk[p]
         for c in range(2):
+            sv, sw = work_v, work_q  # the window sorted by value, its weights along (a sorting network)
+            sv[:] = vals[c]
+            sw[:] = wq
+            for t in range(pairs.shape[0]):
+                vi, vj, qi, qj = sv[pairs[t, 0]], sv[pairs[t, 1]], sw[pairs[t, 0]], sw[pairs[t, 1]]
+                for p in range(BLOCK):
+                    a, b, qa, qb = vi[p], vj[p], qi[p], qj[p]
+                    swap = a > b
+                    vi[p], vj[p] = (b, a) if swap else (a, b)
+                    qi[p], qj[p] = (qb, qa) if swap else (qa, qb)
+            below[:] = 0
             best[:] = inf
             for k in range(n):  # the least value whose weight of values <= it reaches half the total
-                below[:] = 0
-                vk = vals[c, k]
-                for j in range(n):
-                    vj, qj = vals[c, j], wq[j]
-                    for p in range(BLOCK):
-                        below[p] += qj[p] if vj[p] <= vk[p] else np.int32(0)
+                vk, qk = sv[k], sw[k]
                 for p in range(BLOCK):
+                    below[p] += qk[p]
                     best[p] = min(best[p], vk[p] if np.int32(2) * below[p] >= total[p] else inf)
             for p in range(cnt):
                 out[c, ys[start + p], xs[start + p]] = best[p]
@@ -118,5 +161,5 @@ def weighted_median_numba(v: np.ndarray, i0: np.ndarray, size: int, sigma_i: flo
         inv_d = 1.0 / (sigma_d * sigma_d) if sigma_d > 0.0 else 0.0
         window = window or size
         _weighted(v, i0, ys[:count], xs[:count], window // 2, spatial_weights(window), 1.0 / (sigma_i * sigma_i), inv_d,
-                  out)
+                  sorting_network(window * window), out)
     return out

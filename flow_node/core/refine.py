@@ -138,7 +138,9 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         last = warp == warps - 1
         size = sizes[last]
         if size:
-            weighted = cfg.median_weight_warps == "every" or (last and (cfg.median_weight_warps == "last" or on_finest))
+            mode = cfg.median_weight_warps
+            weighted = mode == "every" or (mode == "coarse" and not on_finest) or (
+                last and (mode in ("last", "coarse") or on_finest))
             state.v = warp_median(state.v, pyr.i0[level], size, cfg, backend, weighted)
     extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra

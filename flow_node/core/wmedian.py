@@ -82,9 +82,9 @@ def weighted_median(v: np.ndarray, i0: np.ndarray, size: int, sigma_i: float, si
                     window: int = 0) -> np.ndarray:
     """The flow ``v`` (2, H, W) float32 filtered: the plain median (:func:`median_filter`) where the range over the
     RANGE_WINDOW window is at most ``tau``, elsewhere the weighted median of each component over the window x window
-    window (``window`` 0: ``size``) with the module's weights (``i0``: the level's frame 0, (H, W)). The weights are integers,
-    q_k = floor(w_k QUANTUM) + 1 (exact sums in any order, so the numba kernel's values are the same); the weighted
-    median of values x_k is the least x_k whose weight of values <= x_k is at least half the total."""
+    window (``window`` 0: ``size``) with the module's weights (``i0``: the level's frame 0, (H, W)). The weights are
+    integers, q_k = floor(w_k QUANTUM) + 1 (exact sums in any order, so the numba kernel's values are the same);
+    the weighted median of values x_k is the least x_k whose weight of values <= x_k is at least half the total."""
     out = median_filter(v, size)
     if sigma_i <= 0.0:
         return out
