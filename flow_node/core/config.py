@@ -173,9 +173,10 @@ class FlowConfig:
     median_occlusion_sigma: float = _f(0.15, "weighted median: sigma (1/frame) of the occlusion state "
                                        "1 / (1 + min(div v, 0)^2 / sigma^2) that weighs each neighbour (0 = none)",
                                        lo=0.0, hi=100.0)
-    median_weight_warps: str = _f("every", "weighted median: after 'every' warp, or after each level's 'last' warp "
-                                  "only (the one whose flow the level hands on), or after the finest solved level's "
-                                  "last warp only ('finest'); the plain median after the others",
+    median_weight_warps: str = _f("every", "weighted median: after 'every' warp, after each level's 'last' warp only "
+                                  "(the one whose flow the level hands on), after the finest solved level's last "
+                                  "warp only ('finest'), or after every warp of the coarser levels and the finest "
+                                  "solved level's last ('coarse'); the plain median after the others",
                                   choices=("every", "last", "finest", "coarse"))
     median_weight_range: float = _f(0.5, "weighted median: px; where both flow components' ranges over the "
                                     "3 x 3 window around a pixel are at most this the plain median stands (the "
