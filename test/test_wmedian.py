@@ -130,3 +130,13 @@ def test_the_sorting_network(n: int) -> None:
         assert a == sorted(values)
     if n == 25:
         assert len(pairs) == 140
+
+
+def test_which_warps_weigh() -> None:
+    from flow_node.core.refine import weighs
+    table = {"every": [True] * 4, "last": [False, True, False, True], "finest": [False, False, False, True],
+             "coarse": [True, True, False, True]}
+    for mode, expected in table.items():
+        cfg = FlowConfig(median_weight_sigma=0.06, median_weight_warps=mode)
+        got = [weighs(cfg, last, finest) for finest in (False, True) for last in (False, True)]
+        assert got == expected, mode

@@ -66,6 +66,16 @@ def warp_medians(cfg: FlowConfig, inner: int = -1) -> tuple[int, int]:
     return (cfg.median_filter if inner < 0 else inner), cfg.median_filter
 
 
+def weighs(cfg: FlowConfig, last: bool, on_finest: bool) -> bool:
+    """Whether ``cfg.median_weight_warps`` names a warp (``last``: a level's last; ``on_finest``: of the finest
+    solved level) for the weighted median: every warp, each level's last, the finest solved level's last, or
+    ('coarse') every warp of the coarser levels and the finest solved level's last."""
+    mode = cfg.median_weight_warps
+    if mode == "every" or (mode == "coarse" and not on_finest):
+        return True
+    return last and (mode in ("last", "coarse") or on_finest)
+
+
 def warp_median(v: np.ndarray, i0: np.ndarray, size: int, cfg: FlowConfig, backend: Backend,
                 weighted: bool = True) -> np.ndarray:
     """The median filter after a warp: plain (:func:`median_filter`), or with ``cfg.median_weight_sigma`` > 0 and
@@ -138,10 +148,7 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         last = warp == warps - 1
         size = sizes[last]
         if size:
-            mode = cfg.median_weight_warps
-            weighted = mode == "every" or (mode == "coarse" and not on_finest) or (
-                last and (mode in ("last", "coarse") or on_finest))
-            state.v = warp_median(state.v, pyr.i0[level], size, cfg, backend, weighted)
+            state.v = warp_median(state.v, pyr.i0[level], size, cfg, backend, weighs(cfg, last, on_finest))
     extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 

@@ -1,7 +1,7 @@
 """The weighted median filter of the flow after a warp (docs/engine.md, "Weighted median"): Sun, Roth and Black,
 "Secrets of optical flow estimation and their principles" (CVPR 2010; IJCV 2014, "Classic+NL"), in a cheap form.
 
-The plain median (refine.median_filter) gives every neighbour of a window the same say, so at a motion boundary
+The plain median (:func:`median_filter`) gives every neighbour of a window the same say, so at a motion boundary
 the majority motion of the window wins whichever surface the pixel lies on, and occluded pixels (whose data term
 matches nothing) take whatever the solver left them. The weighted median gives neighbour y of pixel x the weight
 
@@ -17,9 +17,8 @@ The weights only matter where the window holds more than one motion: where each 
 over the RANGE_WINDOW x RANGE_WINDOW window around a pixel is at most ``tau`` (FlowConfig.median_weight_range, px)
 the plain median stands (3 x 3: a pixel 2 px from a straight boundary has its own side in the majority of a
 5 x 5 window, so the plain median is right there; a 5 x 5 range weighted twice the pixels for ~5 % more gain on
-tune real_exact). That is where
-the cost goes (the weighted median sorts each window; the plain one is OpenCV's vectorised filter), so only a
-window of two motions pays for it. Borders are replicated like OpenCV's median.
+tune real_exact). The weighted median costs per pixel what the plain one (OpenCV's vectorised filter) costs per
+row, so only a pixel next to two motions pays for it. Borders are replicated like OpenCV's median.
 
 This module is the numpy reference; numba_wmedian.weighted_median_numba is the numba backend's (same values).
 """
