@@ -18,15 +18,16 @@ passive_thread_waits()  # idle numba threads sleep, as in the executables: the t
 
 @pytest.fixture
 def median_sizes(monkeypatch: pytest.MonkeyPatch) -> list[int]:
-    """The sizes refine.median_filter is called with from now on, in order (the filter itself still runs)."""
+    """The median filter's sizes after each warp from now on, in order (refine.warp_median: the plain median or,
+    where the config weighs it, the weighted one; the filter itself still runs)."""
     from flow_node.core import refine
 
     sizes: list[int] = []
-    real = refine.median_filter
+    real = refine.warp_median
 
-    def spy(v: np.ndarray, size: int) -> np.ndarray:
+    def spy(v: np.ndarray, i0: np.ndarray, size: int, *args: object, **kwargs: object) -> np.ndarray:
         sizes.append(size)
-        return real(v, size)
+        return real(v, i0, size, *args, **kwargs)
 
-    monkeypatch.setattr(refine, "median_filter", spy)
+    monkeypatch.setattr(refine, "warp_median", spy)
     return sizes

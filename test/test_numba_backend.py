@@ -42,10 +42,12 @@ from flow_node.core.numba_fusion import consistent_numba, fuse_numba, planes_num
 from flow_node.core.numba_judge import reliability_numba as census_reliability_numba
 from flow_node.core.numba_sort import noise_sigma_numba, ranks_numba, sorted_sample_numba
 from flow_node.core.numba_temporal import push_pull_numba, splat_numba
+from flow_node.core.numba_wmedian import weighted_median_numba
 from flow_node.core.operators import image_gradient, linearise
 from flow_node.core.photometric import sorted_sample
 from flow_node.core.solver import CHECK_EVERY, PDState, Problem, SolveParams, solve_numpy
 from flow_node.core.warping import NUMPY_WARPER
+from flow_node.core.wmedian import weighted_median
 
 H, W = 40, 56
 ITERATIONS = 40
@@ -325,12 +327,13 @@ def flow_node_log(level: int) -> Iterator[list[logging.LogRecord]]:
 NUMPY_FIELDS = ("numpy", solve_numpy, NUMPY_WARPER, linearise, census_reliability, fuse, forward_backward_consistent,
                 level_signature, census_form, confidence, 1, NUMPY.on_threads, splat_forward,
                 confidence_at, sorted_sample, image_gradient, push_pull, level_planes, equalised,
-                median_contrast, noise_sigma, edge_weight)
+                median_contrast, noise_sigma, edge_weight, weighted_median)
 NUMBA_FIELDS = ("numba", solve_numba, WARPER, linearise_numba, census_reliability_numba, fuse_numba, consistent_numba,
                 level_signature_numba, census_form_numba, confidence_numba,
                 numba.config.NUMBA_NUM_THREADS, numba_backend.thread_count, splat_numba,
                 confidence_at_numba, sorted_sample_numba, image_gradient_numba, push_pull_numba,
-                planes_numba, ranks_numba, median_contrast_numba, noise_sigma_numba, edge_weight_numba)
+                planes_numba, ranks_numba, median_contrast_numba, noise_sigma_numba, edge_weight_numba,
+                weighted_median_numba)
 
 
 def test_backend_selection_and_log() -> None:

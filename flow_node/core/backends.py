@@ -24,6 +24,7 @@ from .operators import ImageGradient, Linearise, image_gradient, linearise
 from .photometric import Reliability, sorted_sample
 from .solver import LevelSolver, solve_numpy
 from .warping import NUMPY_WARPER, Warper
+from .wmedian import WeightedMedian, weighted_median
 
 log = logging.getLogger("flow_node")
 
@@ -70,6 +71,7 @@ class Backend(NamedTuple):
     contrast: Callable[[np.ndarray], float] = median_contrast  # a census level's contrast (census.median_contrast)
     noise: Callable[[np.ndarray], float] = noise_sigma  # a frame's white-noise std (census_noise.noise_sigma)
     edge_weight: EdgeWeight = edge_weight  # the edge-weighted TV's g of a level (edges.edge_weight)
+    weighted_median: WeightedMedian = weighted_median  # the weighted median after a warp (wmedian.weighted_median)
 
     def resolved(self) -> Backend:
         """This backend with each :class:`Deferred` field replaced by the function it stands for (importing
@@ -139,6 +141,11 @@ def _numba_edges() -> ModuleType:
     return numba_edges
 
 
+def _numba_wmedian() -> ModuleType:
+    from . import numba_wmedian
+    return numba_wmedian
+
+
 def _numba_sort() -> ModuleType:
     from . import numba_sort
     return numba_sort
@@ -206,4 +213,5 @@ def select_backend(name: str, threads: int = 0, parallel_min_pixels: int = 0) ->
                    cost_planes=numba_fusion.planes_numba, ranks=Deferred(_numba_sort, "ranks_numba"),
                    contrast=Deferred(_numba_census, "median_contrast_numba"),
                    noise=Deferred(_numba_sort, "noise_sigma_numba"),
-                   edge_weight=Deferred(_numba_edges, "edge_weight_numba"))
+                   edge_weight=Deferred(_numba_edges, "edge_weight_numba"),
+                   weighted_median=Deferred(_numba_wmedian, "weighted_median_numba"))

@@ -166,6 +166,22 @@ class FlowConfig:
                            "upsampled to full resolution (like DIS's finest_scale)", lo=0, hi=29)
     median_filter: int = _f(5, "median filter size applied to the flow after each warp (0 = off)",
                             choices=(0, 3, 5))
+    median_weight_sigma: float = _f(0.0, "weighted median (Sun, Roth, Black 2010, 'Classic+NL'; docs/engine.md "
+                                    "'Weighted median'): sigma of the frame-0 grey-value similarity (images in [0, 1]) "
+                                    "that weighs a window's neighbours in the median after each warp; 0 = the plain "
+                                    "median", lo=0.0, hi=10.0)
+    median_occlusion_sigma: float = _f(0.15, "weighted median: sigma (1/frame) of the occlusion state "
+                                       "1 / (1 + min(div v, 0)^2 / sigma^2) that weighs each neighbour (0 = none)",
+                                       lo=0.0, hi=100.0)
+    median_weight_warps: str = _f("every", "weighted median: after 'every' warp, after each level's 'last' warp only "
+                                  "(the one whose flow the level hands on), after the finest solved level's last "
+                                  "warp only ('finest'), or after every warp of the coarser levels and the finest "
+                                  "solved level's last ('coarse'); the plain median after the others",
+                                  choices=("every", "last", "finest", "coarse"))
+    median_weight_range: float = _f(0.5, "weighted median: px; where both flow components' ranges over the "
+                                    "3 x 3 window around a pixel are at most this the plain median stands (the "
+                                    "weights only matter where a pixel is next to two motions; the cost goes there)",
+                                    lo=0.0, hi=1000.0)
     level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
                                    "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
     tv_edge_weight: float = _f(0.0, "images only: a of the edge weight g = max(tv_edge_floor, "

@@ -13,7 +13,6 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
-import cv2
 import numpy as np
 
 from .backends import Backend
@@ -28,6 +27,7 @@ from .photometric import compares_signatures
 from .pyramid import Pyramid, make_pyramid, resize_state
 from .solver import PDState, Problem, SolveParams
 from .validity import data_weight, fill_flow
+from .wmedian import median_filter
 from .workspace import scratch
 
 
@@ -55,14 +55,6 @@ class SolveStats:
         return sum(self.iterations)
 
 
-def median_filter(v: np.ndarray, size: int) -> np.ndarray:
-    """Median of each flow component over size x size windows (OpenCV; size 3 or 5)."""
-    out = np.empty_like(v)
-    for ch, dst in zip(v, out, strict=True):
-        cv2.medianBlur(np.ascontiguousarray(ch), size, dst=dst)
-    return out
-
-
 def warp_medians(cfg: FlowConfig, inner: int = -1) -> tuple[int, int]:
     """The median filter's sizes after a level's warps (0: none): (after each warp but the last, after the last).
     ``cfg.median_filter`` for both, but before the last warp ``inner`` where set (>= 0: the stream stage's
@@ -72,6 +64,27 @@ def warp_medians(cfg: FlowConfig, inner: int = -1) -> tuple[int, int]:
     if inner < 0 and compares_signatures(cfg.photometric):
         inner = cfg.census_median_filter
     return (cfg.median_filter if inner < 0 else inner), cfg.median_filter
+
+
+def weighs(cfg: FlowConfig, last: bool, on_finest: bool) -> bool:
+    """Whether ``cfg.median_weight_warps`` names a warp (``last``: a level's last; ``on_finest``: of the finest
+    solved level) for the weighted median: every warp, each level's last, the finest solved level's last, or
+    ('coarse') every warp of the coarser levels and the finest solved level's last."""
+    mode = cfg.median_weight_warps
+    if mode == "every" or (mode == "coarse" and not on_finest):
+        return True
+    return last and (mode in ("last", "coarse") or on_finest)
+
+
+def warp_median(v: np.ndarray, i0: np.ndarray, size: int, cfg: FlowConfig, backend: Backend,
+                weighted: bool = True) -> np.ndarray:
+    """The median filter after a warp: plain (:func:`median_filter`), or with ``cfg.median_weight_sigma`` > 0 and
+    ``weighted`` (the warp is one ``cfg.median_weight_warps`` names) the backend's weighted median guided by the
+    level's frame 0 ``i0`` (wmedian.py; docs/engine.md "Weighted median")."""
+    if cfg.median_weight_sigma <= 0.0 or not weighted:
+        return median_filter(v, size)
+    return backend.weighted_median(v, i0, size, cfg.median_weight_sigma, cfg.median_occlusion_sigma,
+                                   cfg.median_weight_range, cfg.median_filter or size)
 
 
 def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
@@ -132,9 +145,10 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
             state.v = fill_flow(state.v, data_weight(*valid, state.v))
         problem = linearised(state.v)
         iterations += backend.solve(problem, state, params)
-        size = sizes[warp == warps - 1]
+        last = warp == warps - 1
+        size = sizes[last]
         if size:
-            state.v = median_filter(state.v, size)
+            state.v = warp_median(state.v, pyr.i0[level], size, cfg, backend, weighs(cfg, last, on_finest))
     extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 
