@@ -8,11 +8,14 @@ import numpy as np
 import pytest
 from synth import isoluminant_pair, texture
 
+from bench.suite.synthetic import bit_depth
+from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import NUMPY
 from flow_node.core.census_noise import pair_noise
 from flow_node.core.colour import normalise_channel_pair
 from flow_node.core.config import FlowConfig
 from flow_node.core.engine import colour_stage, photometric_stage
+from flow_node.core.metrics import aee
 from flow_node.core.photometric import (
     QUANT_SIGMA,
     affine_normalised,
@@ -23,7 +26,7 @@ from flow_node.core.photometric import (
     stage,
 )
 
-CENSUS_RT = FlowConfig.preset("realtime").replace(threads=1)
+CENSUS_RT = FlowConfig.preset("realtime").replace(threads=1, census_presmooth=0.0)  # today's rule
 
 
 def quantised(img: np.ndarray, bits: int = 8, levels: float | None = None) -> np.ndarray:
@@ -88,3 +91,20 @@ def test_the_engine_stage_blurs_by_the_field_grey_and_colour() -> None:
     grey = [p.mean(axis=0).astype(np.float32) for p in planes]
     _, judged = photometric_stage(grey[0], grey[1], cfg, NUMPY, colour=(planes, channels))
     assert judged.noise is not None and judged.noise.blur == 0.7  # the channels' floor, for their blur
+
+
+def test_realtime_reads_a_10_bit_pair_within_10_percent_of_its_8_bit_version() -> None:
+    """The suite's bit-depth target on one of its tune pairs (bench.suite.synthetic.bit_depth, the 320x240 band-4
+    rotation): its 8-bit version is coarsely quantised and was presmoothed, its 10-bit one was not, and realtime
+    read the 10-bit pair 1.11x its 8-bit AEE; with realtime's census_presmooth both are blurred (task presm)."""
+    pairs = {s.name: s for s in bit_depth("tune", False) if s.name.startswith("s1_rotation/band4_")}
+    cfg = FlowConfig.preset("realtime").replace(threads=1)
+    assert cfg.census_presmooth > 0
+
+    def ratio(c: FlowConfig) -> float:
+        e8, e10 = (aee(FlowEstimator(c).estimate(s.f0, s.f1).flow, s.gt)
+                   for s in (pairs["s1_rotation/band4_8bit"], pairs["s1_rotation/band4_10bit"]))
+        return e10 / e8
+
+    assert ratio(cfg) < 1.1
+    assert ratio(cfg.replace(census_presmooth=0.0)) > 1.1  # today's rule: the deeper pair unsmoothed, the miss
