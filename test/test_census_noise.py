@@ -178,8 +178,8 @@ def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
     for img, s, n in ((f0, s0, n0), (f1, s1, n1)):
         lo, hi = quantiles(s, (2.0, 98.0))
         step = quantisation_step(s)
-        np.testing.assert_array_equal(n, affine_normalised(img, lo, hi, step, 1.0, True))
-        assert np.abs(n - affine_normalised(img, lo, hi, step, 1.0, False)).max() > 1e-3
+        np.testing.assert_array_equal(n, affine_normalised(img, lo, hi, step, 1.0, QUANT_SIGMA))
+        assert np.abs(n - affine_normalised(img, lo, hi, step, 1.0, 0.0)).max() > 1e-3
     noise = pair_noise((f0, f1), (s0, s1), 1.0, (n0, n1))
     assert noise.blur == QUANT_SIGMA
     # measured before the blur: frame 2's noise, 4 / 255 over its own range, contrast-shrunk by STEP_REF / rel
@@ -210,7 +210,7 @@ def test_a_clean_pair_without_coarse_quantisation_is_not_presmoothed() -> None:
     (n0, n1), _ = stage(tex, tex, "census")
     s = sorted_sample(tex)
     lo, hi = quantiles(s, (2.0, 98.0))
-    np.testing.assert_array_equal(n0, affine_normalised(tex, lo, hi, quantisation_step(s), 1.0, False))
+    np.testing.assert_array_equal(n0, affine_normalised(tex, lo, hi, quantisation_step(s), 1.0, 0.0))
 
 
 @pytest.mark.parametrize("preset", ["realtime", "fastest"])

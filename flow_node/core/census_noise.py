@@ -31,7 +31,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from .photometric import QUANT_SIGMA, FrameMap, FrameMaps, Samples, affine_normalised, frame_maps, frame_samples
+from .photometric import FrameMap, FrameMaps, Samples, affine_normalised, frame_maps, frame_samples
 
 NOISE_STRIDE = 4  # the estimate's median over every 4th interior pixel in each direction (1/16 of them)
 MAD_TO_STD = 1.4826  # std of a Gaussian over its median absolute deviation
@@ -81,31 +81,33 @@ class PairNoise:
 
 def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_gain: float,
                solver_pair: tuple[np.ndarray, np.ndarray], sigma: Callable[[np.ndarray], float] = noise_sigma,
-               maps: FrameMaps | None = None, sigma0: float | None = None) -> PairNoise:
+               maps: FrameMaps | None = None, sigma0: float | None = None, presmooth: float = 0.0) -> PairNoise:
     """The :class:`PairNoise` of the census stage's pair: ``frames`` (H, W) as they came, their sorted
     ``samples``, the stage's ``noise_gain`` and what it made of them (``solver_pair``). Where the stage did not
     presmooth, its pair is the normalised one and is measured as it is; where it did, the frames are mapped
     again without the blur (one affine map each) and measured, by ``sigma`` (:func:`noise_sigma` or a backend's:
-    the same value). ``maps``: photometric.frame_maps(samples, noise_gain) when known (the stage took them);
+    the same value). ``maps``: photometric.frame_maps(samples, noise_gain, presmooth=presmooth) when known (the
+    stage took them; ``presmooth``: FlowConfig.census_presmooth, used only without them);
     ``sigma0``: frame 0's std when known (a stream's previous pair measured it as its frame 1's, with the same
     photometric.frame_key: engine.Seen)."""
-    (map0, map1), smooth = frame_maps(samples, noise_gain) if maps is None else maps
+    (map0, map1), blur = frame_maps(samples, noise_gain, presmooth=presmooth) if maps is None else maps
 
     def measured(k: int, frame_map: FrameMap) -> float:
-        return sigma(affine_normalised(frames[k], *frame_map, noise_gain, False) if smooth else solver_pair[k])
+        return sigma(affine_normalised(frames[k], *frame_map, noise_gain, 0.0) if blur > 0 else solver_pair[k])
 
     both = (measured(0, map0) if sigma0 is None else sigma0, measured(1, map1))
-    return PairNoise(max(both), QUANT_SIGMA if smooth else 0.0, both)
+    return PairNoise(max(both), blur, both)
 
 
 def channel_noise(raw: tuple[np.ndarray, np.ndarray], normalised: tuple[np.ndarray, np.ndarray], noise_gain: float,
-                  sigma: Callable[[np.ndarray], float] = noise_sigma) -> PairNoise:
+                  sigma: Callable[[np.ndarray], float] = noise_sigma, presmooth: float = 0.0) -> PairNoise:
     """The :class:`PairNoise` of colour channels (colour.py): both frames' channels (C, H, W) as they came
     (``raw``) and as the colour stage normalised them (colour.normalise_channel_pair), measured channel by
-    channel (:func:`pair_noise`, by ``sigma``); the largest sigma and blur over the channels (one EPS for the stacked
+    channel (:func:`pair_noise`, by ``sigma``, with the stage's ``presmooth``: FlowConfig.census_presmooth); the
+    largest sigma and blur over the channels (one EPS for the stacked
     signatures). The luma's noise would be wrong here: an isoluminant frame's normalised luma is mostly
     quantisation noise."""
-    noises = [pair_noise((r0, r1), frame_samples(r0, r1), noise_gain, (n0, n1), sigma)
+    noises = [pair_noise((r0, r1), frame_samples(r0, r1), noise_gain, (n0, n1), sigma, presmooth=presmooth)
               for r0, r1, n0, n1 in zip(*raw, *normalised, strict=True)]
     return PairNoise(max(n.sigma for n in noises), max(n.blur for n in noises))
 

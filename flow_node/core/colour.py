@@ -32,10 +32,11 @@ from .photometric import normalise_frames
 COLOUR_MODES = ("grey", "channels")  # the FlowConfig field ``colour``: luma only, or every channel (census)
 
 
-def normalise_channel_pair(frame0: np.ndarray, frame1: np.ndarray, noise_gain: float = 1.0
+def normalise_channel_pair(frame0: np.ndarray, frame1: np.ndarray, noise_gain: float = 1.0, presmooth: float = 0.0
                            ) -> tuple[np.ndarray, np.ndarray]:
     """Both frames' channels (C, H, W) float32, each by its own robust range (a per-channel gain -- white
     balance -- and offset are undone exactly), channel c of both frames presmoothed alike
-    (photometric.normalise_frames: when either's quantisation is coarse): (C, H, W) each."""
-    pairs = [normalise_frames((c0, c1), noise_gain) for c0, c1 in zip(frame0, frame1, strict=True)]
+    (photometric.normalise_frames: when either's quantisation is coarse, or by ``presmooth`` px,
+    FlowConfig.census_presmooth): (C, H, W) each."""
+    pairs = [normalise_frames((c0, c1), noise_gain, presmooth=presmooth) for c0, c1 in zip(frame0, frame1, strict=True)]
     return tuple(np.stack([p[k] for p in pairs]).astype(np.float32, copy=False) for k in (0, 1))

@@ -128,6 +128,12 @@ class FlowConfig:
                              "deformation; realtime sets 0.07, quality 0.05, fastest 0.02: issue 25, tasks smoothbags, "
                              "qdelta, fastdelta and fastbags, docs/engine.md 'Presets')",
                              lo=0.0, hi=10.0, lo_open=True)
+    census_presmooth: float = _f(0.0, "photometric census: presmooth both frames of every pair by a Gaussian of this "
+                                 "many px (each colour channel alike), whatever their quantisation, also at half "
+                                 "size on top of the anti-alias blur; coarsely quantised pairs keep at least the 1 px "
+                                 "they get anyway (0 = only those: the comparison then depends on the encoding, 8-bit "
+                                 "low range against 10-16 bit). realtime sets 0.45 (task presm, docs/engine.md 'The "
+                                 "census data term')", lo=0.0, hi=5.0)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
                          "densities that thin out or pile up, e.g. fluids, cells, PET; needs photometric density "

@@ -126,7 +126,8 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     pmap = None if signatures else pair_map(samples)
     gain = noise_gain(i0.shape, cfg)
     # once, for the stage and the noise floor
-    maps = frame_maps(samples, gain, None if known0 is None else known0.map) if signatures else None
+    maps = (frame_maps(samples, gain, None if known0 is None else known0.map, cfg.census_presmooth)
+            if signatures else None)
     keys = frame_keys(pmap, maps, gain, cfg.photometric)
     same = known0 is not None and keys[0] is not None and keys[0] == known0.key
     n0 = known0.levels[0] if same and known0.levels else None
@@ -135,7 +136,7 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     noise = None
     if signatures and cfg.census_noise_k > 0:
         noise = (pair_noise((i0, i1), samples, gain, solver_pair, backend.noise, maps, known0.sigma if same else None)
-                 if colour is None else channel_noise(*colour, gain, backend.noise))
+                 if colour is None else channel_noise(*colour, gain, backend.noise, cfg.census_presmooth))
     return solver_pair, Judged(frames, judge, samples, keys, noise, maps)
 
 
@@ -169,7 +170,7 @@ def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray]
     if channels is None or not compares_signatures(cfg.photometric):
         return None
     gain = noise_gain(shape, cfg)
-    return normalise_channel_pair(channels[0], channels[1], gain)
+    return normalise_channel_pair(channels[0], channels[1], gain, cfg.census_presmooth)
 
 
 def start_level(pyr: Pyramid, cfg: FlowConfig, finest: int | None = None) -> int:

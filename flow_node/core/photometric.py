@@ -136,18 +136,19 @@ def compares_signatures(mode: str) -> bool:
 
 
 def affine_normalised(img: np.ndarray, lo: float, hi: float, step: float, noise_gain: float,
-                      presmooth: bool | None = None) -> np.ndarray:
+                      presmooth: float | None = None) -> np.ndarray:
     """img mapped by (img - lo) / (hi - lo), or to [0, STEP_REF / rel] with rel = step * noise_gain / (hi - lo)
     when rel > STEP_REF, then presmoothed by QUANT_SIGMA (unless noise_gain < 1); see :func:`normalise_pair`.
-    ``presmooth``: whether to presmooth, decided by the caller (:func:`normalise_frames`); None: as above."""
+    ``presmooth``: the Gaussian (px; 0: none) to presmooth by, decided by the caller (:func:`normalise_frames`);
+    None: as above."""
     rel = relative_step(lo, hi, step, noise_gain)
     span = hi - lo if hi - lo > MIN_SPAN else 1.0
     scale = np.float32(min(1.0, STEP_REF / rel) / span if rel > 0 else 1.0 / span)
     out = (img - np.float32(lo)) * scale
-    if presmooth is None:
-        presmooth = rel > STEP_REF and noise_gain >= 1.0  # else the pyramid's anti-alias blur (>= 1.4 px) does it
-    if presmooth:
-        out = cv2.GaussianBlur(out, (0, 0), QUANT_SIGMA, borderType=cv2.BORDER_REFLECT)
+    if presmooth is None:  # else the pyramid's anti-alias blur (>= 1.4 px) does it
+        presmooth = QUANT_SIGMA if rel > STEP_REF and noise_gain >= 1.0 else 0.0
+    if presmooth > 0:
+        out = cv2.GaussianBlur(out, (0, 0), float(presmooth), borderType=cv2.BORDER_REFLECT)
     return out
 
 
@@ -157,12 +158,13 @@ def relative_step(lo: float, hi: float, step: float, noise_gain: float) -> float
 
 
 def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 1.0,
-                     samples: Samples | None = None, maps: FrameMaps | None = None, n0: np.ndarray | None = None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+                     samples: Samples | None = None, maps: FrameMaps | None = None, n0: np.ndarray | None = None,
+                     presmooth: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Both frames (H, W) float32, each by its own robust range (its 2nd and 98th percentiles mapped to [0, 1],
     coarsely quantised content's contrast shrunk as in :func:`normalise_pair`: the ``census`` mode's map; its
     data term is invariant to each frame's gain and offset, and the map gives EPS the same meaning in both
-    frames), and both presmoothed by QUANT_SIGMA when either's quantisation is coarse (:func:`frame_maps`): the
+    frames), and both presmoothed by QUANT_SIGMA when either's quantisation is coarse, by ``presmooth`` px
+    (FlowConfig.census_presmooth) in any case, the larger of the two (:func:`frame_maps`): the
     two signatures a census data term compares must come from the same filter (a blur is not a tone curve, so
     one frame blurred and the other not differ wherever there is texture; issue 25's low light, frame 2
     darkened 0.4x: docs/engine.md). ``samples``: the frames' :func:`sorted_sample` when known; ``maps``: their
@@ -170,16 +172,16 @@ def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 
     census_noise.pair_noise). ``n0``: frame 0 already normalised by its map, presmoothing and noise gain (a stream's
     previous pair normalised it as its frame 1: engine.Seen, keyed by :func:`frame_key`), taken as it is."""
     if maps is None:
-        maps = frame_maps(frame_samples(*frames) if samples is None else samples, noise_gain)
-    (map0, map1), smooth = maps
+        maps = frame_maps(frame_samples(*frames) if samples is None else samples, noise_gain, presmooth=presmooth)
+    (map0, map1), blur = maps
     if n0 is None:
-        n0 = affine_normalised(frames[0], *map0, noise_gain, smooth)
-    return n0, affine_normalised(frames[1], *map1, noise_gain, smooth)
+        n0 = affine_normalised(frames[0], *map0, noise_gain, blur)
+    return n0, affine_normalised(frames[1], *map1, noise_gain, blur)
 
 
 # a frame's own map: (lo, hi, step), its robust range and quantisation step
 FrameMap = tuple[float, float, float]
-# both frames' maps and whether both are presmoothed (:func:`frame_maps`)
+# both frames' maps and the Gaussian (px; 0: none) both are presmoothed by (:func:`frame_maps`)
 FrameMaps = tuple[tuple[FrameMap, FrameMap], bool]
 
 
@@ -189,21 +191,24 @@ def frame_map(ordered: np.ndarray) -> FrameMap:
     return float(lo), float(hi), quantisation_step(ordered)
 
 
-def frame_maps(samples: Samples, noise_gain: float = 1.0, map0: FrameMap | None = None) -> FrameMaps:
+def frame_maps(samples: Samples, noise_gain: float = 1.0, map0: FrameMap | None = None,
+               presmooth: float = 0.0) -> FrameMaps:
     """Each frame's own map from its sorted sample (:func:`frame_map`; frame 0's ``map0`` when known: a stream's
-    previous pair took it of the same sample as its frame 1's), and whether :func:`normalise_frames` presmooths
-    both: when either's quantisation step is coarse (rel > STEP_REF) and noise_gain >= 1."""
+    previous pair took it of the same sample as its frame 1's), and the Gaussian (px) :func:`normalise_frames`
+    presmooths both by: QUANT_SIGMA when either's quantisation step is coarse (rel > STEP_REF) and
+    noise_gain >= 1, ``presmooth`` (FlowConfig.census_presmooth) whatever the quantisation and noise gain, the
+    larger of the two; 0: none."""
     maps = (frame_map(samples[0]) if map0 is None else map0, frame_map(samples[1]))
-    smooth = noise_gain >= 1.0 and any(relative_step(*m, noise_gain) > STEP_REF for m in maps)
-    return maps, smooth
+    coarse = noise_gain >= 1.0 and any(relative_step(*m, noise_gain) > STEP_REF for m in maps)
+    return maps, max(float(presmooth), QUANT_SIGMA if coarse else 0.0)
 
 
 def frame_key(maps: FrameMaps, k: int, noise_gain: float) -> tuple[float, ...]:
     """What :func:`normalise_frames` makes of frame ``k`` depends on besides the frame: its own map, the pair's
     presmoothing and the noise gain. Two pairs that share a frame and give it equal keys normalise it to the same
     image, bit for bit (a stream's frame 1, then the next pair's frame 0: engine.Seen)."""
-    (m0, m1), smooth = maps
-    return (*(m0, m1)[k], float(smooth), noise_gain)
+    (m0, m1), blur = maps
+    return (*(m0, m1)[k], float(blur), noise_gain)
 
 
 def normalise(i0: np.ndarray, i1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -296,8 +301,8 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
 
 
 def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, samples: Samples | None = None,
-          pmap: PairMap | None = None, n0: np.ndarray | None = None, maps: FrameMaps | None = None
-          ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+          pmap: PairMap | None = None, n0: np.ndarray | None = None, maps: FrameMaps | None = None,
+          presmooth: float = 0.0) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair census.reliability judges).
     The second is the ``normalise`` result in every mode but ``census``; ``census`` normalises each frame on its
     own (:func:`normalise_frames`, no exposure detection: its data term needs none; both presmoothed alike) and
@@ -307,10 +312,11 @@ def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, sa
     every mode's ranges come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census``
     uses it); ``n0``: i0 normalised by that map when known (:func:`normalise_pair`; ``census``: by its own map,
     :func:`normalise_frames`); ``maps``: their :func:`frame_maps` at this ``noise_gain`` when known (only
-    ``census`` uses them)."""
+    ``census`` uses them); ``presmooth``: ``census`` only, FlowConfig.census_presmooth (:func:`frame_maps`; taken
+    from ``maps`` when they are given)."""
     s0, s1 = frame_samples(i0, i1) if samples is None else samples
     if compares_signatures(mode):
-        pair = normalise_frames((i0, i1), noise_gain, (s0, s1), maps, n0)
+        pair = normalise_frames((i0, i1), noise_gain, (s0, s1), maps, n0, presmooth)
         return pair, pair
     n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, pair_map((s0, s1)) if pmap is None else pmap, n0)
     if mode == "density":
