@@ -148,8 +148,10 @@ EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05))  # tv_e
 # gained 2.5x as much (tune real_exact -24 %; report 0.3133) at 1.20-1.23x the time on Middlebury.
 # balanced has it at range 1.5 px (task occl2; bench/results/suite/occl2): tune real_exact -12.3 %, Middlebury -1.6 %,
 # no regime worse; CPU 1.06x Middlebury, 1.04x bags (0.75 px: 1.11x); report split every regime better (geomean
-# 0.933). realtime keeps the plain median: a fixed cost (+2-5 % on Middlebury at any range) left its +4 % only at a
-# range of 3 px, where the gain is small (tune real_exact -2 %).
+# 0.933). quality has fastest's setting (occl2): tune real_exact -13.5 %, no regime worse; CPU 1.02-1.04x
+# Middlebury, 1.01x bags; report every regime better or equal (real_exact 0.2314 -> 0.2140, geomean 0.976).
+# realtime keeps the plain median: a fixed cost (+2-5 % on Middlebury at any range) left its +4 % only at a range of
+# 3 px, where the gain is small (tune real_exact -2 %).
 WEIGHTED_MEDIAN: Mapping[str, Any] = MappingProxyType(dict(median_weight_sigma=0.06, median_weight_warps="last",
                                                            median_weight_range=0.75))
 # fastest, and the stream presets' base (below)
@@ -163,7 +165,7 @@ PRESETS: dict[str, dict[str, Any]] = {
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
                     finest_level=0, initialisation="dis_fine", init_finest_level=0, **CENSUS_SCHEDULE,
                     census_iterations=8, census_finest_radius=2, census_delta=0.05, census_alpha=0.10,
-                    photometric="census"),
+                    photometric="census", **WEIGHTED_MEDIAN),
     "balanced": dict(model="l1_tv", alpha=0.035, iterations=15, warps=2, levels=15, scale_factor=0.8,
                      level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=1e-3,
                      finest_level=0, initialisation="dis_fast", init_finest_level=0,
