@@ -140,3 +140,20 @@ def test_which_warps_weigh() -> None:
         cfg = FlowConfig(median_weight_sigma=0.06, median_weight_warps=mode)
         got = [weighs(cfg, last, finest) for finest in (False, True) for last in (False, True)]
         assert got == expected, mode
+
+
+def test_the_presets_that_weigh() -> None:
+    """fastest and quality weigh after each level's last warp where a window spans 0.75 px (tasks occl, occl2),
+    balanced where it spans 1.5 px (occl2: 0.75 px cost it 1.11x on Middlebury); realtime keeps the plain median
+    (occl2: its +4 % bound left only a 3 px range). At 1.5 px a ~0.6 px jump keeps the plain median, a 3 px one not."""
+    from flow_node.core.presets import WEIGHTED_MEDIAN
+    fastest, quality, balanced = (FlowConfig.preset(name) for name in ("fastest", "quality", "balanced"))
+    for key, value in WEIGHTED_MEDIAN.items():
+        assert getattr(fastest, key) == value and getattr(quality, key) == value
+        assert getattr(balanced, key) == (1.5 if key == "median_weight_range" else value)
+    assert FlowConfig.preset("realtime").median_weight_sigma == 0.0
+    v, i0 = two_motions(30, 40)
+    small = (v - v.mean(axis=(1, 2), keepdims=True)) * np.float32(0.2)  # the disc's jump ~0.6 px, the noise 0.06
+    for backend in (NUMPY, select_backend("numba", threads=1)):
+        np.testing.assert_array_equal(warp_median(small, i0, 5, balanced, backend), median_filter(small, 5))
+        assert np.abs(warp_median(v, i0, 5, balanced, backend) - median_filter(v, 5)).max() > 0.1
