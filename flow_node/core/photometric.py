@@ -182,7 +182,7 @@ def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 
 # a frame's own map: (lo, hi, step), its robust range and quantisation step
 FrameMap = tuple[float, float, float]
 # both frames' maps and the Gaussian (px; 0: none) both are presmoothed by (:func:`frame_maps`)
-FrameMaps = tuple[tuple[FrameMap, FrameMap], bool]
+FrameMaps = tuple[tuple[FrameMap, FrameMap], float]
 
 
 def frame_map(ordered: np.ndarray) -> FrameMap:

@@ -71,9 +71,8 @@ def weighs(cfg: FlowConfig, last: bool, on_finest: bool) -> bool:
     solved level) for the weighted median: every warp, each level's last, the finest solved level's last, or
     ('coarse') every warp of the coarser levels and the finest solved level's last."""
     mode = cfg.median_weight_warps
-    if mode == "every" or (mode == "coarse" and not on_finest):
-        return True
-    return last and (mode in ("last", "coarse") or on_finest)
+    return (mode == "every" or (mode == "last" and last) or (mode == "finest" and last and on_finest)
+            or (mode == "coarse" and (last or not on_finest)))
 
 
 def warp_median(v: np.ndarray, i0: np.ndarray, size: int, cfg: FlowConfig, backend: Backend,
