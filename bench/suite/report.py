@@ -215,7 +215,11 @@ def summary(res: dict[str, Any]) -> str:
 
 
 def plot(res: dict[str, Any], path: Path) -> None:
-    """AEE (log) against ms per pair (log), one panel per regime, presets as dots, peers as squares."""
+    """AEE (log) against ms per pair (log), one panel per regime, presets as dots, peers as squares; nothing for a
+    run without times (``--repeats 0``: AEE only)."""
+    timed = [m for r in res["regimes"].values() for m in r["methods"].values() if m["seconds"] > 0]  # nan: untimed
+    if not timed:
+        return
     import matplotlib
 
     matplotlib.use("Agg")
@@ -228,6 +232,8 @@ def plot(res: dict[str, Any], path: Path) -> None:
     fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 3.9 * rows), squeeze=False)
     for ax, name in zip(axes.flat, names, strict=False):
         for n, m in res["regimes"][name]["methods"].items():
+            if not m["seconds"] > 0:
+                continue
             peer = n in PEER_NAMES
             ax.scatter(1e3 * m["seconds"], m["aee"], marker="s" if peer else "o", c="tab:grey" if peer else "tab:blue")
             ax.annotate(n, (1e3 * m["seconds"], m["aee"]), fontsize=7, xytext=(3, 3), textcoords="offset points")
