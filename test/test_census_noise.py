@@ -19,13 +19,14 @@ from flow_node.core.census_noise import (
     noise_sigma,
     pair_noise,
 )
-from flow_node.core.colour import normalise_channel_pair
+from flow_node.core.colour import channel_maps, normalise_channel_pair
 from flow_node.core.config import FlowConfig
 from flow_node.core.numba_sort import noise_sigma_numba
 from flow_node.core.photometric import (
     QUANT_SIGMA,
     STEP_REF,
     affine_normalised,
+    frame_maps,
     quantiles,
     quantisation_step,
     sorted_sample,
@@ -180,7 +181,7 @@ def test_low_light_gets_the_pair_eps_and_both_frames_presmoothed() -> None:
         step = quantisation_step(s)
         np.testing.assert_array_equal(n, affine_normalised(img, lo, hi, step, 1.0, QUANT_SIGMA))
         assert np.abs(n - affine_normalised(img, lo, hi, step, 1.0, 0.0)).max() > 1e-3
-    noise = pair_noise((f0, f1), (s0, s1), 1.0, (n0, n1))
+    noise = pair_noise((f0, f1), frame_maps((s0, s1)), 1.0, (n0, n1))
     assert noise.blur == QUANT_SIGMA
     # measured before the blur: frame 2's noise, 4 / 255 over its own range, contrast-shrunk by STEP_REF / rel
     span1 = float(np.subtract(*quantiles(s1, (98.0, 2.0))))
@@ -245,7 +246,8 @@ def test_colour_channels_measure_their_own_noise() -> None:
     planes = [np.moveaxis(quantised(c), -1, 0) for c in (c0, c1)]
     grey = [(0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2]).astype(np.float32) for p in planes]  # the luma of 8-bit RGB
     (g0, g1), _ = stage(*grey, "census")
-    luma = pair_noise((grey[0], grey[1]), (sorted_sample(grey[0]), sorted_sample(grey[1])), 1.0, (g0, g1))
-    colour = channel_noise((planes[0], planes[1]), normalise_channel_pair(*planes), 1.0)
+    luma = pair_noise((grey[0], grey[1]), frame_maps((sorted_sample(grey[0]), sorted_sample(grey[1]))), 1.0, (g0, g1))
+    maps = channel_maps(*planes)
+    colour = channel_noise((planes[0], planes[1]), maps, 1.0, normalise_channel_pair(*planes, maps=maps))
     assert luma.sigma > 2.0 * CENSUS.eps  # the luma would damp every signature
     assert 2.0 * colour.sigma < CENSUS.eps

@@ -12,7 +12,7 @@ from bench.suite.synthetic import bit_depth
 from flow_node.core.api import FlowEstimator
 from flow_node.core.backends import NUMPY
 from flow_node.core.census_noise import pair_noise
-from flow_node.core.colour import normalise_channel_pair
+from flow_node.core.colour import channel_maps, normalise_channel_pair
 from flow_node.core.config import FlowConfig
 from flow_node.core.engine import colour_stage, photometric_stage
 from flow_node.core.metrics import aee
@@ -49,17 +49,17 @@ def test_the_field_presmooths_a_finely_quantised_pair_and_the_floor_follows() ->
     assert frame_maps(samples)[1] == 0.0  # today: not presmoothed
     maps = frame_maps(samples, presmooth=0.7)
     assert maps[1] == 0.7
-    (n0, n1), _ = stage(f0, f1, "census", presmooth=0.7)
+    (n0, n1), _ = stage(f0, f1, "census", maps=maps)  # the maps carry the blur: the stage takes it from them
+    np.testing.assert_array_equal(stage(f0, f1, "census", samples=samples, maps=maps)[0][1], n1)
     for img, s, n in ((f0, samples[0], n0), (f1, samples[1], n1)):
         m = frame_map(s)
         np.testing.assert_array_equal(n, affine_normalised(img, *m, 1.0, 0.7))
         assert np.abs(n - affine_normalised(img, *m, 1.0, 0.0)).max() > 1e-3
     # the noise is measured before the blur (as without it) and the blur handed on is the one applied
-    plain = pair_noise((f0, f1), samples, 1.0, stage(f0, f1, "census")[0])
-    smooth = pair_noise((f0, f1), samples, 1.0, (n0, n1), maps=maps)
+    plain = pair_noise((f0, f1), frame_maps(samples), 1.0, stage(f0, f1, "census")[0])
+    smooth = pair_noise((f0, f1), maps, 1.0, (n0, n1))
     assert plain.blur == 0.0 and smooth.blur == 0.7
     assert smooth.sigma == plain.sigma and smooth.frames == plain.frames
-    assert pair_noise((f0, f1), samples, 1.0, (n0, n1), presmooth=0.7) == smooth  # maps taken here: the same
     # a stream's frame key tells the two normalised frames apart
     assert frame_key(maps, 1, 1.0) != frame_key(frame_maps(samples), 1, 1.0)
 
@@ -70,8 +70,10 @@ def test_a_coarse_pair_keeps_at_least_quant_sigma(presmooth: float, blur: float)
     f0, f1 = quantised(tex[:, 1:], levels=40.0), quantised(tex[:, :-1], levels=40.0)  # 40 grey levels: coarse
     maps = frame_maps((sorted_sample(f0), sorted_sample(f1)), presmooth=presmooth)
     assert maps[1] == blur
-    (n0, _), _ = stage(f0, f1, "census", presmooth=presmooth)
+    (n0, _), _ = stage(f0, f1, "census", maps=maps)
     np.testing.assert_array_equal(n0, affine_normalised(f0, *maps[0][0], 1.0, blur))
+    if presmooth == 0.0:  # without maps the stage takes them of the frames, with no presmooth of its own
+        np.testing.assert_array_equal(stage(f0, f1, "census")[0][0], n0)
 
 
 def test_the_engine_stage_blurs_by_the_field_grey_and_colour() -> None:
@@ -84,12 +86,14 @@ def test_the_engine_stage_blurs_by_the_field_grey_and_colour() -> None:
     c0, c1, _ = isoluminant_pair(3, 72, 96)
     planes = tuple(np.moveaxis(quantised(c, 12), -1, 0) for c in (c0, c1))
     cfg = CENSUS_RT.replace(census_presmooth=0.7, colour="channels")
-    channels = colour_stage(planes[0].shape[1:], planes, cfg)
-    assert channels is not None
-    np.testing.assert_array_equal(channels[0], normalise_channel_pair(*planes, presmooth=0.7)[0])
-    assert np.abs(channels[0] - normalise_channel_pair(*planes)[0]).max() > 1e-3
+    colour = colour_stage(planes[0].shape[1:], planes, cfg)
+    assert colour is not None
+    assert [m[1] for m in colour.maps] == [0.7] * 3 and colour.raw == planes
+    np.testing.assert_array_equal(colour.normalised[0],
+                                  normalise_channel_pair(*planes, maps=channel_maps(*planes, presmooth=0.7))[0])
+    assert np.abs(colour.normalised[0] - normalise_channel_pair(*planes)[0]).max() > 1e-3
     grey = [p.mean(axis=0).astype(np.float32) for p in planes]
-    _, judged = photometric_stage(grey[0], grey[1], cfg, NUMPY, colour=(planes, channels))
+    _, judged = photometric_stage(grey[0], grey[1], cfg, NUMPY, colour=colour)
     assert judged.noise is not None and judged.noise.blur == 0.7  # the channels' floor, for their blur
 
 

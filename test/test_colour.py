@@ -13,13 +13,18 @@ import small_frames
 from synth import constant_flow, interior, isoluminant_pair, pair_from_flow, texture
 
 from flow_node.cli.estimate import read_planes
+from flow_node.core import photometric
 from flow_node.core.api import FlowEstimator, to_grey, to_planes
+from flow_node.core.backends import NUMPY
 from flow_node.core.census import CENSUS, census_form, level_signature, warped_frames
-from flow_node.core.colour import normalise_channel_pair
+from flow_node.core.census_noise import channel_noise, pair_noise
+from flow_node.core.colour import channel_maps, normalise_channel_pair, normalised_channels
+from flow_node.core.engine import solve_pair
 from flow_node.core.errors import InputError
 from flow_node.core.metrics import aee
 from flow_node.core.numba_backend import WARPER
 from flow_node.core.numba_census import census_form_numba, level_signature_numba
+from flow_node.core.numba_sort import sorted_sample_numba
 from flow_node.core.pyramid import build_pyramid, channel_pyramid, pyramid_shapes
 from flow_node.core.warping import NUMPY_WARPER, Sample
 from flow_node.pipeline.stream import FlowStream, StreamSettings
@@ -89,6 +94,46 @@ def test_normalise_channel_pair_undoes_a_gain_per_channel() -> None:
     balanced = frame * np.array([1.15, 1.0, 0.8], np.float32)[:, None, None]
     np.testing.assert_allclose(normalise_channel_pair(balanced, balanced)[1], normalise_channel_pair(frame, frame)[1],
                                atol=1e-5)
+
+
+def test_each_channel_is_sampled_and_mapped_once_per_pair(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The colour path takes each channel's sorted samples and maps once (colour.channel_maps, the backend's sample)
+    and both the normalisation and the noise floor use them: a pair with colour channels sorts and maps 2 frames
+    of luma and 2 x 3 channel frames, no more (before task photoapi the noise floor took the channels' again)."""
+    sorted_by: list[int] = []
+    mapped: list[int] = []
+    frame_map, sort = photometric.frame_map, photometric.sorted_sample
+    monkeypatch.setattr(photometric, "frame_map", lambda s: mapped.append(s.size) or frame_map(s))
+    backend = NUMPY._replace(sample=lambda img: sorted_by.append(img.size) or sort(img))
+    monkeypatch.setattr(photometric, "sorted_sample", lambda img: pytest.fail("the numpy sort, not the backend's"))
+    c0, c1 = channels(3), channels(5)
+    grey = [c.mean(axis=0).astype(np.float32) for c in (c0, c1)]
+    cfg = COLOUR_CFG.replace(census_presmooth=0.45, census_noise_k=3.0)
+    _, _, judged = solve_pair(grey[0], grey[1], cfg, backend, channels=(c0, c1))
+    assert len(sorted_by) == 8 and len(mapped) == 8
+    assert judged.noise is not None and judged.noise.blur == 0.45
+
+
+def test_the_shared_channel_maps_give_what_each_step_took_on_its_own() -> None:
+    """colour.normalised_channels (maps taken once, by the numba backend's sort) gives the normalised channels and,
+    through census_noise.channel_noise, the noise that the normalisation and a per-channel pair_noise give with maps
+    of their own (numpy's sort), bit for bit; with a presmooth and with coarse (blurred) channels."""
+    rng = np.random.default_rng(4)
+    for c0, c1, gain, presmooth in ((channels(3), channels(5), 0.8, 0.45),
+                                    (np.rint(channels(3) * 20) / 255, np.rint(channels(5) * 20) / 255, 1.0, 0.0)):
+        c0, c1 = c0.astype(np.float32), (c1 + 0.01 * rng.standard_normal(c1.shape)).astype(np.float32)
+        shared = normalised_channels(c0, c1, gain, presmooth, sorted_sample_numba)
+        own = tuple(photometric.frame_maps(photometric.frame_samples(a, b), gain, presmooth=presmooth)
+                    for a, b in zip(c0, c1, strict=True))
+        assert shared.maps == own and all(m[1] > 0 for m in own)
+        for k in (0, 1):
+            np.testing.assert_array_equal(shared.normalised[k], normalise_channel_pair(c0, c1, gain, own)[k])
+        built = channel_maps(c0, c1, gain, presmooth)  # the numpy sort: the same maps
+        np.testing.assert_array_equal(shared.normalised[1], normalise_channel_pair(c0, c1, gain, built)[1])
+        noises = [pair_noise((a, b), m, gain, (na, nb))
+                  for a, b, m, na, nb in zip(c0, c1, own, *shared.normalised, strict=True)]
+        noise = channel_noise((c0, c1), shared.maps, gain, shared.normalised)
+        assert (noise.sigma, noise.blur) == (max(n.sigma for n in noises), max(n.blur for n in noises))
 
 
 def rgb_pair(seed: int, u: float = 1.5, v: float = -0.75, h: int = 60, w: int = 80

@@ -24,14 +24,14 @@ exactly those pixels and leaves textured ones (s(x) >> EPS) normalised as before
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
 import cv2
 import numpy as np
 
-from .photometric import FrameMap, FrameMaps, Samples, affine_normalised, frame_maps, frame_samples
+from .photometric import FrameMap, FrameMaps, affine_normalised
 
 NOISE_STRIDE = 4  # the estimate's median over every 4th interior pixel in each direction (1/16 of them)
 MAD_TO_STD = 1.4826  # std of a Gaussian over its median absolute deviation
@@ -79,18 +79,17 @@ class PairNoise:
     frames: tuple[float, float] | None = None
 
 
-def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_gain: float,
+def pair_noise(frames: tuple[np.ndarray, np.ndarray], maps: FrameMaps, noise_gain: float,
                solver_pair: tuple[np.ndarray, np.ndarray], sigma: Callable[[np.ndarray], float] = noise_sigma,
-               maps: FrameMaps | None = None, sigma0: float | None = None, presmooth: float = 0.0) -> PairNoise:
-    """The :class:`PairNoise` of the census stage's pair: ``frames`` (H, W) as they came, their sorted
-    ``samples``, the stage's ``noise_gain`` and what it made of them (``solver_pair``). Where the stage did not
-    presmooth, its pair is the normalised one and is measured as it is; where it did, the frames are mapped
-    again without the blur (one affine map each) and measured, by ``sigma`` (:func:`noise_sigma` or a backend's:
-    the same value). ``maps``: photometric.frame_maps(samples, noise_gain, presmooth=presmooth) when known (the
-    stage took them; ``presmooth``: FlowConfig.census_presmooth, used only without them);
-    ``sigma0``: frame 0's std when known (a stream's previous pair measured it as its frame 1's, with the same
-    photometric.frame_key: engine.Seen)."""
-    (map0, map1), blur = frame_maps(samples, noise_gain, presmooth=presmooth) if maps is None else maps
+               sigma0: float | None = None) -> PairNoise:
+    """The :class:`PairNoise` of the census stage's pair: ``frames`` (H, W) as they came, their ``maps``
+    (photometric.frame_maps at the stage's ``noise_gain``: each frame's own map and the blur both got) and what the
+    stage made of them (``solver_pair``). Where the stage did not presmooth, its pair is the normalised one and is
+    measured as it is; where it did, the frames are mapped again without the blur (one affine map each) and
+    measured, by ``sigma`` (:func:`noise_sigma` or a backend's: the same value). ``sigma0``: frame 0's std when
+    known (a stream's previous pair measured it as its frame 1's, with the same photometric.frame_key:
+    engine.Seen)."""
+    (map0, map1), blur = maps
 
     def measured(k: int, frame_map: FrameMap) -> float:
         return sigma(affine_normalised(frames[k], *frame_map, noise_gain, 0.0) if blur > 0 else solver_pair[k])
@@ -99,16 +98,17 @@ def pair_noise(frames: tuple[np.ndarray, np.ndarray], samples: Samples, noise_ga
     return PairNoise(max(both), blur, both)
 
 
-def channel_noise(raw: tuple[np.ndarray, np.ndarray], normalised: tuple[np.ndarray, np.ndarray], noise_gain: float,
-                  sigma: Callable[[np.ndarray], float] = noise_sigma, presmooth: float = 0.0) -> PairNoise:
+def channel_noise(raw: tuple[np.ndarray, np.ndarray], maps: Sequence[FrameMaps], noise_gain: float,
+                  normalised: tuple[np.ndarray, np.ndarray], sigma: Callable[[np.ndarray], float] = noise_sigma
+                  ) -> PairNoise:
     """The :class:`PairNoise` of colour channels (colour.py): both frames' channels (C, H, W) as they came
-    (``raw``) and as the colour stage normalised them (colour.normalise_channel_pair), measured channel by
-    channel (:func:`pair_noise`, by ``sigma``, with the stage's ``presmooth``: FlowConfig.census_presmooth); the
-    largest sigma and blur over the channels (one EPS for the stacked
+    (``raw``), each channel's maps (colour.channel_maps, the ones the colour stage normalised them by) and the
+    channels as it normalised them (colour.normalise_channel_pair), measured channel by channel
+    (:func:`pair_noise`, by ``sigma``); the largest sigma and blur over the channels (one EPS for the stacked
     signatures). The luma's noise would be wrong here: an isoluminant frame's normalised luma is mostly
     quantisation noise."""
-    noises = [pair_noise((r0, r1), frame_samples(r0, r1), noise_gain, (n0, n1), sigma, presmooth=presmooth)
-              for r0, r1, n0, n1 in zip(*raw, *normalised, strict=True)]
+    noises = [pair_noise((r0, r1), m, noise_gain, (n0, n1), sigma)
+              for r0, r1, m, n0, n1 in zip(*raw, maps, *normalised, strict=True)]
     return PairNoise(max(n.sigma for n in noises), max(n.blur for n in noises))
 
 

@@ -25,18 +25,56 @@ C x K channels in the form (measured: docs/engine.md, "The census data term", co
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
-from .photometric import normalise_frames
+from .photometric import FrameMaps, frame_maps, frame_samples, normalise_frames
 
 COLOUR_MODES = ("grey", "channels")  # the FlowConfig field ``colour``: luma only, or every channel (census)
 
+# each colour channel's photometric.frame_maps, channel 0 first (:func:`channel_maps`)
+ChannelMaps = tuple[FrameMaps, ...]
 
-def normalise_channel_pair(frame0: np.ndarray, frame1: np.ndarray, noise_gain: float = 1.0, presmooth: float = 0.0
-                           ) -> tuple[np.ndarray, np.ndarray]:
+
+def channel_maps(frame0: np.ndarray, frame1: np.ndarray, noise_gain: float = 1.0, presmooth: float = 0.0,
+                 sample: Callable[[np.ndarray], np.ndarray] | None = None) -> ChannelMaps:
+    """Per channel c of both frames (C, H, W), photometric.frame_maps of the two frames' channel c at ``noise_gain``:
+    their own maps and the blur both get (QUANT_SIGMA when either's quantisation is coarse, ``presmooth`` px --
+    FlowConfig.census_presmooth -- in any case, the larger), from their sorted samples (photometric.frame_samples,
+    by ``sample``: a backend's, the same arrays). Taken once per pair: the normalisation
+    (:func:`normalise_channel_pair`) and the noise floor (census_noise.channel_noise) share them."""
+    return tuple(frame_maps(frame_samples(c0, c1, sample=sample), noise_gain, presmooth=presmooth)
+                 for c0, c1 in zip(frame0, frame1, strict=True))
+
+
+def normalise_channel_pair(frame0: np.ndarray, frame1: np.ndarray, noise_gain: float = 1.0,
+                           maps: ChannelMaps | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Both frames' channels (C, H, W) float32, each by its own robust range (a per-channel gain -- white
     balance -- and offset are undone exactly), channel c of both frames presmoothed alike
-    (photometric.normalise_frames: when either's quantisation is coarse, or by ``presmooth`` px,
-    FlowConfig.census_presmooth): (C, H, W) each."""
-    pairs = [normalise_frames((c0, c1), noise_gain, presmooth=presmooth) for c0, c1 in zip(frame0, frame1, strict=True)]
+    (photometric.normalise_frames, by channel c's blur): (C, H, W) each. ``maps``: :func:`channel_maps` of the
+    frames at this ``noise_gain`` (which carry FlowConfig.census_presmooth); None: taken here without a presmooth."""
+    maps = channel_maps(frame0, frame1, noise_gain) if maps is None else maps
+    pairs = [normalise_frames((c0, c1), noise_gain, m) for c0, c1, m in zip(frame0, frame1, maps, strict=True)]
     return tuple(np.stack([p[k] for p in pairs]).astype(np.float32, copy=False) for k in (0, 1))
+
+
+@dataclass(frozen=True)
+class NormalisedChannels:
+    """Both frames' channels (C, H, W) as they came (``raw``), normalised (``normalised``:
+    :func:`normalise_channel_pair`, what the census term compares) and the per-channel maps they were normalised
+    by (``maps``: :func:`channel_maps`, with the blur; the noise floor measures the channels on them,
+    census_noise.channel_noise): the colour part of the photometric stage (engine.colour_stage)."""
+
+    raw: tuple[np.ndarray, np.ndarray]
+    normalised: tuple[np.ndarray, np.ndarray]
+    maps: ChannelMaps
+
+
+def normalised_channels(frame0: np.ndarray, frame1: np.ndarray, noise_gain: float = 1.0, presmooth: float = 0.0,
+                        sample: Callable[[np.ndarray], np.ndarray] | None = None) -> NormalisedChannels:
+    """The :class:`NormalisedChannels` of both frames' channels (C, H, W): each channel's samples and maps taken
+    once (:func:`channel_maps`, with ``presmooth`` and ``sample``), the channels normalised on them."""
+    maps = channel_maps(frame0, frame1, noise_gain, presmooth, sample)
+    return NormalisedChannels((frame0, frame1), normalise_channel_pair(frame0, frame1, noise_gain, maps), maps)

@@ -34,7 +34,7 @@ import numpy as np
 
 from .backends import Backend
 from .census_noise import PairNoise, channel_noise, pair_noise
-from .colour import normalise_channel_pair
+from .colour import NormalisedChannels, normalised_channels
 from .config import FlowConfig
 from .fusion import FINAL_MARGIN, FINAL_ONLY_CONSISTENT
 from .initialise import INITIAL_FLOW, Candidate, beyond_reach, initialise
@@ -110,17 +110,16 @@ class Seen:
 
 def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
                       sample0: np.ndarray | None = None, known0: Seen | None = None,
-                      colour: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None
-                      ) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
+                      colour: NormalisedChannels | None = None) -> tuple[tuple[np.ndarray, np.ndarray], Judged]:
     """The photometric stage (photometric.stage with the pyramid's noise gain) and its own judge: what the
     solver sees of the pair (H, W) float32, and the :class:`Judged` pair (every data term judged on census
     signatures, the backend's census.reliability). ``sample0``: frame 0's sorted sample when
     known (photometric.frame_samples: a stream's previous pair sorted it as its frame 1); ``known0``: what a
     previous pair computed of frame 0 (:class:`Seen`, of the same sample): its map, and its normalised image and
     noise std, taken when this pair's key for frame 0 is the same (the normalised frame is then the same bit for
-    bit). ``colour``: both frames' channels as
-    they came and as :func:`colour_stage` normalised them, when the census term compares them: the noise floor
-    is then the channels' (census_noise.channel_noise), not the luma's."""
+    bit). ``colour``: both frames' channels as :func:`colour_stage` took and normalised them
+    (colour.NormalisedChannels), when the census term compares them: the noise floor is then the channels'
+    (census_noise.channel_noise, on the maps they were normalised by), not the luma's."""
     samples = frame_samples(i0, i1, sample0, backend.sample)
     signatures = compares_signatures(cfg.photometric)
     pmap = None if signatures else pair_map(samples)
@@ -135,8 +134,8 @@ def photometric_stage(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: 
     judge = backend.reliability
     noise = None
     if signatures and cfg.census_noise_k > 0:
-        noise = (pair_noise((i0, i1), samples, gain, solver_pair, backend.noise, maps, known0.sigma if same else None)
-                 if colour is None else channel_noise(*colour, gain, backend.noise, cfg.census_presmooth))
+        noise = (pair_noise((i0, i1), maps, gain, solver_pair, backend.noise, known0.sigma if same else None)
+                 if colour is None else channel_noise(colour.raw, colour.maps, gain, colour.normalised, backend.noise))
     return solver_pair, Judged(frames, judge, samples, keys, noise, maps)
 
 
@@ -161,16 +160,17 @@ def frame_keys(pmap: PairMap | None, maps: FrameMaps | None, gain: float, photom
     return None, None
 
 
-def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray] | None, cfg: FlowConfig
-                 ) -> tuple[np.ndarray, np.ndarray] | None:
+def colour_stage(shape: tuple[int, int], channels: tuple[np.ndarray, np.ndarray] | None, cfg: FlowConfig,
+                 backend: Backend | None = None) -> NormalisedChannels | None:
     """The colour part of the photometric stage: both frames' channels (C, H, W) each normalised on its own
-    (colour.normalise_channel_pair, with the pyramid's noise gain; channel c of both presmoothed alike) when
-    the census data term compares them; None
+    (colour.normalised_channels, with the pyramid's noise gain; channel c of both presmoothed alike, by
+    FlowConfig.census_presmooth at least; each channel's maps taken once, of the ``backend``'s sorted samples, the
+    same arrays as the numpy reference's) when the census data term compares them; None
     otherwise (grey-value terms and grey input use the luma only)."""
     if channels is None or not compares_signatures(cfg.photometric):
         return None
     gain = noise_gain(shape, cfg)
-    return normalise_channel_pair(channels[0], channels[1], gain, cfg.census_presmooth)
+    return normalised_channels(*channels, gain, cfg.census_presmooth, None if backend is None else backend.sample)
 
 
 def start_level(pyr: Pyramid, cfg: FlowConfig, finest: int | None = None) -> int:
@@ -311,10 +311,10 @@ def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend
     if valid is not None:
         i0, i1 = fill_invalid(i0, valid[0]), fill_invalid(i1, valid[1])
         sample0 = None
-    raw, channels = channels, colour_stage(i0.shape, channels, cfg)
-    colour = None if raw is None or channels is None else (raw, channels)
+    colour = colour_stage(i0.shape, channels, cfg, backend)
     (i0, i1), judged = photometric_stage(i0, i1, cfg, backend, sample0, colour=colour)
     candidates = initialise(i0, i1, cfg, initial_flow, previous_flow, backend.ranks)
-    pyr = make_pyramid(i0, i1, cfg, channels=channels, valid=valid, noise=judged.noise)
+    pyr = make_pyramid(i0, i1, cfg, channels=None if colour is None else colour.normalised, valid=valid,
+                       noise=judged.noise)
     stats = SolveStats(shapes=pyr.shapes, iterations=[0] * len(pyr.shapes))
     return refine_from(pyr, cfg, backend, candidates, stats), stats, judged

@@ -139,7 +139,7 @@ def affine_normalised(img: np.ndarray, lo: float, hi: float, step: float, noise_
                       presmooth: float | None = None) -> np.ndarray:
     """img mapped by (img - lo) / (hi - lo), or to [0, STEP_REF / rel] with rel = step * noise_gain / (hi - lo)
     when rel > STEP_REF, then presmoothed by QUANT_SIGMA (unless noise_gain < 1); see :func:`normalise_pair`.
-    ``presmooth``: the Gaussian (px; 0: none) to presmooth by, decided by the caller (:func:`normalise_frames`);
+    ``presmooth``: the Gaussian (px; 0: none) to presmooth by, decided by the caller (:func:`frame_maps`' blur);
     None: as above."""
     rel = relative_step(lo, hi, step, noise_gain)
     span = hi - lo if hi - lo > MIN_SPAN else 1.0
@@ -157,23 +157,21 @@ def relative_step(lo: float, hi: float, step: float, noise_gain: float) -> float
     return step * noise_gain / (hi - lo if hi - lo > MIN_SPAN else 1.0)
 
 
-def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 1.0,
-                     samples: Samples | None = None, maps: FrameMaps | None = None, n0: np.ndarray | None = None,
-                     presmooth: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def normalise_frames(frames: tuple[np.ndarray, np.ndarray], noise_gain: float = 1.0, maps: FrameMaps | None = None,
+                     n0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Both frames (H, W) float32, each by its own robust range (its 2nd and 98th percentiles mapped to [0, 1],
     coarsely quantised content's contrast shrunk as in :func:`normalise_pair`: the ``census`` mode's map; its
     data term is invariant to each frame's gain and offset, and the map gives EPS the same meaning in both
-    frames), and both presmoothed by QUANT_SIGMA when either's quantisation is coarse, by ``presmooth`` px
-    (FlowConfig.census_presmooth) in any case, the larger of the two (:func:`frame_maps`): the
+    frames), and both presmoothed by the one Gaussian ``maps`` carry (:func:`frame_maps`: QUANT_SIGMA when either's
+    quantisation is coarse, FlowConfig.census_presmooth in any case, the larger of the two): the
     two signatures a census data term compares must come from the same filter (a blur is not a tone curve, so
     one frame blurred and the other not differ wherever there is texture; issue 25's low light, frame 2
-    darkened 0.4x: docs/engine.md). ``samples``: the frames' :func:`sorted_sample` when known; ``maps``: their
-    :func:`frame_maps` at this ``noise_gain`` when known (the engine takes them once for this and the noise floor,
-    census_noise.pair_noise). ``n0``: frame 0 already normalised by its map, presmoothing and noise gain (a stream's
-    previous pair normalised it as its frame 1: engine.Seen, keyed by :func:`frame_key`), taken as it is."""
-    if maps is None:
-        maps = frame_maps(frame_samples(*frames) if samples is None else samples, noise_gain, presmooth=presmooth)
-    (map0, map1), blur = maps
+    darkened 0.4x: docs/engine.md). ``maps``: the frames' :func:`frame_maps` at this ``noise_gain`` (the engine
+    takes them once for this and the noise floor, census_noise.pair_noise); None: taken here of the frames'
+    :func:`frame_samples` without a ``presmooth`` (a caller that wants one builds the maps). ``n0``: frame 0 already
+    normalised by its map, presmoothing and noise gain (a stream's previous pair normalised it as its frame 1:
+    engine.Seen, keyed by :func:`frame_key`), taken as it is."""
+    (map0, map1), blur = frame_maps(frame_samples(*frames), noise_gain) if maps is None else maps
     if n0 is None:
         n0 = affine_normalised(frames[0], *map0, noise_gain, blur)
     return n0, affine_normalised(frames[1], *map1, noise_gain, blur)
@@ -301,8 +299,8 @@ def preprocess(i0: np.ndarray, i1: np.ndarray, mode: str) -> tuple[np.ndarray, n
 
 
 def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, samples: Samples | None = None,
-          pmap: PairMap | None = None, n0: np.ndarray | None = None, maps: FrameMaps | None = None,
-          presmooth: float = 0.0) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+          pmap: PairMap | None = None, n0: np.ndarray | None = None, maps: FrameMaps | None = None
+          ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The engine's one call: (what the solver sees, the normalised pair census.reliability judges).
     The second is the ``normalise`` result in every mode but ``census``; ``census`` normalises each frame on its
     own (:func:`normalise_frames`, no exposure detection: its data term needs none; both presmoothed alike) and
@@ -311,12 +309,12 @@ def stage(i0: np.ndarray, i1: np.ndarray, mode: str, noise_gain: float = 1.0, sa
     stream knows its new pair's first frame's from the previous pair: temporal.Prior), computed here otherwise;
     every mode's ranges come from them; ``pmap``: their :func:`pair_map` when known (every mode but ``census``
     uses it); ``n0``: i0 normalised by that map when known (:func:`normalise_pair`; ``census``: by its own map,
-    :func:`normalise_frames`); ``maps``: their :func:`frame_maps` at this ``noise_gain`` when known (only
-    ``census`` uses them); ``presmooth``: ``census`` only, FlowConfig.census_presmooth (:func:`frame_maps`; taken
-    from ``maps`` when they are given)."""
+    :func:`normalise_frames`); ``maps``: ``census`` only, their :func:`frame_maps` at this ``noise_gain``, which
+    carry the presmoothing (FlowConfig.census_presmooth: the engine builds them with it); None: taken here of
+    the samples, without a ``presmooth``."""
     s0, s1 = frame_samples(i0, i1) if samples is None else samples
     if compares_signatures(mode):
-        pair = normalise_frames((i0, i1), noise_gain, (s0, s1), maps, n0, presmooth)
+        pair = normalise_frames((i0, i1), noise_gain, frame_maps((s0, s1), noise_gain) if maps is None else maps, n0)
         return pair, pair
     n0, n1, exposure_changed = normalise_pair(i0, i1, noise_gain, pair_map((s0, s1)) if pmap is None else pmap, n0)
     if mode == "density":
