@@ -112,6 +112,40 @@ def test_fields_and_the_warps_it_runs_after() -> None:
                                    rtol=0, atol=AGREE)
 
 
+@pytest.mark.parametrize("window", [3, 5])
+def test_the_threads_give_the_same_values(window: int) -> None:
+    """Task wmfast: on a level of PARALLEL_MIN_PIXELS or more the kernel weighs interleaved stripes of rows on the
+    bound threads; one thread or two, every value is the reference's, bit for bit (blocks split at other pixels,
+    the last block's unused columns zeroed)."""
+    from flow_node.core.numba_backend import thread_count
+    from flow_node.core.numba_wmedian import PARALLEL_MIN_PIXELS
+    v, i0 = two_motions(150, 170, seed=5)
+    assert v[0].size >= PARALLEL_MIN_PIXELS
+    ref = weighted_median(v, i0, 3, 0.06, 0.15, 0.5, window)
+    assert not np.array_equal(ref, median_filter(v, 3))
+    for n in (1, 2):
+        with thread_count(n):
+            np.testing.assert_array_equal(weighted_median_numba(v, i0, 3, 0.06, 0.15, 0.5, window), ref)
+
+
+def test_the_inner_window() -> None:
+    """median_weight_inner_window (task wmfast): the weighted window of the warps before a level's last (3: 3 x 3),
+    the last warp's median_filter's; 0 (the default) median_filter's on every warp; only 0, 3, 5."""
+    assert FlowConfig().median_weight_inner_window == 0
+    for bad in (1, 4, 7):
+        with pytest.raises(ConfigError):
+            FlowConfig(median_weight_inner_window=bad)
+    v, i0 = two_motions(40, 56)
+    five, three = (weighted_median(v, i0, 3, 0.06, 0.15, 0.5, w) for w in (5, 3))
+    assert not np.array_equal(five, three)
+    plain = FlowConfig(median_weight_sigma=0.06)
+    inner = plain.replace(median_weight_inner_window=3)
+    for backend in (NUMPY, select_backend("numba", threads=1)):
+        np.testing.assert_array_equal(warp_median(v, i0, 3, plain, backend, last=False), five)
+        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=False), three)
+        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=True), five)
+
+
 @pytest.mark.parametrize("n", [1, 2, 9, 25, 49])
 def test_the_sorting_network(n: int) -> None:
     """The kernel's network sorts: every 0/1 input for n <= 9 (the 0-1 principle: then it sorts anything), random
