@@ -128,22 +128,21 @@ def test_the_threads_give_the_same_values(window: int) -> None:
             np.testing.assert_array_equal(weighted_median_numba(v, i0, 3, 0.06, 0.15, 0.5, window), ref)
 
 
-def test_the_inner_window() -> None:
-    """median_weight_inner_window (task wmfast): the weighted window of the warps before a level's last (3: 3 x 3),
-    the last warp's median_filter's; 0 (the default) median_filter's on every warp; only 0, 3, 5."""
-    assert FlowConfig().median_weight_inner_window == 0
-    for bad in (1, 4, 7):
-        with pytest.raises(ConfigError):
-            FlowConfig(median_weight_inner_window=bad)
+def test_the_inner_range() -> None:
+    """median_weight_inner_range (task wmfast): the range that selects the pixels to weigh on the warps before a
+    level's last; the last warp's is median_weight_range; 0 (the default): median_weight_range on every warp."""
+    assert FlowConfig().median_weight_inner_range == 0.0
+    with pytest.raises(ConfigError):
+        FlowConfig(median_weight_inner_range=-1.0)
     v, i0 = two_motions(40, 56)
-    five, three = (weighted_median(v, i0, 3, 0.06, 0.15, 0.5, w) for w in (5, 3))
-    assert not np.array_equal(five, three)
+    narrow, wide = (weighted_median(v, i0, 3, 0.06, 0.15, tau, 5) for tau in (0.5, 2.0))
+    assert not np.array_equal(narrow, wide)
     plain = FlowConfig(median_weight_sigma=0.06)
-    inner = plain.replace(median_weight_inner_window=3)
+    inner = plain.replace(median_weight_inner_range=2.0)
     for backend in (NUMPY, select_backend("numba", threads=1)):
-        np.testing.assert_array_equal(warp_median(v, i0, 3, plain, backend, last=False), five)
-        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=False), three)
-        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=True), five)
+        np.testing.assert_array_equal(warp_median(v, i0, 3, plain, backend, last=False), narrow)
+        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=False), wide)
+        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=True), narrow)
 
 
 @pytest.mark.parametrize("n", [1, 2, 9, 25, 49])

@@ -79,15 +79,14 @@ def warp_median(v: np.ndarray, i0: np.ndarray, size: int, cfg: FlowConfig, backe
                 weighted: bool = True, last: bool = True) -> np.ndarray:
     """The median filter after a warp: plain (:func:`median_filter`), or with ``cfg.median_weight_sigma`` > 0 and
     ``weighted`` (the warp is one ``cfg.median_weight_warps`` names) the backend's weighted median guided by the
-    level's frame 0 ``i0`` (wmedian.py; docs/engine.md "Weighted median") over ``cfg.median_filter``'s window, or
-    on a warp before the level's ``last`` ``cfg.median_weight_inner_window``'s where set."""
+    level's frame 0 ``i0`` (wmedian.py; docs/engine.md "Weighted median") over ``cfg.median_filter``'s window,
+    where a 3 x 3 window's flow range exceeds ``cfg.median_weight_range`` (on a warp before the level's ``last``
+    ``cfg.median_weight_inner_range`` where set)."""
     if cfg.median_weight_sigma <= 0.0 or not weighted:
         return median_filter(v, size)
-    window = cfg.median_filter or size
-    if not last and cfg.median_weight_inner_window:
-        window = cfg.median_weight_inner_window
-    return backend.weighted_median(v, i0, size, cfg.median_weight_sigma, cfg.median_occlusion_sigma,
-                                   cfg.median_weight_range, window)
+    tau = cfg.median_weight_range if last or cfg.median_weight_inner_range <= 0.0 else cfg.median_weight_inner_range
+    return backend.weighted_median(v, i0, size, cfg.median_weight_sigma, cfg.median_occlusion_sigma, tau,
+                                   cfg.median_filter or size)
 
 
 def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
