@@ -118,12 +118,13 @@ def _gather(v, guide, y, x, r, p, dif, div, vals):  # noqa: ANN001, ANN202
 
 
 @njit(inline="always", **_JIT)
-def _weigh_block(ys, xs, cnt, spatial, inv, inv_d, pairs, out, dif, div, vals, wq, work_v, work_q, total,  # noqa: ANN001, ANN202
-                 below, best):
-    """The weighted median of each component at the block's ``cnt`` pixels (ys, xs) (their windows gathered by
-    :func:`_gather` into dif, div, vals (n, BLOCK)) into ``out`` (2, H, W) (wmedian.weighted_median); ``inv`` =
-    1 / sigma_i^2, ``inv_d`` = 1 / sigma_d^2 (0: no occlusion state); ``pairs``: :func:`sorting_network` of the
-    window's size. The columns past ``cnt`` (finite: a former block's windows, or zeros) are weighed and ignored."""
+def _weigh_block(ys, xs, cnt, spatial, inv, inv_d, pairs, out, dif, div, vals, wq, work_q, total, below,  # noqa: ANN001, ANN202
+                 best):
+    """The weighted median of each component at the block's ``cnt`` pixels (ys, xs) into ``out`` (2, H, W)
+    (wmedian.weighted_median): their windows gathered by :func:`_gather` into dif, div (n, BLOCK) and vals (2, n,
+    BLOCK), which is sorted in place; ``inv`` = 1 / sigma_i^2, ``inv_d`` = 1 / sigma_d^2 (0: no occlusion state);
+    ``pairs``: :func:`sorting_network` of the window's size. The columns past ``cnt`` (finite: a former block's
+    windows, or zeros) are weighed and ignored."""
     n = dif.shape[0]
     inf = np.float32(np.inf)
     total[:] = 0
@@ -135,9 +136,11 @@ def _weigh_block(ys, xs, cnt, spatial, inv, inv_d, pairs, out, dif, div, vals, w
             qk[p] = np.int32(math.floor(sk / (1.0 + (dk[p] * dk[p]) * inv) * o * QUANTUM)) + np.int32(1)
             total[p] += qk[p]
     for c in range(2):
-        sv, sw = work_v, work_q  # the window sorted by value, its weights along (a sorting network)
-        sv[:] = vals[c]
-        sw[:] = wq
+        sv, sw = vals[c], work_q  # the window sorted by value in place, a copy of its weights along (a sorting network)
+        for k in range(n):
+            wk, qk = sw[k], wq[k]
+            for p in range(BLOCK):
+                wk[p] = qk[p]
         for t in range(pairs.shape[0]):
             vi, vj, qi, qj = sv[pairs[t, 0]], sv[pairs[t, 1]], sw[pairs[t, 0]], sw[pairs[t, 1]]
             for p in range(BLOCK):
@@ -169,7 +172,6 @@ def _stripes(v, guide, tau, r, spatial, inv, inv_d, pairs, out, first, step, row
     ys = np.empty(BLOCK, np.int64)
     xs = np.empty(BLOCK, np.int64)
     vals = np.empty((2, n, BLOCK), np.float32)
-    work_v = np.empty((n, BLOCK), np.float32)
     dif = np.empty((n, BLOCK))
     div = np.empty((n, BLOCK))
     wq = np.empty((n, BLOCK), np.int32)
@@ -188,8 +190,8 @@ def _stripes(v, guide, tau, r, spatial, inv, inv_d, pairs, out, first, step, row
                     if cnt == BLOCK:
                         for p in range(BLOCK):
                             _gather(v, guide, ys[p], xs[p], r, p, dif, div, vals)
-                        _weigh_block(ys, xs, cnt, spatial, inv, inv_d, pairs, out, dif, div, vals, wq, work_v, work_q,
-                                     total, below, best)
+                        _weigh_block(ys, xs, cnt, spatial, inv, inv_d, pairs, out, dif, div, vals, wq, work_q, total,
+                                     below, best)
                         cnt = 0
     if cnt:
         for p in range(cnt):
@@ -198,8 +200,7 @@ def _stripes(v, guide, tau, r, spatial, inv, inv_d, pairs, out, first, step, row
             for p in range(cnt, BLOCK):
                 dif[k, p] = div[k, p] = 0.0
                 vals[0, k, p] = vals[1, k, p] = 0.0
-        _weigh_block(ys, xs, cnt, spatial, inv, inv_d, pairs, out, dif, div, vals, wq, work_v, work_q, total, below,
-                     best)
+        _weigh_block(ys, xs, cnt, spatial, inv, inv_d, pairs, out, dif, div, vals, wq, work_q, total, below, best)
 
 
 @njit(parallel=True, **_JIT)
