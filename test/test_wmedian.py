@@ -112,6 +112,39 @@ def test_fields_and_the_warps_it_runs_after() -> None:
                                    rtol=0, atol=AGREE)
 
 
+@pytest.mark.parametrize("window", [3, 5])
+def test_the_threads_give_the_same_values(window: int) -> None:
+    """Task wmfast: on a level of PARALLEL_MIN_PIXELS or more the kernel weighs interleaved stripes of rows on the
+    bound threads; one thread or two, every value is the reference's, bit for bit (blocks split at other pixels,
+    the last block's unused columns zeroed)."""
+    from flow_node.core.numba_backend import thread_count
+    from flow_node.core.numba_wmedian import PARALLEL_MIN_PIXELS
+    v, i0 = two_motions(150, 170, seed=5)
+    assert v[0].size >= PARALLEL_MIN_PIXELS
+    ref = weighted_median(v, i0, 3, 0.06, 0.15, 0.5, window)
+    assert not np.array_equal(ref, median_filter(v, 3))
+    for n in (1, 2):
+        with thread_count(n):
+            np.testing.assert_array_equal(weighted_median_numba(v, i0, 3, 0.06, 0.15, 0.5, window), ref)
+
+
+def test_the_inner_range() -> None:
+    """median_weight_inner_range (task wmfast): the range that selects the pixels to weigh on the warps before a
+    level's last; the last warp's is median_weight_range; 0 (the default): median_weight_range on every warp."""
+    assert FlowConfig().median_weight_inner_range == 0.0
+    with pytest.raises(ConfigError):
+        FlowConfig(median_weight_inner_range=-1.0)
+    v, i0 = two_motions(40, 56)
+    narrow, wide = (weighted_median(v, i0, 3, 0.06, 0.15, tau, 5) for tau in (0.5, 2.0))
+    assert not np.array_equal(narrow, wide)
+    plain = FlowConfig(median_weight_sigma=0.06)
+    inner = plain.replace(median_weight_inner_range=2.0)
+    for backend in (NUMPY, select_backend("numba", threads=1)):
+        np.testing.assert_array_equal(warp_median(v, i0, 3, plain, backend, last=False), narrow)
+        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=False), wide)
+        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=True), narrow)
+
+
 @pytest.mark.parametrize("n", [1, 2, 9, 25, 49])
 def test_the_sorting_network(n: int) -> None:
     """The kernel's network sorts: every 0/1 input for n <= 9 (the 0-1 principle: then it sorts anything), random
@@ -143,14 +176,21 @@ def test_which_warps_weigh() -> None:
 
 
 def test_the_presets_that_weigh() -> None:
-    """fastest and quality weigh after each level's last warp where a window spans 0.75 px (tasks occl, occl2),
-    balanced where it spans 1.5 px (occl2: 0.75 px cost it 1.11x on Middlebury); realtime keeps the plain median
-    (occl2: its +4 % bound left only a 3 px range). At 1.5 px a ~0.6 px jump keeps the plain median, a 3 px one not."""
+    """quality weighs after each level's last warp where a window spans 0.75 px (task occl2), fastest (and
+    stream_fast, which solves a single pair as fastest does) after every warp of its coarser levels and the finest
+    solved level's last (task wmfast: every warp cost it 1.07-1.10x on Middlebury), balanced after each level's last
+    where a window spans 1.5 px (occl2: 0.75 px cost it 1.11x on Middlebury); realtime keeps the plain median
+    (wmfast: 1.5 px lost the report split's missing regime). At 1.5 px a ~0.6 px jump keeps the plain median, a 3 px
+    one not."""
     from flow_node.core.presets import WEIGHTED_MEDIAN
     fastest, quality, balanced = (FlowConfig.preset(name) for name in ("fastest", "quality", "balanced"))
+    stream_fast = FlowConfig.preset("stream_fast")
     for key, value in WEIGHTED_MEDIAN.items():
-        assert getattr(fastest, key) == value and getattr(quality, key) == value
+        expected = "coarse" if key == "median_weight_warps" else value
+        assert getattr(fastest, key) == getattr(stream_fast, key) == expected
+        assert getattr(quality, key) == value
         assert getattr(balanced, key) == (1.5 if key == "median_weight_range" else value)
+    assert fastest.median_weight_inner_range == quality.median_weight_inner_range == 0.0
     assert FlowConfig.preset("realtime").median_weight_sigma == 0.0
     v, i0 = two_motions(30, 40)
     small = (v - v.mean(axis=(1, 2), keepdims=True)) * np.float32(0.2)  # the disc's jump ~0.6 px, the noise 0.06

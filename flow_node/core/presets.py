@@ -163,6 +163,11 @@ EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05))  # tv_e
 # Middlebury, 1.01x bags; report every regime better or equal (real_exact 0.2314 -> 0.2140, geomean 0.976).
 # realtime keeps the plain median: a fixed cost (+2-5 % on Middlebury at any range) left its +4 % only at a range of
 # 3 px, where the gain is small (tune real_exact -2 %).
+# fastest weighs every warp of its coarser levels and the finest solved level's last (`coarse`, task wmfast, bench/
+# results/suite/wmfast): tune real_exact -6.1 %, Middlebury -0.8 %, no regime worse; CPU 1.01-1.02x on Middlebury
+# (six runs), 1.00-1.02x bags; report split every regime better or equal (real_exact 0.3315 -> 0.3238, DualTVL1 0.313
+# still missed). Every warp (-15 % on tune) cost 1.07-1.10x on Middlebury; realtime at range 1.5 px (tune -8.8 %,
+# CPU 1.03-1.04x) lost the report's missing regime (+1.8 %) and stays plain.
 WEIGHTED_MEDIAN: Mapping[str, Any] = MappingProxyType(dict(median_weight_sigma=0.06, median_weight_warps="last",
                                                            median_weight_range=0.75))
 # fastest, and the stream presets' base (below)
@@ -170,7 +175,8 @@ FASTEST: Mapping[str, Any] = MappingProxyType(dict(
     model="l1_tv", alpha=0.07, iterations=10, warps=4, finest_iterations=6, levels=5, finest_level=1, median_filter=5,
     gradient_scheme="interpolated", tolerance=0.0, initialisation="dis_ultrafast", init_finest_level=2,
     census_median_filter=3, census_coarse_eps=0.03, census_coarse_width=50, census_empty_contrast=0.005,
-    census_delta=0.02, census_alpha=0.35, photometric="census", **EDGE_TV, **WEIGHTED_MEDIAN))
+    census_delta=0.02, census_alpha=0.35, photometric="census", **EDGE_TV,
+    **dict(WEIGHTED_MEDIAN, median_weight_warps="coarse")))
 PRESETS: dict[str, dict[str, Any]] = {
     "quality": dict(model="l1_tv", alpha=0.03, iterations=12, warps=10, levels=15, scale_factor=0.8,
                     level_alpha_factor=1.0, median_filter=5, gradient_scheme="interpolated", tolerance=0.0,
