@@ -9,13 +9,15 @@ the tune split)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from flow_node.bag.synth import SynthSpec, render_frames
 from flow_node.core.api import FlowEstimator
 from flow_node.core.census import CENSUS
-from flow_node.core.config import FlowConfig
+from flow_node.core.config import ConfigError, FlowConfig
 from flow_node.core.refine import level_census, level_params
 from flow_node.core.temporal import stream_schedule
 
@@ -43,6 +45,32 @@ def test_census_delta_reaches_every_level() -> None:
     for width, finest in ((20, False), (64, False), (128, True)):
         assert level_census(cfg, width, finest=finest).delta == 0.05
     assert level_census(cfg.replace(census_delta=CENSUS.delta, census_finest_radius=1), 128, finest=True) == CENSUS
+
+
+def test_census_eps_reaches_the_signature() -> None:
+    """FlowConfig.census_eps (task feps) is the signature's EPS on every level the coarse rules do not damp: its
+    default is CensusParams' (every preset that does not set it: the same constants object, bit-identical flows),
+    the coarse EPS and the pair's noise floor still win where they apply, and the flow moves with it."""
+    assert FlowConfig().census_eps == CENSUS.eps
+    cfg = CENSUS_RT.replace(census_delta=CENSUS.delta, census_finest_radius=1)
+    assert level_census(cfg, 128) is CENSUS
+    small = cfg.replace(census_eps=0.005)
+    assert level_census(small, 128) == replace(CENSUS, eps=0.005)
+    assert level_census(small, 128, finest=True).eps == 0.005
+    assert level_census(small, 20).eps == small.census_coarse_eps  # narrower than census_coarse_width
+    assert level_census(small, 128, contrast=0.0).eps == small.census_coarse_eps  # an empty level
+    assert level_census(small, 128, eps_floor=0.007).eps == 0.007  # the noise floor
+    with pytest.raises(ConfigError):
+        FlowConfig(census_eps=0.0)
+    frames, _ = render_frames(SynthSpec(scene="rotation", frames=2, size=(128, 96), encoding="mono8", seed=103))
+    fastest = FlowConfig.preset("fastest").replace(threads=1)
+
+    def flow(c: FlowConfig) -> np.ndarray:
+        return FlowEstimator(c).estimate(frames[0], frames[1]).flow
+
+    today = flow(fastest)
+    np.testing.assert_array_equal(today, flow(fastest.replace(census_eps=CENSUS.eps)))
+    assert np.abs(flow(fastest.replace(census_eps=0.005)) - today).max() > 1e-3
 
 
 # each preset's census DELTA and census alpha (tune data only): realtime task smoothbags, fastest tasks fastdelta
