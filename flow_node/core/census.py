@@ -28,26 +28,13 @@ rho^2 / (2 |rho_k(v0)|) (+ const) -- iteratively reweighted least squares, one r
 with w_k = 1 / sqrt(rho_k(v0)^2 + DELTA^2): each warp minimises an upper bound of the L1 data term that
 touches it at v0, so the warps decrease it. A pixel whose x + v0 leaves the image has T = g = 0 (no data
 term), as for grey values.
-
-Where the frames' textures differ -- one frame's tone curve crushed its darks to a few grey levels (an S-curve's or
-gamma's slope ~0 near black), its texture gone and only its quantisation staircase left -- the signatures
-disagree whatever the flow, and the data term pulls the flow somewhere wrong where it should say nothing. With
-``similar`` p > 0 every pixel's form is weighted by how alike both frames' local contrasts are at the match:
-
-    w(x) = (min(n0, n1) / max(n0, n1))^p,   n0 = s0(x) + EPS,  n1 = s1(x + v0) + EPS
-
-(s0, s1 each frame's RMS contrast of the signature, in the same normalised units; recomputed every warp; with C
-channels the geometric mean of the channels' weights). A monotonic tone curve scales a window's contrast by its
-slope, so where one frame's curve crushed (slope << 1) the data term fades and the regulariser carries the
-motion in from the textured parts; an unchanged pair has n1 ~ n0 except at occlusions. n = GAIN / factor with
-the signature's factor GAIN / (s + EPS), so w is the ratio of both frames' factors (:func:`factor`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from typing import Protocol
 
 import numpy as np
 
@@ -68,14 +55,12 @@ class CensusParams:
     ``gain``: scale of the signature (sets the data term's weight against the regulariser's alpha);
     ``eps``: contrast (of the frame's robust range) below which differences are damped, not normalised;
     ``delta``: residual (signature units) below which the L1 majoriser is quadratic;
-    ``radius``: the neighbours' distance (px), 1 (the 3 x 3 neighbourhood) or 2 (:func:`offsets`);
-    ``similar``: the exponent p of the texture-similarity weight (module doc; 0 = off, every pixel weight 1)."""
+    ``radius``: the neighbours' distance (px), 1 (the 3 x 3 neighbourhood) or 2 (:func:`offsets`)."""
 
     gain: float = 0.1
     eps: float = 0.01
     delta: float = 0.2
     radius: int = 1
-    similar: float = 0.0
 
 
 CENSUS = CensusParams()
@@ -99,22 +84,6 @@ def signature(img: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
     img = img.astype(np.float32, copy=False)
     diffs = np.stack([shifted(img, dy, dx) - img for dy, dx in offsets(params.radius)])
     return (normalised(diffs, params) * np.float32(params.gain)).astype(np.float32)
-
-
-def factor(img: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
-    """The factor GAIN / (s + EPS) that makes img's neighbour differences its signature (:func:`signature`):
-    (H, W) float32 -> (H, W) float32."""
-    img = img.astype(np.float32, copy=False)
-    diffs = np.stack([shifted(img, dy, dx) - img for dy, dx in offsets(params.radius)])
-    return (np.float32(params.gain) / (np.sqrt(np.mean(diffs * diffs, axis=0)) + np.float32(params.eps))).astype(
-        np.float32)
-
-
-def similarity(fac0: np.ndarray, fac1: np.ndarray, p: float) -> np.ndarray:
-    """The texture-similarity weight w (module doc) from both frames' factors (C, H, W) (:func:`factor`; frame 1's
-    at x + v0): the geometric mean over the C channels of (min / max)^p, (H, W) float32."""
-    ratio = np.minimum(fac0, fac1) / np.maximum(fac0, fac1)
-    return np.prod(ratio ** np.float32(p / len(fac0)), axis=0).astype(np.float32)
 
 
 def normalised(diffs: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
@@ -183,23 +152,13 @@ def form_residual(form: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.stack([form[0] * v[0] + form[1] * v[1] + form[3], form[1] * v[0] + form[2] * v[1] + form[4]])
 
 
-class FrameZero(NamedTuple):
-    """What the numpy :func:`census_form` needs of frame 0 on a level besides its signatures: their ``gradient``
-    (2, C K, H, W) and, with ``similar`` > 0, each channel's ``factor`` (C, H, W) (:func:`factor`; else None)."""
-
-    gradient: np.ndarray
-    factor: np.ndarray | None
-
-
-def level_signature(frames: np.ndarray, params: CensusParams = CENSUS) -> tuple[np.ndarray, FrameZero]:
+def level_signature(frames: np.ndarray, params: CensusParams = CENSUS) -> tuple[np.ndarray, np.ndarray]:
     """Frame 0's signatures on one pyramid level (computed once per level, used by every warp there): of an
     image (H, W) (K, H, W), of a channel stack (C, H, W) (colour.py) the channels' signatures stacked
-    (C K, H, W); and their gradients (2, K or C K, H, W) with, for ``params.similar`` > 0, the channels' factors
-    (:class:`FrameZero`)."""
+    (C K, H, W); and their gradients (2, K or C K, H, W)."""
     stack = frames if frames.ndim == 3 else frames[None]
     f0 = np.concatenate([signature(ch, params) for ch in stack]) if len(stack) > 1 else signature(stack[0], params)
-    fac0 = np.stack([factor(ch, params) for ch in stack]) if params.similar > 0 else None
-    return f0, FrameZero(signature_gradient(f0), fac0)
+    return f0, signature_gradient(f0)
 
 
 def warped_frames(coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,
@@ -215,29 +174,23 @@ def warped_frames(coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel:
     return np.where(inside, warped, frames).astype(np.float32, copy=False), ~inside
 
 
-def census_form(f0: np.ndarray, g0: FrameZero | None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray,
+def census_form(f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray,
                 kernel: str, robust: bool, params: CensusParams = CENSUS, sample: Sample = sample_coefficients,
                 out: np.ndarray | None = None) -> np.ndarray:
     """One warp's census data term: the quadratic form (5, H, W) around v0 (2, H, W).
 
-    f0 (C K, H, W), g0: frame 0's signatures of its C channels and their gradients (and factors) on this level
+    f0 (C K, H, W), g0 (2, C K, H, W): frame 0's signatures of its C channels and their gradients on this level
     (:func:`level_signature`, stacked channel by channel); ``coefs``, ``frames``
     (C, H, W): frame 1's channels and their interpolation coefficients (``kernel``), sampled at x + v0 by
     :func:`warped_frames`; ``robust``: the L1 data term (else L2). C = 1 for grey input; with C channels
     (colour.py) the form is the mean over them (scaled by 1 / C, so that alpha means what it means for grey).
-    With ``params.similar`` > 0 every pixel's form times the texture-similarity weight (:func:`similarity`).
     Into ``out`` (5, H, W) float32 when given (and returned)."""
     if g0 is None:
         raise ValueError("census_form needs frame 0's signature gradients (census.level_signature)")
     warped, outside = warped_frames(coefs, frames, v0, kernel, sample)
     f1 = np.concatenate([signature(w, params) for w in warped])
-    form = signature_form(f0, g0.gradient, f1, outside, v0, robust, params)
+    form = signature_form(f0, g0, f1, outside, v0, robust, params)
     form = form if len(warped) == 1 else (form * np.float32(1.0 / len(warped))).astype(np.float32)
-    if params.similar > 0:
-        if g0.factor is None:
-            raise ValueError("census_form with similar > 0 needs frame 0's factors (census.level_signature)")
-        fac1 = np.stack([factor(w, params) for w in warped])
-        form = (form * similarity(g0.factor, fac1, params.similar)).astype(np.float32)
     if out is None:
         return form
     out[...] = form
@@ -246,17 +199,15 @@ def census_form(f0: np.ndarray, g0: FrameZero | None, coefs: np.ndarray, frames:
 
 # level_signature(frames, params) -> (f0, g0) and census_form(f0, g0, coefs, frames, v0, kernel, robust, params,
 # out=None) -> q: the numpy references above or a backend's kernels (numba_census.py)
-# (the numba kernels take frame 0's gradient inside the form kernel: their level signature's second item is frame
-# 0's factors (C, H, W), numba_signature.level_signature_numba)
-LevelSignature = Callable[[np.ndarray, CensusParams], tuple[np.ndarray, FrameZero | np.ndarray | None]]
+# (the numba kernels take frame 0's gradient inside the form kernel: their level signature's second item is None)
+LevelSignature = Callable[[np.ndarray, CensusParams], tuple[np.ndarray, np.ndarray | None]]
 
 
 class CensusForm(Protocol):
     """A backend's :func:`census_form`: the form (5, H, W) of one warp, into ``out`` when given."""
 
-    def __call__(self, f0: np.ndarray, g0: FrameZero | np.ndarray | None, coefs: np.ndarray, frames: np.ndarray,
-                 v0: np.ndarray, kernel: str, robust: bool, params: CensusParams, *,
-                 out: np.ndarray | None = None) -> np.ndarray: ...
+    def __call__(self, f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray,
+                 kernel: str, robust: bool, params: CensusParams, *, out: np.ndarray | None = None) -> np.ndarray: ...
 
 
 # reliability samples every SAMPLE_SPACING-th point of photometric.reliability_stride's grid (~5,000 at any size

@@ -134,12 +134,6 @@ class FlowConfig:
                                  "they get anyway (0 = only those: the comparison then depends on the encoding, 8-bit "
                                  "low range against 10-16 bit). realtime sets 0.45 (task presm, docs/engine.md 'The "
                                  "census data term')", lo=0.0, hi=5.0)
-    census_similar: float = _f(0.0, "photometric census: weight each pixel's data term by how alike both frames' "
-                               "local contrasts are at the match, (min / max)^p of (s + EPS) in frame 0 and in frame 1 "
-                               "at x + v0, this p, recomputed every warp (0 = off). Where one frame's tone curve "
-                               "crushed the texture (an S-curve's or gamma's darks) the data term fades and the "
-                               "regulariser carries the motion in (issue 25, task crush; docs/engine.md, 'The census "
-                               "data term')", lo=0.0, hi=10.0)
     constraint: str = _f("brightness", "what the data term asks of the motion: brightness (constancy, "
                          "I1(x + v) = I0(x)) or mass (preservation, the continuity equation I_t + div(I v) = 0: "
                          "densities that thin out or pile up, e.g. fluids, cells, PET; needs photometric density "

@@ -82,16 +82,6 @@ def _factor_row(warped, c, sm, s0, sp, rad, gain, eps, ss, zero):  # noqa: ANN00
         ss[j] = gain / (math.sqrt(t * inv_k) + eps)
 
 
-@njit(**ROWS)
-def _similar_row(fac0, c, rr, ss, keep, sk, e):  # noqa: ANN001, ANN201
-    """keep[sk] (W) times the texture-similarity weight of channel c at image row rr (census.similarity): with
-    frame 0's factor fac0[c, rr] and the warped frame's ss (:func:`_factor_row`), (min / max)^e, e = p / C (the
-    channels' product is their geometric mean)."""
-    for j in range(ss.shape[0]):
-        a, b = fac0[c, rr, j], ss[j]
-        keep[sk, j] *= (min(a, b) / max(a, b)) ** e
-
-
 @njit(inline="always", **ROWS)
 def _put(f0, q, rr, j, d, fac, pair, diff, sq):  # noqa: ANN001, ANN201
     """P and D of channel q at column j from the warped frame's neighbour difference d and its factor fac
@@ -211,7 +201,7 @@ _form_row_first, _form_row_add, _form_row_last = (_make_form_row(*f) for f in ((
 
 
 @njit(**ROWS)
-def _census_rows(f0, fac0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, sim, weight, out, r0, r1,  # noqa: ANN001, ANN201
+def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, r0, r1,  # noqa: ANN001, ANN201
                  warped, keep, pair, diff, ss, taps, base, zero):
     """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, M, W + 2 rad) and keep
     (M, W) hold rows of frame 1 warped (padded with rad edge values on either side: :func:`_pad_row`) and its
@@ -222,10 +212,8 @@ def _census_rows(f0, fac0, coefs, frames, flow, kernel, dy, dx, gain, eps, robus
     the image row clamped to 0 .. H - 1 (so the signature of the first and last rows sees edge values, as
     census.signature), and output row i needs signature rows i - 1 .. i + 1, those warped rows
     i - 1 - rad .. i + 1 + rad: each block warps its rows and 1 + rad on either side, each once. (The rings' rows
-    -1 and H are read for the first and last rows' y-gradient, whose weight is 0.) With ``sim`` = p / C > 0 the
-    signatures' step also weighs row rr's keep by the texture similarity (:func:`_similar_row`; it is read by output
-    row rr, rad + 1 warped rows later, before its slot is overwritten: M = 2 rad + 1 > rad + 1). Each step's work
-    is its own function (:func:`_pair_rows`, :func:`_form_rows`): written inline here the same code ran ~25 % slower."""
+    -1 and H are read for the first and last rows' y-gradient, whose weight is 0.) Each step's work is its own
+    function (:func:`_pair_rows`, :func:`_form_rows`): written inline here the same code ran ~25 % slower."""
     h, w = f0.shape[1], f0.shape[2]
     m = warped.shape[1]
     rad = (m - 1) // 2
@@ -236,26 +224,23 @@ def _census_rows(f0, fac0, coefs, frames, flow, kernel, dy, dx, gain, eps, robus
             _pad_row(warped, c, s, rad, w)
         rr = r - rad
         if rr >= r0 - 1:  # the signatures of row rr (warped rows rr - rad, rr, rr + rad) into diff, then P and D
-            _pair_rows(f0, fac0, min(max(rr, 0), h - 1), warped, (rr - rad + 2 * m) % m, (rr + 2 * m) % m, s,
-                       (rr + 3) % 3, dy, dx, gain, eps, sim, keep, pair, diff, ss, zero)
+            _pair_rows(f0, min(max(rr, 0), h - 1), warped, (rr - rad + 2 * m) % m, (rr + 2 * m) % m, s,
+                       (rr + 3) % 3, dy, dx, gain, eps, pair, diff, ss, zero)
         if rr - 1 >= r0:  # output row i: signature rows i - 1, i, i + 1 are in the ring
             _form_rows(out, rr - 1, pair, diff, keep, (rr - 1 + 2 * m) % m, flow, d2, robust)
 
 
 @njit(**ROWS)
-def _pair_rows(f0, fac0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, sim, keep, pair, diff, ss, zero):  # noqa: ANN001, ANN201
+def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, ss, zero):  # noqa: ANN001, ANN201
     """P and D of one row (image row rr) into ring slot sq of pair and diff, from the warped rows in slots sm,
     s0, sp (rad rows above, at, rad below; padded) and frame 0's level f0 (C K, H, W): its channels' signatures
     (:func:`level_signature_numba`) (:func:`_census_rows`). Per channel the factor (:func:`_factor_row`), then
     the K neighbour differences (offsets dy, dx at distance rad) again with their products and sums, four at a
-    time (:func:`_pair_diff`); with ``sim`` > 0 the row's weight keep[s0] times the channel's texture similarity
-    (:func:`_similar_row`, fac0 frame 0's factors (C, H, W))."""
+    time (:func:`_pair_diff`)."""
     k_n = dy.shape[0]
     rad = (warped.shape[1] - 1) // 2
     for c in range(warped.shape[0]):
         _factor_row(warped, c, sm, s0, sp, rad, gain, eps, ss, zero)
-        if sim > 0:
-            _similar_row(fac0, c, rr, ss, keep, s0, sim)
         for k in range(0, k_n, 4):
             slots = (neighbour_row(dy[k], sm, s0, sp), neighbour_row(dy[k + 1], sm, s0, sp),
                      neighbour_row(dy[k + 2], sm, s0, sp), neighbour_row(dy[k + 3], sm, s0, sp))
@@ -314,11 +299,10 @@ def _ring_views(rings, t, n_c, m, w):  # noqa: ANN001, ANN201
 
 
 @njit(parallel=True, **JIT)
-def census_kernel(f0, fac0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, sim, weight, out,  # noqa: ANN001, ANN201
+def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, weight, out,  # noqa: ANN001, ANN201
                   rings, base, blocks, zero):
     """census.census_form in one pass: out (5, H, W) from frame 0's level f0 (C K, H, W) (its channels'
-    signatures, :func:`level_signature_numba`) and, with ``sim`` = CensusParams.similar / C > 0, its factors fac0
-    (C, H, W) (the texture-similarity weight, census.similarity; else not read), frame 1's interpolation coefficients
+    signatures, :func:`level_signature_numba`), frame 1's interpolation coefficients
     ``coefs`` and channels ``frames`` (C, H, W) and the flow v0 (2, H, W); each pixel's weight ``weight`` (1 / C)
     inside, 0 where x + v0 leaves the image; the signatures' offsets (dy, dx) at distance rad (census.OFFSETS
     times rad, in that order: :func:`_factor_row`), the warped rings' M = 2 rad + 1 rows. The rows in ``blocks``
@@ -335,22 +319,18 @@ def census_kernel(f0, fac0, coefs, frames, flow, kernel, dy, dx, gain, eps, robu
     if blocks > 1:
         for b in prange(blocks):
             t = get_thread_id()
-            _census_rows(f0, fac0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, sim, weight, out,
+            _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out,
                          b * h // blocks, (b + 1) * h // blocks, warped[t], keep[t], pair[t], diff[t], ss[t],
                          taps[t], base[t], zero)
     else:
-        _census_rows(f0, fac0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, sim, weight, out, 0, h,
+        _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, 0, h,
                      warped[0], keep[0], pair[0], diff[0], ss[0], taps[0], base[0], zero)
 
 
-_NO_FACTORS = np.zeros((1, 1, 1), F32)  # census_kernel's fac0 when the similarity weight is off (not read)
-
-
-def census_form_numba(f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray,
-                      kernel: str, robust: bool, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
+def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.ndarray, v0: np.ndarray, kernel: str,
+                      robust: bool, params: CensusParams, out: np.ndarray | None = None) -> np.ndarray:
     """census.census_form with :func:`census_kernel`: the quadratic form (5, H, W) of one warp, f0 frame 0's level
-    (C K, H, W) and g0 its factors (C, H, W) (:func:`level_signature_numba`; read with ``params.similar`` > 0 only,
-    else may be None). The rings are the
+    (C K, H, W) (:func:`level_signature_numba`). The rings are the
     calling thread's scratch arrays (workspace.py); the rows run in one block per thread on levels of
     LINEARISE_PARALLEL_MIN_PIXELS or more (else in one); the form itself is fresh (a Bregman step reuses the
     last warp's), or ``out`` (5, H, W) float32 C-contiguous when given."""
@@ -359,12 +339,9 @@ def census_form_numba(f0: np.ndarray, g0: np.ndarray | None, coefs: np.ndarray, 
     n = numba.config.NUMBA_NUM_THREADS  # per-thread rings: get_thread_id's range
     rings = scratch("census.rings", (ring_floats(n, n_c, 2 * params.radius + 1, w),))
     out = np.empty((5, h, w), F32) if out is None else out
-    if params.similar > 0 and g0 is None:
-        raise ValueError("census_form_numba with similar > 0 needs frame 0's factors (level_signature_numba)")
-    fac0 = _NO_FACTORS if params.similar <= 0 else np.ascontiguousarray(g0, dtype=F32)
-    census_kernel(np.ascontiguousarray(f0, dtype=F32), fac0, np.ascontiguousarray(coefs, dtype=F32),
+    census_kernel(np.ascontiguousarray(f0, dtype=F32), np.ascontiguousarray(coefs, dtype=F32),
                   np.ascontiguousarray(frames, dtype=F32), np.ascontiguousarray(v0, dtype=F32),
                   KERNEL_CODES[kernel], *offset_arrays(params.radius), F32(params.gain), F32(params.eps), robust,
-                  F32(params.delta), F32(max(params.similar, 0.0) / n_c), F32(1.0 / n_c), out, rings,
+                  F32(params.delta), F32(1.0 / n_c), out, rings,
                   row_base(w), blocks, F32(0.0))
     return out

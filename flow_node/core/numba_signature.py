@@ -171,12 +171,10 @@ def census_planes_numba(img: np.ndarray, params: CensusParams) -> np.ndarray:
     return out
 
 
-def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.ndarray, np.ndarray]:
+def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.ndarray, None]:
     """census.level_signature for the kernel: frame 0's signatures on one level of an image (H, W) or a channel
     stack (C, H, W), (C K, H, W) float32 (census.level_signature's f0 to float32 rounding; :func:`factor_numba`),
-    and the channels' factors (C, H, W) (census.factor; the texture-similarity weight's frame 0 half, read by
-    :func:`census_kernel` with CensusParams.similar > 0); the gradients are taken inside :func:`census_kernel`,
-    which reads f0's neighbours anyway. Taken
+    and None (the gradients are taken inside :func:`census_kernel`, which reads f0's neighbours anyway). Taken
     once per level, not per warp: on fastest's small levels (73 x 48 .. 320 x 240) taking them in every warp made
     its kernel 1.1-1.35x slower per call (issue 25, task censreg; docs/engine.md, "The census data term"). The
     kernel once read the differences and the factor and multiplied them per warp; the level now holds the product
@@ -186,10 +184,10 @@ def level_signature_numba(frames: np.ndarray, params: CensusParams) -> tuple[np.
     stack = frames if frames.ndim == 3 else frames[None]
     n, h, w = stack.shape
     out = scratch("census.f0", (K * n, h, w))
-    factor = scratch("census.factor", (n, h, w))
+    factor = scratch("census.factor", (h, w))
     for c in range(n):
-        factor_numba(stack[c], params, out=factor[c], sigs=out[c * K:(c + 1) * K])
-    return out, factor
+        factor_numba(stack[c], params, out=factor, sigs=out[c * K:(c + 1) * K])
+    return out, None
 
 
 @njit(cache=True, error_model="numpy", nogil=True)

@@ -218,10 +218,9 @@ def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: 
     census.median_contrast) is below ``cfg.census_empty_contrast`` (docs/engine.md, "Presets"), raised to
     ``eps_floor`` (the pair's noise on that level, Pyramid.census_eps) where that is larger; on the ``finest``
     solved level the neighbours at distance ``cfg.census_finest_radius``; the L1 majoriser's DELTA
-    ``cfg.census_delta``; the texture-similarity exponent ``cfg.census_similar``."""
+    ``cfg.census_delta``."""
     coarse = width < cfg.census_coarse_width or contrast < cfg.census_empty_contrast
     base = CENSUS if cfg.census_delta == CENSUS.delta else replace(CENSUS, delta=cfg.census_delta)
-    base = base if cfg.census_similar == CENSUS.similar else replace(base, similar=cfg.census_similar)
     params = replace(base, eps=cfg.census_coarse_eps) if coarse else base
     params = replace(params, radius=cfg.census_finest_radius) if finest and cfg.census_finest_radius != 1 else params
     return replace(params, eps=eps_floor) if eps_floor > params.eps else params
