@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from synth import texture
+from synth import constant_flow, interior, pair_from_flow, texture
 
 from flow_node.bag.scenes import Scene, render_grey_pair
 from flow_node.core import engine, refine
@@ -23,6 +23,7 @@ from flow_node.core.census import (
     shifted,
 )
 from flow_node.core.config import FlowConfig
+from flow_node.core.metrics import aee
 from flow_node.core.numba_census import median_contrast_numba
 from flow_node.core.pyramid import build_pyramid, make_pyramid, pyramid_shapes
 from flow_node.core.refine import census_problem, level_census, level_contrast, level_schedule, warp_medians
@@ -252,7 +253,8 @@ def test_numba_median_contrast_is_the_reference_bit_for_bit(shape: tuple[int, in
 
 def test_level_contrast_decides_as_both_frames_full_contrast() -> None:
     """refine.level_contrast measures only what the decision needs (nothing on a level the width rule damps, frame 1
-    not when frame 0 is already empty) and gives level_census the same constants as both frames' contrast would."""
+    not when frame 0 is already textured) and gives level_census the same constants as both frames' contrast would:
+    the larger of the two (a level is empty only when both frames are; task crush)."""
     rng = np.random.default_rng(3)
     flat = np.full((1, 30, 80), 0.5, np.float32)
     faint = (0.5 + 0.002 * rng.standard_normal((1, 30, 80))).astype(np.float32)
@@ -261,7 +263,7 @@ def test_level_contrast_decides_as_both_frames_full_contrast() -> None:
                 CENSUS_RT.replace(census_coarse_width=100), CENSUS_RT.replace(census_empty_contrast=0.005)):
         for c0 in (flat, faint, rich):
             for c1 in (flat, faint, rich):
-                full = min(median_contrast(c0), median_contrast(c1)) if cfg.census_empty_contrast > 0 else np.inf
+                full = max(median_contrast(c0), median_contrast(c1)) if cfg.census_empty_contrast > 0 else np.inf
                 assert level_census(cfg, 80, 0.0, level_contrast(c0, c1, cfg)) == level_census(cfg, 80, 0.0, full)
     assert level_contrast(rich, rich, CENSUS_RT.replace(census_coarse_width=100)) == np.inf  # damped by width
 
@@ -270,8 +272,10 @@ def test_level_contrast_memo_measures_each_frame_once() -> None:
     """refine.level_contrast with a memo (Pyramid.contrasts): each frame's contrast on a level is measured once and
     kept there; a value already known (a stream's previous pair measured it on its frame 1) is taken as it is."""
     rng = np.random.default_rng(3)
-    c0, c1 = (rng.random((1, 30, 80), dtype=np.float32) for _ in range(2))
+    c0 = (0.5 + 0.002 * rng.standard_normal((1, 30, 80))).astype(np.float32)  # faint: frame 1 decides
+    c1 = rng.random((1, 30, 80), dtype=np.float32)
     cfg = CENSUS_RT.replace(census_coarse_width=0, census_empty_contrast=0.005)
+    assert median_contrast(c0) < cfg.census_empty_contrast
     calls: list[int] = []
 
     def counted(frames: np.ndarray) -> float:
@@ -283,8 +287,49 @@ def test_level_contrast_memo_measures_each_frame_once() -> None:
     assert first == level_contrast(c0, c1, cfg) and len(calls) == 2
     assert memo[0] == {2: median_contrast(c0)} and memo[1] == {2: median_contrast(c1)}
     assert level_contrast(c0, c1, cfg, counted, memo) == first and len(calls) == 2  # known: not measured again
-    known = ({2: 0.001}, {}, 2)  # frame 0 known to be empty on level 2: frame 1 not measured, the value taken
-    assert level_contrast(c0, c1, cfg, counted, known) == 0.001 and len(calls) == 2 and known[1] == {}
+    known = ({2: 0.5}, {}, 2)  # frame 0 known to be textured on level 2: frame 1 not measured, the value taken
+    assert level_contrast(c0, c1, cfg, counted, known) == 0.5 and len(calls) == 2 and known[1] == {}
+    empty = ({2: 0.001}, {}, 2)  # frame 0 known to be empty: frame 1 decides, measured once
+    assert level_contrast(c0, c1, cfg, counted, empty) == median_contrast(c1) and len(calls) == 3
+    assert level_contrast(c1, c0, cfg, counted, ({}, {}, 2)) == median_contrast(c1) and len(calls) == 4  # textured
+    # frame 0: frame 1 not measured
+
+
+def dark_crushed_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A dark scene (60 % of the frame at 10 % of full scale) moved by (1.3, -0.7) px, both frames 8-bit, frame 2
+    under a smoothstep tone curve, whose slope near black crushes the dark part to a few grey levels (issue 25's
+    S-curve pair on real photographs, task crush)."""
+    h, w = 96, 128
+    gt = constant_flow(h, w, 1.3, -0.7)
+    i0, i1 = pair_from_flow(texture(h, w, seed=3, cell=2), gt)
+    shade = np.where(np.arange(w)[None, :] < 0.6 * w, 0.1, 1.0)
+
+    def q8(x: np.ndarray) -> np.ndarray:
+        return (np.round(np.clip(x, 0.0, 1.0) * 255.0) / 255.0).astype(np.float32)
+
+    lit = np.clip(i1 * shade, 0.0, 1.0)
+    return q8(i0 * shade), q8(lit * lit * (3.0 - 2.0 * lit)), gt
+
+
+def test_a_level_flat_in_one_frame_only_is_not_empty() -> None:
+    """A level is empty only when both frames' texture is gone (task crush): frame 2's S-curve flattened most of a
+    dark scene (its median contrast under fastest's 0.005, frame 0's above), and damping every level (EPS 0.03 in
+    both frames, what the smaller frame's contrast decided before) took frame 0's dark texture from the data term:
+    0.60 px against 0.41. The flow is now the one without the contrast rule."""
+    f0, f1, gt = dark_crushed_pair()
+
+    def unit(f: np.ndarray) -> np.ndarray:  # as photometric.normalise_frames maps it (2nd-98th percentiles)
+        lo, hi = np.percentile(f, (2, 98))
+        return ((f - lo) / (hi - lo)).astype(np.float32)[None]
+
+    cfg = FlowConfig.preset("fastest")
+    assert median_contrast(unit(f1)) < cfg.census_empty_contrast < median_contrast(unit(f0))
+    assert level_census(cfg, 128, 0.0, level_contrast(unit(f0), unit(f1), cfg)).eps == CENSUS.eps  # not 0.03
+    err = aee(interior(FlowEstimator(cfg).estimate(f0, f1).flow), interior(gt))
+    no_rule = FlowEstimator(cfg.replace(census_empty_contrast=0.0)).estimate(f0, f1).flow
+    damped = FlowEstimator(cfg.replace(census_coarse_width=100000)).estimate(f0, f1).flow  # every level damped
+    assert err == aee(interior(no_rule), interior(gt))
+    assert err < 0.8 * aee(interior(damped), interior(gt)), err
 
 
 def test_empty_levels_get_the_coarse_eps() -> None:

@@ -89,11 +89,12 @@ class FlowConfig:
                                   "docs/engine.md 'Presets')",
                                   lo=0, hi=100000)
     census_empty_contrast: float = _f(0.0, "photometric census: a pyramid level whose median 3x3 contrast (RMS of the "
-                                      "neighbour differences, of the frame's robust range; the smaller of the two "
-                                      "frames') is below this is empty -- the anti-alias blur took its texture -- and "
-                                      "uses census_coarse_eps: undamped, its signature is whatever faint remnant or "
-                                      "illumination is left (0 = off; fastest sets 0.005, realtime 0.002, both beside "
-                                      "the width rule, chosen on the suite's tune split, docs/engine.md 'Presets')",
+                                      "neighbour differences, of the frame's robust range; the larger of the two "
+                                      "frames': empty in both) is below this is empty -- the anti-alias blur took its "
+                                      "texture -- and uses census_coarse_eps: undamped, its signature is whatever "
+                                      "faint remnant or illumination is left (0 = off; fastest sets 0.005, realtime "
+                                      "0.002, both beside the width rule, chosen on the suite's tune split; both "
+                                      "frames since task crush; docs/engine.md 'Presets')",
                                       lo=0.0, hi=1.0)
     census_noise_k: float = _f(3.0, "photometric census: the signature's EPS is at least this many times the pair's "
                                "noise std (estimated once per frame at full resolution, the larger of the two, "

@@ -218,7 +218,7 @@ def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: 
                  finest: bool = False) -> CensusParams:
     """The census constants of a pyramid level ``width`` px wide: CENSUS with EPS ``cfg.census_eps``, or
     ``cfg.census_coarse_eps`` on levels narrower than ``cfg.census_coarse_width`` or whose ``contrast`` (the
-    smaller of both frames' census.median_contrast) is below ``cfg.census_empty_contrast`` (docs/engine.md,
+    larger of both frames' census.median_contrast) is below ``cfg.census_empty_contrast`` (docs/engine.md,
     "Presets"), raised to ``eps_floor`` (the pair's noise on that level, Pyramid.census_eps) where that is
     larger; on the ``finest`` solved level the neighbours at distance ``cfg.census_finest_radius``; the L1
     majoriser's DELTA ``cfg.census_delta``."""
@@ -238,10 +238,13 @@ def level_contrast(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig,
                    contrast: Callable[[np.ndarray], float] = median_contrast, memo: ContrastMemo | None = None
                    ) -> float:
     """What :func:`level_census` needs of a level's contrast (census.median_contrast of the channels c0, c1
-    (C, h, w), by ``contrast``: a backend's): the smaller of both frames', measured
+    (C, h, w), by ``contrast``: a backend's): the larger of both frames', measured
     only where it decides -- inf when ``cfg.census_empty_contrast`` is off or the level is narrower than
-    ``cfg.census_coarse_width`` (damped by width anyway), and frame 0's alone when that is already below the
-    threshold (the level is empty whatever frame 1's is). ``memo``: each frame's contrasts measured so far (taken
+    ``cfg.census_coarse_width`` (damped by width anyway), and frame 0's alone when that is already at or above the
+    threshold (the level is not empty whatever frame 1's is). A level is empty only when both frames' texture is
+    gone: the anti-alias blur empties both alike, while a frame that is flat alone was flattened by its own tone
+    curve (an S-curve crushing a dark scene, issue 25 task crush), and damping the level would take the other
+    frame's texture from the data term too. ``memo``: each frame's contrasts measured so far (taken
     from there, and added to it; a stream hands frame 1's to the next pair: Pyramid.contrasts)."""
     if cfg.census_empty_contrast <= 0 or c0.shape[2] < cfg.census_coarse_width:
         return math.inf
@@ -255,7 +258,7 @@ def level_contrast(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig,
         return known[level]
 
     first = of(0, c0)
-    return first if first < cfg.census_empty_contrast else min(first, of(1, c1))
+    return first if first >= cfg.census_empty_contrast else max(first, of(1, c1))
 
 
 def census_problem(c0: np.ndarray, c1: np.ndarray, cfg: FlowConfig, backend: Backend, robust: bool,
