@@ -9,13 +9,15 @@ the tune split)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from flow_node.bag.synth import SynthSpec, render_frames
 from flow_node.core.api import FlowEstimator
 from flow_node.core.census import CENSUS
-from flow_node.core.config import FlowConfig
+from flow_node.core.config import ConfigError, FlowConfig
 from flow_node.core.refine import level_census, level_params
 from flow_node.core.temporal import stream_schedule
 
@@ -45,9 +47,38 @@ def test_census_delta_reaches_every_level() -> None:
     assert level_census(cfg.replace(census_delta=CENSUS.delta, census_finest_radius=1), 128, finest=True) == CENSUS
 
 
+def test_census_eps_reaches_the_signature() -> None:
+    """FlowConfig.census_eps (task feps) is the signature's EPS on every level the coarse rules do not damp: its
+    default is CensusParams' (every preset that does not set it: the same constants object, bit-identical flows),
+    the coarse EPS and the pair's noise floor still win where they apply, and the flow moves with it."""
+    assert FlowConfig().census_eps == CENSUS.eps
+    cfg = CENSUS_RT.replace(census_delta=CENSUS.delta, census_finest_radius=1)
+    assert level_census(cfg, 128) is CENSUS
+    small = cfg.replace(census_eps=0.005)
+    assert level_census(small, 128) == replace(CENSUS, eps=0.005)
+    assert level_census(small, 128, finest=True).eps == 0.005
+    assert level_census(small, 20).eps == small.census_coarse_eps  # narrower than census_coarse_width
+    assert level_census(small, 128, contrast=0.0).eps == small.census_coarse_eps  # an empty level
+    assert level_census(small, 128, eps_floor=0.007).eps == 0.007  # the noise floor
+    with pytest.raises(ConfigError):
+        FlowConfig(census_eps=0.0)
+    # fastest sets 0.007 (task feps); the EPS reaches its flow, and 0.01 (today's constant) is today's flow
+    fastest = FlowConfig.preset("fastest").replace(threads=1)
+    assert fastest.census_eps == 0.007 and level_census(fastest, 128).eps == 0.007
+    frames, _ = render_frames(SynthSpec(scene="rotation", frames=2, size=(128, 96), encoding="mono8", seed=103))
+
+    def flow(c: FlowConfig) -> np.ndarray:
+        return FlowEstimator(c).estimate(frames[0], frames[1]).flow
+
+    before = flow(fastest.replace(census_eps=CENSUS.eps))
+    assert np.abs(flow(fastest) - before).max() > 1e-3
+    assert np.abs(flow(fastest.replace(census_eps=0.005)) - before).max() > 1e-3
+
+
 # each preset's census DELTA and census alpha (tune data only): realtime task smoothbags, fastest tasks fastdelta
 # (0.05 / 0.2) and fastbags; and the bound on the AEE ratio to the former ones (DELTA 0.2, the grey values' alpha)
-TUNED = {"realtime": (0.07, 0.10, 0.9), "fastest": (0.02, 0.35, 0.8)}  # realtime's alpha 0.08 until task cschedule
+TUNED = {"realtime": (0.07, 0.10, 0.9), "fastest": (0.02, 0.36, 0.8)}  # realtime's alpha 0.08 until task cschedule,
+# fastest's 0.35 until task feps (with census_eps 0.007)
 
 
 @pytest.mark.parametrize("preset", sorted(TUNED))
@@ -55,8 +86,8 @@ def test_census_on_a_smooth_deformation_and_grey_flows_unchanged(preset: str) ->
     """A rendered deformation scene of the bundled bag's kind (mono16, 128x96; a tune seed, not the bag's): the
     preset's census with its DELTA and census alpha is clearly closer to the truth than with the former ones (DELTA
     0.2, the grey values' alpha): realtime 0.0557 -> 0.0444 px (seeds 101-105 0.79-0.81x), fastest 0.182 -> 0.125 px
-    (0.68-0.73x; task fastdelta's 0.05 / 0.2 gave 0.150 px, 0.82-0.85x); grey-value flows do not depend on either
-    field."""
+    (0.68-0.73x; task fastdelta's 0.05 / 0.2 gave 0.150 px, 0.82-0.85x; since task feps, census_eps 0.007 in
+    both, 0.173 -> 0.122 px); grey-value flows do not depend on either field."""
     frames, gts = render_frames(SynthSpec(scene="deformation", frames=3, size=(128, 96), encoding="mono16", seed=103))
     # with plain TV: the edge-weighted TV (task edgetv) moves both settings (with it realtime reads 0.0510 / 0.0461);
     # and without realtime's census presmoothing (task presm), which moves both too (0.0519 / 0.0467: 0.90x)

@@ -324,7 +324,7 @@ def test_a_level_flat_in_one_frame_only_is_not_empty() -> None:
 
     cfg = FlowConfig.preset("fastest")
     assert median_contrast(unit(f1)) < cfg.census_empty_contrast < median_contrast(unit(f0))
-    assert level_census(cfg, 128, 0.0, level_contrast(unit(f0), unit(f1), cfg)).eps == CENSUS.eps  # not 0.03
+    assert level_census(cfg, 128, 0.0, level_contrast(unit(f0), unit(f1), cfg)).eps == cfg.census_eps  # not 0.03
     err = aee(interior(FlowEstimator(cfg).estimate(f0, f1).flow), interior(gt))
     no_rule = FlowEstimator(cfg.replace(census_empty_contrast=0.0)).estimate(f0, f1).flow
     damped = FlowEstimator(cfg.replace(census_coarse_width=100000)).estimate(f0, f1).flow  # every level damped

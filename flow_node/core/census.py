@@ -53,7 +53,8 @@ class CensusParams:
     """The census data term's constants (the module doc's names).
 
     ``gain``: scale of the signature (sets the data term's weight against the regulariser's alpha);
-    ``eps``: contrast (of the frame's robust range) below which differences are damped, not normalised;
+    ``eps``: contrast (of the frame's robust range) below which differences are damped, not normalised (the data
+    term's: FlowConfig.census_eps, or census_coarse_eps on coarse levels, refine.level_census);
     ``delta``: residual (signature units) below which the L1 majoriser is quadratic;
     ``radius``: the neighbours' distance (px), 1 (the 3 x 3 neighbourhood) or 2 (:func:`offsets`)."""
 

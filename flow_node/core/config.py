@@ -73,9 +73,15 @@ class FlowConfig:
                                "modes; -1 = every step). The strong blur on every step spreads a smooth scene's edges "
                                "over flat areas, whose signature then moves with them; quality and realtime set 3 "
                                "(chosen on the suite's tune split, docs/engine.md 'Presets')", lo=-1, hi=30)
+    census_eps: float = _f(0.01, "photometric census: the signature's EPS (of the frame's robust range) on the "
+                           "levels census_coarse_eps does not damp: neighbour differences below it are damped, not "
+                           "normalised (still invariant). A smaller EPS makes faint texture count (a stronger data "
+                           "term on real photographs) and faint noise or remnants too (issue 25, task feps, "
+                           "docs/engine.md 'Presets')", lo=0.0, hi=1.0, lo_open=True)
     census_coarse_eps: float = _f(0.01, "photometric census: the signature's EPS (of the frame's robust range) on "
                                   "pyramid levels narrower than census_coarse_width (still invariant: EPS only damps "
-                                  "flat areas; the finer levels' EPS is 0.01; quality, realtime and fastest set 0.03)",
+                                  "flat areas; the finer levels' EPS is census_eps; quality, realtime and fastest set "
+                                  "0.03)",
                                   lo=0.0, hi=1.0, lo_open=True)
     census_coarse_width: int = _f(0, "photometric census: levels narrower than this (px) use census_coarse_eps "
                                   "(0 = none; quality, realtime and fastest set 50: for quality and realtime the "
