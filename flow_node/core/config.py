@@ -15,6 +15,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from .census import CENSUS
 from .colour import COLOUR_MODES
 from .errors import ConfigError
 from .initialise import SOURCES as INITIALISATIONS
@@ -73,7 +74,7 @@ class FlowConfig:
                                "modes; -1 = every step). The strong blur on every step spreads a smooth scene's edges "
                                "over flat areas, whose signature then moves with them; quality and realtime set 3 "
                                "(chosen on the suite's tune split, docs/engine.md 'Presets')", lo=-1, hi=30)
-    census_eps: float = _f(0.01, "photometric census: the signature's EPS (of the frame's robust range) on the "
+    census_eps: float = _f(CENSUS.eps, "photometric census: the signature's EPS (of the frame's robust range) on the "
                            "levels census_coarse_eps does not damp: neighbour differences below it are damped, not "
                            "normalised (still invariant). A smaller EPS makes faint texture count (a stronger data "
                            "term on real photographs) and faint noise or remnants too (issue 25, task feps, "
@@ -129,7 +130,8 @@ class FlowConfig:
                              "fastest 0.35 beside 0.02: the smaller quadratic zone makes the term pull harder (issue "
                              "25, tasks smoothbags, qdelta, fastdelta and fastbags, docs/engine.md 'Presets')",
                              lo=0.0, hi=1000.0)
-    census_delta: float = _f(0.2, "photometric census: the residual (signature units) below which the L1 term's "
+    census_delta: float = _f(CENSUS.delta, "photometric census: the residual (signature units) below which the L1 "
+                             "term's "
                              "majoriser is quadratic (its weight 1/sqrt(rho^2 + delta^2) flat). A quadratic data term "
                              "pulls less than TV near the solution and shrinks a flow's gradient (rotation, zoom, "
                              "deformation; realtime sets 0.07, quality 0.05, fastest 0.02: issue 25, tasks smoothbags, "
