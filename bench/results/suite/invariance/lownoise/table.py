@@ -18,5 +18,5 @@ for r in runs:
     for regime, m in r["summary"].items():
         gap = m["none"] - m["clean"]
         cells = [f"{m[o]:.4f} ({100 * (m['none'] - m[o]) / gap:+.0f} %)" for o in oracles]
-        print(f"| {r['preset']} | {SHORT[regime]} | {m['clean']:.4f} | {m['none']:.4f} ({m['none'] / m['clean']:.2f}x) | "
-              + " | ".join(cells) + " |")
+        head = f"| {r['preset']} | {SHORT[regime]} | {m['clean']:.4f} | {m['none']:.4f} ({m['none'] / m['clean']:.2f}x)"
+        print(head + " | " + " | ".join(cells) + " |")
