@@ -13,6 +13,7 @@ VARIANT (each a run of the noisy and the unchanged pairs; the numpy backend, cen
               the pixel's channels: s / (s + eps) = m / gain), sm = C * gain the model's own residual std
   huberC      the L1 majoriser's DELTA raised per pixel to C times the residual's noise std (as for mapC): Huber at the
               noise level
+  unbiasC     the majoriser's weight from max(rho^2 - C var_rho, 0) instead of rho^2 (the noise's expected share out)
   dN          the L1 majoriser's DELTA raised to N times the signature residual's noise std (both frames' noise at
               the floor's EPS: sqrt(2) * gain * K sigma g / (s + eps) -> taken as gain * sqrt(2) / K at s ~ floor)
 Prints and writes mean AEE per regime for 'unchanged' and 'sensor_noise' pairs.
@@ -83,6 +84,14 @@ def signature_form(f0, g0, f1, outside, v0, robust, params=census.CENSUS):
         var = (scale * (g - m0)) ** 2 + (scale * (g - m1)) ** 2
         d2 = np.maximum(np.float32(delta) ** 2, np.float32(float(V.name[5:]) ** 2) * var)
         wk = 1.0 / np.sqrt(r0 * r0 + d2)
+    if V.name.startswith("unbias") and V.floor > 0 and robust:
+        # the majoriser's |rho(v0)| with the noise's expected share taken out: max(rho^2 - C var, 0) (as for mapC)
+        g = np.float32(params.gain)
+        scale = np.float32(V.floor / V.k / params.eps)
+        m0, m1 = (np.sqrt(np.mean(f * f, axis=0)) for f in (f0, f1))
+        var = (scale * (g - m0)) ** 2 + (scale * (g - m1)) ** 2
+        r2 = np.maximum(r0 * r0 - np.float32(float(V.name[6:])) * var, np.float32(0.0))
+        wk = 1.0 / np.sqrt(r2 + np.float32(delta) ** 2)
     if V.name.startswith("map") and V.floor > 0:
         # each channel's noise std at a pixel: gain * (floor / K) / (s + eps), s / (s + eps) = m / gain with m the
         # RMS of the pixel's channels; the residual's variance the sum of both frames'; MAP weight
