@@ -239,6 +239,26 @@ def test_a_clean_census_pair_keeps_its_flow_at_the_default_k() -> None:
     assert np.abs(noisy[0] - noisy[1]).max() > 1e-3  # where the noise is above EPS / K, K does change the flow
 
 
+def test_fastest_floors_the_eps_at_two_sigma() -> None:
+    """fastest's noise floor K is 2 (task lownoise), the other general presets' and stream_fast's the default 3: on a
+    noisy pair fastest's EPS floors are 2/3 of the default K's, level by level, and its flow is the one of K 2."""
+    fastest = FlowConfig.preset("fastest").replace(threads=1)
+    assert fastest.census_noise_k == 2.0
+    default = FlowConfig().census_noise_k
+    assert default == 3.0
+    for name in ("quality", "balanced", "realtime", "stream_fast"):
+        assert FlowConfig.preset(name).census_noise_k == default
+    f0, f1 = low_light_pair(144, 192)  # fastest solves at half size: levels narrower than 50 px take the coarse EPS
+    (n0, n1), _ = stage(f0, f1, "census")
+    noise = PairNoise(max(noise_sigma(n0), noise_sigma(n1)))
+    two, three = (make_pyramid(n0, n1, fastest.replace(census_noise_k=k), noise=noise).census_eps for k in (2.0, 3.0))
+    assert two == pytest.approx([2.0 / 3.0 * e for e in three], rel=1e-6)
+    flows = [FlowEstimator(cfg).estimate(f0, f1).flow for cfg in (fastest, fastest.replace(census_noise_k=2.0),
+                                                                  fastest.replace(census_noise_k=default))]
+    np.testing.assert_array_equal(flows[0], flows[1])
+    assert np.abs(flows[0] - flows[2]).max() > 1e-3
+
+
 def test_colour_channels_measure_their_own_noise() -> None:
     """With colour channels the floor comes from the channels the signatures are taken on: an 8-bit isoluminant
     pair's normalised luma is mostly quantisation noise, its R and G channels are clean textures."""

@@ -134,10 +134,13 @@ def test_stream_mode_off_is_the_single_pair_solve() -> None:
     np.testing.assert_array_equal(a.flow, b.flow)
     assert a.stats.stream == b.stats.stream == ""
     # the stream presets solve a single pair exactly as their base presets do, with either data term; stream_fast
-    # keeps the census EPS / alpha fastest had before task feps (the stream regime lost 1.5 % with fastest's)
+    # keeps the census EPS / alpha fastest had before task feps (the stream regime lost 1.5 % with fastest's) and the
+    # default noise floor K (fastest's 2 since task lownoise)
     stream_fast = FlowConfig.preset("stream_fast")
     assert (stream_fast.census_eps, stream_fast.census_alpha) == (0.01, 0.35)
-    base = FlowConfig.preset("fastest").replace(census_eps=0.01, census_alpha=0.35)
+    assert stream_fast.census_noise_k == FlowConfig().census_noise_k
+    base = FlowConfig.preset("fastest").replace(census_eps=0.01, census_alpha=0.35,
+                                                census_noise_k=FlowConfig().census_noise_k)
     for photometric in ("normalise", "census"):
         flows = [FlowEstimator(cfg.replace(backend="numpy", photometric=photometric)).estimate_grey(
             seq[0], seq[1]).flow for cfg in (stream_fast, base)]

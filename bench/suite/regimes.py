@@ -50,8 +50,8 @@ REGIMES: dict[str, Regime] = {r.name: r for r in (
     Regime("low_contrast", "Fine textures 320x240 spanning 24 or 10 grey levels", synthetic.low_contrast),
     Regime("flat", "Fine textures 320x240 with ~half the area flat", synthetic.flat_areas),
     Regime("photometric", "Fine textures 320x240 (grey 0.04-0.96), frame 2 under the split's photometric families "
-           "(tune: gamma, vignetting, clipping; report: S-curve, log/knee, illumination, flicker, white balance "
-           "(RGB), low light)", photometric.synthetic_photometric),
+           "(tune: gamma, vignetting, clipping, sensor noise; report: S-curve, log/knee, illumination, flicker, "
+           "white balance (RGB), low light)", photometric.synthetic_photometric),
     Regime("photometric_real", "Middlebury pairs, frame 2 under the split's photometric families (images the same "
            "in every split; without DualTVL1, which takes 10-30 s per pair on them)",
            photometric.middlebury_photometric, exclude=("dualtvl1",)),

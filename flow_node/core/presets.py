@@ -207,7 +207,12 @@ PRESETS: dict[str, dict[str, Any]] = {
                      census_empty_contrast=0.002, census_delta=0.07, census_alpha=0.10, census_finest_radius=2,
                      census_finest_warps=1, census_finest_iterations=28, photometric="census", **EDGE_TV,
                      census_presmooth=0.45),
-    "fastest": dict(FASTEST),
+    # fastest's noise floor K is 2 (task lownoise, 2026-12-07, bench/results/suite/invariance/lownoise): the tune split
+    # with its sensor_noise family (frame 2 plus noise of 3.5 / 10 grey levels) read fastest's noisy real pairs better
+    # with the clean pair's lower floor, the one preset that did; K 2: real_exact_photometric -1.1 %, real_exact
+    # -0.6 %, worst noise +0.0003 px; report split once: every regime within max(0.001 px, 0.5 %), low light over
+    # its unchanged pairs 1.30x / 1.33x -> 1.28x / 1.31x (Middlebury / real photos). stream_fast keeps the default 3
+    "fastest": dict(FASTEST, census_noise_k=2.0),
     # the paper's joint model (issue 27; docs/engine.md, "Joint model"): realtime's schedule with the images
     # eliminated (J_gamma data term); gamma and alpha chosen on the suite's noise regime, tune seeds
     "joint": dict(model="l1_tv", alpha=0.06, iterations=6, warps=4, finest_warps=2, finest_iterations=16,
@@ -222,7 +227,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # finest 3 x 10 since issue 26's round 4; round 6: finest 3 x 8, a 3x3 median after a level's warps but its
     # last, the result check on ~5,000 pixels). stream_fast keeps the census EPS / alpha fastest had before task
     # feps (0.01 / 0.35: fastest's 0.007 / 0.36 lost the stream regime 1.5 %, above), so it solves a single pair as
-    # fastest with those two fields does
+    # fastest with those two fields and the default census_noise_k (fastest 2 since task lownoise) does
     "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=2, stream_iterations=10, stream_finest_warps=3,
                         stream_finest_iterations=8, stream_inner_median=3, stream_check_samples=5000,
                         census_eps=0.01, census_alpha=0.35),
