@@ -304,9 +304,8 @@ def test_stream_duals_scale_the_carried_duals_only() -> None:
 
 def test_restarted_duals_correct_a_zoom_that_carried_duals_keep_wrong() -> None:
     """A zoom (a smooth flow that is not uniform): refined from the prediction with the carried duals the stream
-    keeps the previous pairs' error (tune 320x240 zoom: 0.034 against 0.024 restarted, bench/results/suite/
-    stream/stacc/); restarted from zero duals (stream_duals 0) the refinement fits the new pair. Pairs solved in
-    full do not use the field."""
+    stays less accurate than refined from zero duals (stream_duals 0; tune 320x240 zoom: 0.034 against 0.024,
+    bench/results/suite/stream/stacc/). Pairs solved in full do not use the field."""
     size = (160, 120)
     c = ((size[0] - 1) / 2, (size[1] - 1) / 2)
     tex = Texture.random(np.random.default_rng(0), n=36, fmin=1 / 120, fmax=1 / 5)

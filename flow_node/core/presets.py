@@ -224,7 +224,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # feps (0.01 / 0.35: fastest's 0.007 / 0.36 lost the stream regime 1.5 %, above), so it solves a single pair as
     # fastest with those two fields does. Task stacc (2026-12-07): the carried duals restart from zero
     # (stream_duals 0; the flow alone is carried) and the schedule is coarse 1 x 10, finest 3 x 10: stream regime
-    # tune 320x240 0.0384 -> 0.0318 (realtime 0.0366), 640x480 0.0318 -> 0.0263, at the same CPU per frame
+    # tune 320x240 0.0384 -> 0.0318 (realtime 0.0366), 640x480 0.0318 -> 0.0263, at 0.98-1.02x the CPU per frame
     # (bench/results/suite/stream/stacc/summary.md)
     "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=1, stream_iterations=10, stream_finest_warps=3,
                         stream_finest_iterations=10, stream_inner_median=3, stream_check_samples=5000,

@@ -81,7 +81,7 @@ def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Spla
     resampled to it (flow vectors rescaled), the flow multiplied by the interval ``ratio``, everything
     splatted forward along the flow (``splat``), the flow's holes filled by normalised convolution
     (``fill``: densify.push_pull or a backend's), the other variables' holes left at 0; the duals (y, z)
-    multiplied by ``duals`` (cfg.stream_duals; 0: zeros, not splatted). A new PDState, float32."""
+    multiplied by ``duals`` (cfg.stream_duals; 0: zeros). A new PDState, float32."""
     state = previous if previous.v.shape[1:] == shape else resize_state(previous, shape)
     flow = state.v * np.float32(ratio) if ratio != 1.0 else state.v
     if duals != 1.0:
