@@ -258,6 +258,9 @@ class FlowConfig:
                                   "0 = none)", choices=(-1, 0, 3, 5))
     stream_alpha: float = _f(0.0, "stream mode: regularisation weight of the refinement from the prediction (0 = "
                              "alpha; a pair solved in full always uses alpha)", lo=0.0, hi=1000.0)
+    stream_duals: float = _f(1.0, "stream mode: the carried regulariser duals are multiplied by this before the "
+                             "refinement from the prediction (1 = as the previous pair left them; 0 = restarted "
+                             "from zero, the flow alone carried)", lo=0.0, hi=1.0)
     stream_max_predicted: float = _f(0.5, "stream mode: the pair is solved in full when more than this fraction "
                                      "of the prediction's pixels is unexplained (its robust data cost on its "
                                      "start level: a scene cut, a jump)", lo=0.0, hi=1.0)

@@ -227,10 +227,13 @@ PRESETS: dict[str, dict[str, Any]] = {
     # finest 3 x 10 since issue 26's round 4; round 6: finest 3 x 8, a 3x3 median after a level's warps but its
     # last, the result check on ~5,000 pixels). stream_fast keeps the census EPS / alpha fastest had before task
     # feps (0.01 / 0.35: fastest's 0.007 / 0.36 lost the stream regime 1.5 %, above), so it solves a single pair as
-    # fastest with those two fields and the default census_noise_k (fastest 2 since task lownoise) does
-    "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=2, stream_iterations=10, stream_finest_warps=3,
-                        stream_finest_iterations=8, stream_inner_median=3, stream_check_samples=5000,
-                        census_eps=0.01, census_alpha=0.35),
+    # fastest with those two fields and the default census_noise_k (fastest 2 since task lownoise) does. Task stacc
+    # (2026-12-07): the carried duals restart from zero (stream_duals 0; the flow alone is carried) and the schedule
+    # is coarse 1 x 10, finest 3 x 10: stream regime tune 320x240 0.0384 -> 0.0318 (realtime 0.0366), 640x480
+    # 0.0318 -> 0.0263, at 0.98-1.02x the CPU per frame (bench/results/suite/stream/stacc/summary.md)
+    "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=1, stream_iterations=10, stream_finest_warps=3,
+                        stream_finest_iterations=10, stream_inner_median=3, stream_check_samples=5000,
+                        stream_duals=0.0, census_eps=0.01, census_alpha=0.35),
     "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=8, stream_iterations=10,
                         photometric="normalise", tv_edge_weight=0.0, median_weight_sigma=0.0),
 }

@@ -76,13 +76,17 @@ class Prior:
 
 
 def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Splat,
-            fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull) -> PDState:
+            fill: Callable[[np.ndarray, np.ndarray], np.ndarray] = push_pull, duals: float = 1.0) -> PDState:
     """The previous pair's solver state carried to the new pair's first frame on a grid of ``shape``:
     resampled to it (flow vectors rescaled), the flow multiplied by the interval ``ratio``, everything
     splatted forward along the flow (``splat``), the flow's holes filled by normalised convolution
-    (``fill``: densify.push_pull or a backend's), the other variables' holes left at 0. A new PDState, float32."""
+    (``fill``: densify.push_pull or a backend's), the other variables' holes left at 0; the duals (y, z)
+    multiplied by ``duals`` (cfg.stream_duals; 0: zeros). A new PDState, float32."""
     state = previous if previous.v.shape[1:] == shape else resize_state(previous, shape)
     flow = state.v * np.float32(ratio) if ratio != 1.0 else state.v
+    if duals != 1.0:
+        scaled = [None if a is None else a * np.float32(duals) for a in (state.y, state.z)]
+        state = PDState(state.v, scaled[0], state.w, scaled[1])
     others = [a for a in (state.y, state.w, state.z) if a is not None]
     stacked = np.concatenate([a.reshape((-1,) + shape) for a in others])
     values, carried, weight = splat(np.ascontiguousarray(flow, dtype=np.float32),
@@ -202,7 +206,8 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
     pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None, noise=judged.noise,
                        contrasts0=seen.contrasts if same else None)
     start, _ = stream_span(pyr, schedule)
-    predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat, backend.fill)
+    predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat, backend.fill,
+                        cfg.stream_duals)
     frames = judged_on(judged, pyr.shapes[start], seen.area if same else None)
     reason = prediction_fails(cfg, predicted_cost(judged, predicted.v, frames))
     if reason is not None:
