@@ -253,7 +253,8 @@ def test_stream_inner_median_filters_the_inner_warps_of_a_predicted_pair_only(me
     """stream_inner_median: the median size after a stream level's warps but its last (the last keeps
     median_filter; -1 = median_filter: the flows bit for bit as before). Pairs solved in full never use it."""
     # coarse level 2 warps, finest 3; grey values (census solves in full with census_median_filter 3)
-    cfg = FlowConfig.preset("stream_fast").replace(backend="numba", photometric="normalise", stream_warps=2)
+    cfg = FlowConfig.preset("stream_fast").replace(backend="numba", photometric="normalise", stream_warps=2,
+                                                    stream_finest_warps=3)
     seq = frames(pan(6), 3)
     sizes = median_sizes
     first = FlowEstimator(cfg).estimate_next(seq[0], seq[1], None)

@@ -230,9 +230,12 @@ PRESETS: dict[str, dict[str, Any]] = {
     # fastest with those two fields and the default census_noise_k (fastest 2 since task lownoise) does. Task stacc
     # (2026-12-07): the carried duals restart from zero (stream_duals 0; the flow alone is carried) and the schedule
     # is coarse 1 x 10, finest 3 x 10: stream regime tune 320x240 0.0384 -> 0.0318 (realtime 0.0366), 640x480
-    # 0.0318 -> 0.0263, at 0.98-1.02x the CPU per frame (bench/results/suite/stream/stacc/summary.md)
-    "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=1, stream_iterations=10, stream_finest_warps=3,
-                        stream_finest_iterations=10, stream_inner_median=3, stream_check_samples=5000,
+    # 0.0318 -> 0.0263, at 0.98-1.02x the CPU per frame (bench/results/suite/stream/stacc/summary.md); then, for
+    # time (the lead, same day, tune split): coarse 1 x 6, finest 2 x 14, 0.91x that CPU at 320x240 / 0.92x at
+    # 640x480 for tune 0.0324 / 0.0273 (realtime 0.0366 / 0.0351), bags +1.7 %
+    # (bench/results/suite/stream/lead_s25/summary.md)
+    "stream_fast": dict(FASTEST, stream_levels=2, stream_warps=1, stream_iterations=6, stream_finest_warps=2,
+                        stream_finest_iterations=14, stream_inner_median=3, stream_check_samples=5000,
                         stream_duals=0.0, census_eps=0.01, census_alpha=0.35),
     "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=8, stream_iterations=10,
                         photometric="normalise", tv_edge_weight=0.0, median_weight_sigma=0.0),
