@@ -81,21 +81,22 @@ def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Spla
     resampled to it (flow vectors rescaled), the flow multiplied by the interval ``ratio``, everything
     splatted forward along the flow (``splat``), the flow's holes filled by normalised convolution
     (``fill``: densify.push_pull or a backend's), the other variables' holes left at 0; the duals (y, z)
-    multiplied by ``duals`` (cfg.stream_duals; 0: zeros). A new PDState, float32."""
+    multiplied by ``duals`` (cfg.stream_duals; 0: zeros, not splatted). A new PDState, float32."""
     state = previous if previous.v.shape[1:] == shape else resize_state(previous, shape)
     flow = state.v * np.float32(ratio) if ratio != 1.0 else state.v
-    if duals != 1.0:
-        scaled = [None if a is None else a * np.float32(duals) for a in (state.y, state.z)]
-        state = PDState(state.v, scaled[0], state.w, scaled[1])
-    others = [a for a in (state.y, state.w, state.z) if a is not None]
-    stacked = np.concatenate([a.reshape((-1,) + shape) for a in others])
+    kept = duals != 0.0
+    variables = (state.y if kept else None, state.w, state.z if kept else None)  # what the splat moves
+    others = [a for a in variables if a is not None]
+    stacked = np.concatenate([a.reshape((-1,) + shape) for a in others]) if others else np.zeros((0,) + shape)
     values, carried, weight = splat(np.ascontiguousarray(flow, dtype=np.float32),
                                     np.ascontiguousarray(stacked, dtype=np.float32))
     ends = np.cumsum([a.size // (shape[0] * shape[1]) for a in others])[:-1]
     moved = iter(part.reshape(a.shape) for part, a in zip(np.split(carried, ends), others, strict=True))
-    y = next(moved)
-    w = next(moved) if state.w is not None else None
-    z = next(moved) if state.z is not None else None
+    y, w, z = (None if a is None else next(moved) for a in variables)
+    if not kept:
+        y, z = np.zeros_like(state.y), None if state.z is None else np.zeros_like(state.z)
+    elif duals != 1.0:  # the splat moves values without arithmetic: scaling after it is scaling before it
+        y, z = y * np.float32(duals), None if z is None else z * np.float32(duals)
     return PDState(fill(values, weight), y, w, z)
 
 
