@@ -141,17 +141,12 @@ def white_balance(x: np.ndarray, seed: int, gains: tuple[float, float, float]) -
     return x * np.asarray(gains)
 
 
-def low_light(x: np.ndarray, seed: int, gain: float, sigma: float) -> np.ndarray:
-    """gain * x plus Gaussian noise of ``sigma`` grey levels of 255, re-quantised to 8 bit."""
-    noisy = gain * x + np.random.default_rng([seed, 2502]).normal(0.0, sigma / 255.0, x.shape)
-    return np.rint(np.clip(noisy, 0.0, 1.0) * 255.0) / 255.0
-
-
-def sensor_noise(x: np.ndarray, seed: int, sigma: float) -> np.ndarray:
-    """x plus Gaussian noise of ``sigma`` grey levels of 255 at gain 1, re-quantised to 8 bit: the tune-side
-    twin of :func:`low_light` (no darkening, no coarser quantisation; sigma 3.5 / 10 match low light's noise
-    over the frame's range, 2 / (0.6 * 255) and 4 / (0.4 * 255))."""
-    noisy = x + np.random.default_rng([seed, 2504]).normal(0.0, sigma / 255.0, x.shape)
+def low_light(x: np.ndarray, seed: int, gain: float, sigma: float, stream: int = 2502) -> np.ndarray:
+    """gain * x plus Gaussian noise of ``sigma`` grey levels of 255, re-quantised to 8 bit; ``stream`` keys the
+    noise's draw per family (low light 2502; sensor noise, its tune-side twin at gain 1 -- no darkening, no coarser
+    quantisation, sigma 3.5 / 10 matching low light's noise over the frame's range, 2 / (0.6 * 255) and
+    4 / (0.4 * 255) -- 2504)."""
+    noisy = gain * x + np.random.default_rng([seed, stream]).normal(0.0, sigma / 255.0, x.shape)
     return np.rint(np.clip(noisy, 0.0, 1.0) * 255.0) / 255.0
 
 
@@ -179,7 +174,8 @@ FAMILIES: dict[str, tuple[Variant, ...]] = {
                                                 for g in ((1.15, 1.0, 0.85), (0.85, 1.0, 1.2))), rgb_only=True),
     "low_light": _family("low_light", *((f"{g:g}x sigma {s:g}", partial(low_light, gain=g, sigma=s))
                                         for g, s in ((0.6, 2.0), (0.4, 4.0)))),
-    "sensor_noise": _family("sensor_noise", *((f"sigma {s:g}", partial(sensor_noise, sigma=s)) for s in (3.5, 10.0))),
+    "sensor_noise": _family("sensor_noise", *((f"sigma {s:g}", partial(low_light, gain=1.0, sigma=s, stream=2504))
+                                              for s in (3.5, 10.0))),
 }
 TUNE_FAMILIES = ("gamma", "vignetting", "clipping", "sensor_noise")
 REPORT_FAMILIES = ("s_curve", "log_knee", "illumination", "flicker", "white_balance", "low_light")
