@@ -131,11 +131,10 @@ class FlowConfig:
                              "25, tasks smoothbags, qdelta, fastdelta and fastbags, docs/engine.md 'Presets')",
                              lo=0.0, hi=1000.0)
     census_delta: float = _f(CENSUS.delta, "photometric census: the residual (signature units) below which the L1 "
-                             "term's "
-                             "majoriser is quadratic (its weight 1/sqrt(rho^2 + delta^2) flat). A quadratic data term "
-                             "pulls less than TV near the solution and shrinks a flow's gradient (rotation, zoom, "
-                             "deformation; realtime sets 0.07, quality 0.05, fastest 0.02: issue 25, tasks smoothbags, "
-                             "qdelta, fastdelta and fastbags, docs/engine.md 'Presets')",
+                             "term's majoriser is quadratic (its weight 1/sqrt(rho^2 + delta^2) flat). A quadratic "
+                             "data term pulls less than TV near the solution and shrinks a flow's gradient (rotation, "
+                             "zoom, deformation; realtime sets 0.07, quality 0.05, fastest 0.02: issue 25, tasks "
+                             "smoothbags, qdelta, fastdelta and fastbags, docs/engine.md 'Presets')",
                              lo=0.0, hi=10.0, lo_open=True)
     census_presmooth: float = _f(0.0, "photometric census: presmooth both frames of every pair by a Gaussian of this "
                                  "many px (each colour channel alike), whatever their quantisation, also at half "
