@@ -128,23 +128,6 @@ def test_the_threads_give_the_same_values(window: int) -> None:
             np.testing.assert_array_equal(weighted_median_numba(v, i0, 3, 0.06, 0.15, 0.5, window), ref)
 
 
-def test_the_inner_range() -> None:
-    """median_weight_inner_range (task wmfast): the range that selects the pixels to weigh on the warps before a
-    level's last; the last warp's is median_weight_range; 0 (the default): median_weight_range on every warp."""
-    assert FlowConfig().median_weight_inner_range == 0.0
-    with pytest.raises(ConfigError):
-        FlowConfig(median_weight_inner_range=-1.0)
-    v, i0 = two_motions(40, 56)
-    narrow, wide = (weighted_median(v, i0, 3, 0.06, 0.15, tau, 5) for tau in (0.5, 2.0))
-    assert not np.array_equal(narrow, wide)
-    plain = FlowConfig(median_weight_sigma=0.06)
-    inner = plain.replace(median_weight_inner_range=2.0)
-    for backend in (NUMPY, select_backend("numba", threads=1)):
-        np.testing.assert_array_equal(warp_median(v, i0, 3, plain, backend, last=False), narrow)
-        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=False), wide)
-        np.testing.assert_array_equal(warp_median(v, i0, 3, inner, backend, last=True), narrow)
-
-
 @pytest.mark.parametrize("n", [1, 2, 9, 25, 49])
 def test_the_sorting_network(n: int) -> None:
     """The kernel's network sorts: every 0/1 input for n <= 9 (the 0-1 principle: then it sorts anything), random
@@ -190,7 +173,6 @@ def test_the_presets_that_weigh() -> None:
         assert getattr(fastest, key) == getattr(stream_fast, key) == expected
         assert getattr(quality, key) == value
         assert getattr(balanced, key) == (1.5 if key == "median_weight_range" else value)
-    assert fastest.median_weight_inner_range == quality.median_weight_inner_range == 0.0
     assert FlowConfig.preset("realtime").median_weight_sigma == 0.0
     v, i0 = two_motions(30, 40)
     small = (v - v.mean(axis=(1, 2), keepdims=True)) * np.float32(0.2)  # the disc's jump ~0.6 px, the noise 0.06

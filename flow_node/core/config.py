@@ -196,9 +196,6 @@ class FlowConfig:
                                     "3 x 3 window around a pixel are at most this the plain median stands (the "
                                     "weights only matter where a pixel is next to two motions; the cost goes there)",
                                     lo=0.0, hi=1000.0)
-    median_weight_inner_range: float = _f(0.0, "weighted median: median_weight_range on the warps before a level's "
-                                          "last (0 = median_weight_range): a larger one weighs fewer pixels where the "
-                                          "flow only moves the next warp's linearisation point", lo=0.0, hi=1000.0)
     level_alpha_factor: float = _f(1.0, "alpha on level l is alpha * level_alpha_factor**l "
                                    "(l = 0 finest; > 1 regularises coarse levels more)", lo=0.1, hi=10.0)
     tv_edge_weight: float = _f(0.0, "images only: a of the edge weight g = max(tv_edge_floor, "

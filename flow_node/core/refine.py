@@ -76,17 +76,15 @@ def weighs(cfg: FlowConfig, last: bool, on_finest: bool) -> bool:
 
 
 def warp_median(v: np.ndarray, i0: np.ndarray, size: int, cfg: FlowConfig, backend: Backend,
-                weighted: bool = True, last: bool = True) -> np.ndarray:
+                weighted: bool = True) -> np.ndarray:
     """The median filter after a warp: plain (:func:`median_filter`), or with ``cfg.median_weight_sigma`` > 0 and
     ``weighted`` (the warp is one ``cfg.median_weight_warps`` names) the backend's weighted median guided by the
     level's frame 0 ``i0`` (wmedian.py; docs/engine.md "Weighted median") over ``cfg.median_filter``'s window,
-    where a 3 x 3 window's flow range exceeds ``cfg.median_weight_range`` (on a warp before the level's ``last``
-    ``cfg.median_weight_inner_range`` where set)."""
+    where a 3 x 3 window's flow range exceeds ``cfg.median_weight_range``."""
     if cfg.median_weight_sigma <= 0.0 or not weighted:
         return median_filter(v, size)
-    tau = cfg.median_weight_range if last or cfg.median_weight_inner_range <= 0.0 else cfg.median_weight_inner_range
-    return backend.weighted_median(v, i0, size, cfg.median_weight_sigma, cfg.median_occlusion_sigma, tau,
-                                   cfg.median_filter or size)
+    return backend.weighted_median(v, i0, size, cfg.median_weight_sigma, cfg.median_occlusion_sigma,
+                                   cfg.median_weight_range, cfg.median_filter or size)
 
 
 def level_schedule(cfg: FlowConfig, finest: bool) -> tuple[int, int]:
@@ -150,7 +148,7 @@ def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, sta
         last = warp == warps - 1
         size = sizes[last]
         if size:
-            state.v = warp_median(state.v, pyr.i0[level], size, cfg, backend, weighs(cfg, last, on_finest), last)
+            state.v = warp_median(state.v, pyr.i0[level], size, cfg, backend, weighs(cfg, last, on_finest))
     extra = bregman(problem, state, params, backend.solve, bregman_steps) if bregman_steps else 0
     return iterations, extra
 
