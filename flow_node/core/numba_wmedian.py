@@ -92,23 +92,18 @@ def _gather(v, guide, y, x, r, p, dif, div, vals):  # noqa: ANN001, ANN202
     flow components. Windows whose neighbours' neighbours lie inside the image skip the clamps."""
     h, w = guide.shape
     g = np.float64(guide[y, x])
+    clamp = not (r < y < h - 1 - r and r < x < w - 1 - r)
     k = 0
-    if r < y < h - 1 - r and r < x < w - 1 - r:
-        for yy in range(y - r, y + r + 1):
-            for xx in range(x - r, x + r + 1):
-                dif[k, p] = np.float64(guide[yy, xx]) - g
-                div[k, p] = 0.5 * (np.float64(v[0, yy, xx + 1]) - np.float64(v[0, yy, xx - 1])) + \
-                    0.5 * (np.float64(v[1, yy + 1, xx]) - np.float64(v[1, yy - 1, xx]))
-                vals[0, k, p] = v[0, yy, xx]
-                vals[1, k, p] = v[1, yy, xx]
-                k += 1
-        return
     for dy in range(-r, r + 1):
-        yy = min(max(y + dy, 0), h - 1)
-        yu, yd = max(yy - 1, 0), min(yy + 1, h - 1)
+        yy, yu, yd = y + dy, y + dy - 1, y + dy + 1
+        if clamp:
+            yy = min(max(yy, 0), h - 1)
+            yu, yd = max(yy - 1, 0), min(yy + 1, h - 1)
         for dx in range(-r, r + 1):
-            xx = min(max(x + dx, 0), w - 1)
-            xl, xr = max(xx - 1, 0), min(xx + 1, w - 1)
+            xx, xl, xr = x + dx, x + dx - 1, x + dx + 1
+            if clamp:
+                xx = min(max(xx, 0), w - 1)
+                xl, xr = max(xx - 1, 0), min(xx + 1, w - 1)
             dif[k, p] = np.float64(guide[yy, xx]) - g
             div[k, p] = 0.5 * (np.float64(v[0, yy, xr]) - np.float64(v[0, yy, xl])) + \
                 0.5 * (np.float64(v[1, yd, xx]) - np.float64(v[1, yu, xx]))
