@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 pytest.importorskip("cv2")
@@ -39,3 +40,18 @@ def test_cpu_counts_the_predicted_frames_of_a_pan() -> None:
     best, median, n = stream_costs.cpu_per_frame("lite=stream_lite", (96, 72), "pan", 1)
     assert n == frames - 2  # the first frame starts the stream, the first pair is solved in full
     assert 0 < best <= median * 1.001  # one pass: the per-frame minima are that pass's times
+
+
+@pytest.mark.parametrize("kind", ["shake", "wave", "shear"])
+def test_heldout_sequences_are_exact(kind: str) -> None:
+    """The stream regime's held-out motions (bench.suite.sequences, split ``heldout``): frame t + 1 sampled at
+    x + gt(x) is frame t (the rendering before noise and quantisation), at every pair the sequence scores."""
+    from bench.suite.sequences import HELDOUT_KINDS, grey, scene_of, sequences
+
+    size = (64, 48)
+    scene = scene_of(kind, size, np.random.default_rng(5))
+    for t in (1, 7):
+        back = scene.render(t + 1, scene.pixel_grid() + scene.ground_truth(t + 1)) @ np.array([0.299, 0.587, 0.114])
+        np.testing.assert_allclose(back, grey(scene, t), atol=1e-9)
+    names = [s.name for s in sequences("heldout", size, frames=3)]
+    assert names == [f"s{7000 + k}_{HELDOUT_KINDS[k % 3]}" for k in range(6)]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture, make_scene
+from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture, WaveMotion, make_scene
 from flow_node.core.api import to_grey
 
 from .data import BAGS, LUMA, read_bag
@@ -21,6 +21,10 @@ from .synthetic import quantise, seeds
 FRAMES = 40
 NOISE = 1.0  # grey levels (of 255): a camera's sensor noise on every frame, independent from frame to frame
 KINDS = ("pan", "rotation", "zoom", "accelerating", "decelerating", "objects", "cut", "exposure")
+# motions neither split has, to judge the stream mode on (split ``heldout``, two seeds each): camera shake, a
+# non-rigid wave, a shear
+HELDOUT_KINDS = ("shake", "wave", "shear")
+HELDOUT_SEED0 = 7000
 
 
 @dataclass(frozen=True)
@@ -39,6 +43,44 @@ class TimeWarped:
 
     def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
         return self.motion.inverse(x, self.tau(t))
+
+
+@dataclass(frozen=True)
+class Shaken:
+    """A pan with camera shake: phi_t(p) = p + v t + j_t, the jitter j_t (px) drawn per frame (``jitter``: one
+    (x, y) per integer t). Exact at integer t, where the frames are rendered."""
+
+    velocity: tuple[float, float]
+    jitter: tuple[tuple[float, float], ...]
+
+    def _shift(self, t: float) -> np.ndarray:
+        return np.asarray(self.velocity) * t + np.asarray(self.jitter[round(t)])
+
+    def forward(self, p: np.ndarray, t: float) -> np.ndarray:
+        return p + self._shift(t)
+
+    def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
+        return x - self._shift(t)
+
+
+@dataclass(frozen=True)
+class Sheared:
+    """A pan with a growing horizontal shear about ``center``: phi_t(p) = c + [[1, k t], [0, 1]] (p - c) + v t."""
+
+    center: tuple[float, float]
+    velocity: tuple[float, float]
+    k: float
+
+    def _linear(self, t: float) -> np.ndarray:
+        return np.array([[1.0, self.k * t], [0.0, 1.0]])
+
+    def forward(self, p: np.ndarray, t: float) -> np.ndarray:
+        c = np.asarray(self.center)
+        return c + (p - c) @ self._linear(t).T + np.asarray(self.velocity) * t
+
+    def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
+        c = np.asarray(self.center)
+        return c + (x - c - np.asarray(self.velocity) * t) @ np.linalg.inv(self._linear(t)).T
 
 
 @dataclass(frozen=True)
@@ -87,6 +129,14 @@ def scene_of(kind: str, size: tuple[int, int], rng: np.random.Generator) -> Scen
     elif kind == "decelerating":  # velocity from 1 (x 6 px) down to 0.1 of it
         theta = math.radians(0.5 * float(rng.choice([-1.0, 1.0])))
         motion = TimeWarped(AffineMotion(c, _direction(rng, 6.0 * k), theta=theta), -0.9 / (2 * (FRAMES - 1)))
+    elif kind == "shake":  # a pan of 1-3 px/frame, each frame displaced by 1.5-3 px (std) of jitter
+        amp, speed = float(rng.uniform(1.5, 3.0)), float(rng.uniform(1.0, 3.0)) * k
+        jitter = tuple((float(a), float(b)) for a, b in rng.normal(0.0, amp * k, (FRAMES + 1, 2)))
+        motion = Shaken(_direction(rng, speed), jitter)
+    elif kind == "wave":  # a pan of 2 px/frame under a travelling non-rigid wave of 3 px
+        motion = WaveMotion(velocity=_direction(rng, 2.0 * k), amplitude=3.0 * k, wavelength=64.0 * k, omega=0.15)
+    elif kind == "shear":
+        motion = Sheared(c, _direction(rng, 2.0 * k), float(rng.uniform(0.006, 0.01)) * float(rng.choice([-1, 1])))
     elif kind == "objects":
         objects = make_scene("objects", size, rng)
         bg = Layer(tex, AffineMotion(c, _direction(rng, float(rng.uniform(1.0, 2.0)) * k)))
@@ -103,8 +153,9 @@ def grey(scene: Scene, t: int) -> np.ndarray:
 
 def render(kind: str, seed: int, size: tuple[int, int], frames: int = FRAMES) -> Sequence:
     """The sequence of ``kind`` and ``seed`` at ``size`` (width, height)."""
-    rng = np.random.default_rng([seed, KINDS.index(kind)])
-    noise = np.random.default_rng([seed, KINDS.index(kind), 1])
+    index = (KINDS + HELDOUT_KINDS).index(kind)
+    rng = np.random.default_rng([seed, index])
+    noise = np.random.default_rng([seed, index, 1])
     name, event = f"s{seed}_{kind}", frames // 2
 
     def delivered(img: np.ndarray) -> np.ndarray:
@@ -133,7 +184,12 @@ def _f32(gt: list[np.ndarray | None]) -> list[np.ndarray | None]:
 
 def sequences(split: str, size: tuple[int, int], kinds: tuple[str, ...] = KINDS, frames: int = FRAMES
               ) -> Iterator[Sequence]:
-    """One sequence of every kind for the split's seeds (``tune``: 0.., ``report``: 1000..), in order."""
+    """One sequence of every kind for the split's seeds (``tune``: 0.., ``report``: 1000..), in order; split
+    ``heldout``: two of each of HELDOUT_KINDS (seeds 7000..), which ``kinds`` does not filter."""
+    if split == "heldout":
+        for k in range(2 * len(HELDOUT_KINDS)):
+            yield render(HELDOUT_KINDS[k % len(HELDOUT_KINDS)], HELDOUT_SEED0 + k, size, frames)
+        return
     for k, seed in seeds(split, len(KINDS)):
         if KINDS[k] in kinds:
             yield render(KINDS[k], seed, size, frames)

@@ -28,7 +28,7 @@ from flow_node.process import keep_freed_memory
 from ..common import REPO, machine, md_table, run_record, write_result, wxh
 from .methods import DIS_MEDIUM, DIS_ULTRAFAST, parse_method
 from .metrics import add_ratios
-from .sequences import FRAMES, KINDS, Sequence, bag_sequences, sequences
+from .sequences import FRAMES, HELDOUT_KINDS, KINDS, Sequence, bag_sequences, sequences
 
 RESULTS = REPO / "bench" / "results" / "suite" / "stream"
 PERIOD_NS = 33_333_333  # 30 Hz stamps
@@ -113,8 +113,9 @@ def _mean(values: list[float | None]) -> float:
 
 
 def _kind(seq: Sequence) -> str:
-    """The column a sequence is reported in: its kind (one sequence per kind and split), a bag by its name."""
-    return seq.name if seq.kind == "bag" else seq.kind
+    """The column a sequence is reported in: its kind (one sequence per kind and split), a bag or a held-out
+    sequence (two per kind) by its name."""
+    return seq.name if seq.kind == "bag" or seq.kind in HELDOUT_KINDS else seq.kind
 
 
 def summarise(per_seq: dict[str, dict[str, dict[str, list[Any]]]], seqs: list[Sequence]) -> dict[str, Any]:
@@ -192,7 +193,8 @@ def markdown(res: dict[str, Any], command: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.suite.streams", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--split", choices=("tune", "report"), default="report")
+    ap.add_argument("--split", choices=("tune", "report", "heldout"), default="report",
+                    help=f"heldout: motions neither of the others has ({', '.join(HELDOUT_KINDS)}), two of each")
     ap.add_argument("--size", default="320x240", help="WIDTHxHEIGHT")
     ap.add_argument("--kinds", default=",".join(KINDS), help=f"comma-separated subset of {', '.join(KINDS)}")
     ap.add_argument("--frames", type=int, default=FRAMES)
