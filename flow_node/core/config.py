@@ -257,9 +257,10 @@ class FlowConfig:
     stream_duals: float = _f(1.0, "stream mode: the carried regulariser duals are multiplied by this before the "
                              "refinement from the prediction (1 = as the previous pair left them; 0 = restarted "
                              "from zero, the flow alone carried)", lo=0.0, hi=1.0)
-    stream_max_predicted: float = _f(0.5, "stream mode: the pair is solved in full when more than this fraction "
+    stream_max_predicted: float = _f(0.2, "stream mode: the pair is solved in full when more than this fraction "
                                      "of the prediction's pixels is unexplained (its robust data cost on its "
-                                     "start level: a scene cut, a jump)", lo=0.0, hi=1.0)
+                                     "start level: a scene cut, a jump of a few pixels such as camera shake)",
+                                     lo=0.0, hi=1.0)
     stream_max_unexplained: float = _f(0.3, "stream mode: a previous flow, or a refined prediction, with more "
                                        "unexplained pixels than this is not used (full solve)", lo=0.0, hi=1.0)
     stream_margin: float = _f(0.05, "stream mode: a refined prediction explaining the pair worse than the "
