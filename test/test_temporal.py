@@ -145,6 +145,13 @@ def test_stream_mode_off_is_the_single_pair_solve() -> None:
         flows = [FlowEstimator(cfg.replace(backend="numpy", photometric=photometric)).estimate_grey(
             seq[0], seq[1]).flow for cfg in (stream_fast, base)]
         np.testing.assert_array_equal(*flows)
+    # stream_lite: fastest at quarter size with census DELTA 0.003 (task litezd) and the default noise floor K
+    lite = FlowConfig.preset("stream_lite")
+    base = FlowConfig.preset("fastest").replace(finest_level=2, census_delta=0.003,
+                                                census_noise_k=FlowConfig().census_noise_k)
+    assert lite.photometric == base.photometric == "census"
+    flows = [FlowEstimator(cfg.replace(backend="numpy")).estimate_grey(seq[0], seq[1]).flow for cfg in (lite, base)]
+    np.testing.assert_array_equal(*flows)
 
 
 @pytest.mark.parametrize("photometric", ["normalise", "census"])
