@@ -120,8 +120,9 @@ from typing import Any
 #   node's default: task fastcens's kernels (flows bit-identical) brought its census time to 1.10-1.16x its grey
 #   time (bench/results/census_cost/fastcens/summary.md), task fastbags' DELTA / alpha (above) its bags within 1 %
 #   of grey values, and the initialisation's tail rule (initialise.TAIL_FACTOR) its large set below grey values;
-#   Middlebury 0.461 against 0.564. stream_lite keeps grey values: at quarter size census lost on the stream
-#   regime's tune split (0.048 -> 0.058-0.073 over six census settings; docs/engine.md "Presets").
+#   Middlebury 0.461 against 0.564. stream_lite kept grey values until task litezd (2026-12-07): with carried duals
+#   census lost at quarter size on the stream regime's tune split (0.048 -> 0.058-0.073 over six census settings);
+#   with the duals restarted and DELTA 0.003 it ties grey values at 0.66x the CPU (its line below).
 #   photometric=normalise gives the grey-value term back.
 # - balanced compares census signatures by default (issue 25, task balcens3, 2026-12-07), with the edge-weighted TV
 #   at a 0.08 (below): quality's census delta / alpha and finest ring, the coarse EPS rule, four anti-aliased steps,
@@ -159,8 +160,8 @@ CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, c
 # 1.068x -> 1.009x census alone), census + weight 1.04-1.16x grey values under load 2.4-4.3 (the bags 1.10-1.16x,
 # census alone 1.09-1.15x there; at load 1-2.6 1.05-1.14x, the bags 1.12 / 1.14; quiet, at the merge, 1.07-1.10x, the
 # bags 1.099 in both runs; bench/results/suite/invariance/edgecost/). Report split: real_exact 0.3883
-# -> 0.3520, Middlebury 0.4614 -> 0.4445, worst fine_320 +0.0003 px. stream_lite keeps plain TV (stream tune 0.0481
-# -> 0.0486). balanced weighs by a 0.08 (task balcens3, above: with its four anti-aliased census steps a 0.05 lost
+# -> 0.3520, Middlebury 0.4614 -> 0.4445, worst fine_320 +0.0003 px. stream_lite kept plain TV until task litezd
+# (stream tune 0.0481 -> 0.0486 with grey values); with census it takes fastest's weight. balanced weighs by a 0.08 (task balcens3, above: with its four anti-aliased census steps a 0.05 lost
 # the missing regime's wiper pair on tune).
 EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05))  # tv_edge_floor 0.6: the field's default
 # The weighted median (issue 25, task occl; docs/engine.md "Weighted median"): fastest (and stream_fast, its fields)
