@@ -161,8 +161,9 @@ CENSUS_SCHEDULE: Mapping[str, Any] = MappingProxyType(dict(census_antialias=3, c
 # census alone 1.09-1.15x there; at load 1-2.6 1.05-1.14x, the bags 1.12 / 1.14; quiet, at the merge, 1.07-1.10x, the
 # bags 1.099 in both runs; bench/results/suite/invariance/edgecost/). Report split: real_exact 0.3883
 # -> 0.3520, Middlebury 0.4614 -> 0.4445, worst fine_320 +0.0003 px. stream_lite kept plain TV until task litezd
-# (stream tune 0.0481 -> 0.0486 with grey values); with census it takes fastest's weight. balanced weighs by a 0.08 (task balcens3, above: with its four anti-aliased census steps a 0.05 lost
-# the missing regime's wiper pair on tune).
+# (stream tune 0.0481 -> 0.0486 with grey values); with census it takes fastest's weight. balanced weighs by a
+# 0.08 (task balcens3, above: with its four anti-aliased census steps a 0.05 lost the missing regime's wiper pair on
+# tune).
 EDGE_TV: Mapping[str, Any] = MappingProxyType(dict(tv_edge_weight=0.05))  # tv_edge_floor 0.6: the field's default
 # The weighted median (issue 25, task occl; docs/engine.md "Weighted median"): fastest (and stream_fast, its fields)
 # replaces the plain median after each level's last warp by one whose neighbours count by frame 0's grey-value
