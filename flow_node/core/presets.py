@@ -244,7 +244,7 @@ PRESETS: dict[str, dict[str, Any]] = {
     # 34 iterations on its one stream level (was grey values, carried duals, 8 x 10): tune 320x240 0.0481 -> 0.0481,
     # 640x480 0.0417 -> 0.0392 (DIS medium 0.0508 / 0.0438), bags -1.4 %, at 0.66x / 0.58x the CPU per frame;
     # report split 0.0504 / 0.0421 (DIS medium 0.0520 / 0.0481); objects lose (report 0.105 -> 0.141 at 320x240).
-    # Its single pairs and fallbacks compare census signatures too (report 320x240 0.087 -> 0.058)
+    # Its single pairs and fallbacks compare census signatures too (report 320x240 0.087 -> 0.058).
     # The result check samples ~5,000 pixels, as stream_fast's (the lead, same day: tune 0.89x the CPU at 320x240,
     # report split the same flows and AEE at 0.86x / 0.95x the wall time; bench/results/suite/stream/litezd/checks/)
     "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=1, stream_iterations=34,
