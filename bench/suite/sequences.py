@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flow_node.bag.scenes import AffineMotion, Layer, Scene, Texture, WaveMotion, make_scene
+from flow_node.bag.scenes import AffineMotion, Layer, LinearMotion, Scene, Texture, WaveMotion, make_scene
 from flow_node.core.api import to_grey
 
 from .data import BAGS, LUMA, read_bag
@@ -61,26 +61,6 @@ class Shaken:
 
     def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
         return x - self._shift(t)
-
-
-@dataclass(frozen=True)
-class Sheared:
-    """A pan with a growing horizontal shear about ``center``: phi_t(p) = c + [[1, k t], [0, 1]] (p - c) + v t."""
-
-    center: tuple[float, float]
-    velocity: tuple[float, float]
-    k: float
-
-    def _linear(self, t: float) -> np.ndarray:
-        return np.array([[1.0, self.k * t], [0.0, 1.0]])
-
-    def forward(self, p: np.ndarray, t: float) -> np.ndarray:
-        c = np.asarray(self.center)
-        return c + (p - c) @ self._linear(t).T + np.asarray(self.velocity) * t
-
-    def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
-        c = np.asarray(self.center)
-        return c + (x - c - np.asarray(self.velocity) * t) @ np.linalg.inv(self._linear(t)).T
 
 
 @dataclass(frozen=True)
@@ -135,8 +115,11 @@ def scene_of(kind: str, size: tuple[int, int], rng: np.random.Generator) -> Scen
         motion = Shaken(_direction(rng, speed), jitter)
     elif kind == "wave":  # a pan of 2 px/frame under a travelling non-rigid wave of 3 px
         motion = WaveMotion(velocity=_direction(rng, 2.0 * k), amplitude=3.0 * k, wavelength=64.0 * k, omega=0.15)
-    elif kind == "shear":
-        motion = Sheared(c, _direction(rng, 2.0 * k), float(rng.uniform(0.006, 0.01)) * float(rng.choice([-1, 1])))
+    elif kind == "shear":  # a pan of 2 px/frame with a growing horizontal shear: phi_t = c + [[1, k t], [0, 1]] (p - c)
+        # + v t, scenes.LinearMotion's form, invertible at every t since I + t (M - I) is unit triangular
+        v = _direction(rng, 2.0 * k)
+        shear = float(rng.uniform(0.006, 0.01)) * float(rng.choice([-1, 1]))
+        motion = LinearMotion(c, ((1.0, shear), (0.0, 1.0)), v)
     elif kind == "objects":
         objects = make_scene("objects", size, rng)
         bg = Layer(tex, AffineMotion(c, _direction(rng, float(rng.uniform(1.0, 2.0)) * k)))
