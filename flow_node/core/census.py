@@ -14,16 +14,6 @@ to first order, and a smooth gain field is a constant: both scale the difference
 change (exactly for a gain and offset, to second order in the grey-value span of the window for a curve).
 EPS (in units of the frame's robust range) keeps flat, noise-only areas from being amplified.
 
-The signature above is linear in the differences: invariant to a tone curve only where the curve is affine over
-the window. With CensusParams ``saturation`` TAU > 0 (FlowConfig census_saturation; issue 25, task softrank) each
-normalised difference n_k = d_k / (s + EPS) saturates, a soft rank between today's signature and the sign of d_k:
-
-    F_k = GAIN * TAU * tanh(n_k / TAU)
-
-(TAU in units of n, whose RMS over the window is at most 1; TAU -> infinity is the linear signature, small TAU
-approaches the hard census, which is invariant to every monotonic curve but has no gradient). TAU = 0 is off:
-the linear signature bit for bit.
-
 Each channel is linearised like the grey value (paper, "Large Displacements"): with W = I1(x + v0) the
 warped frame 1 (sampled directly, :func:`warped_frames`: the data term needs its values, not the grey-value
 linearisation) and a_k the channel's gradient (the mean of frame 0's and of the warped one's, as the
@@ -66,15 +56,12 @@ class CensusParams:
     ``eps``: contrast (of the frame's robust range) below which differences are damped, not normalised (the data
     term's: FlowConfig.census_eps, or census_coarse_eps on coarse levels, refine.level_census);
     ``delta``: residual (signature units) below which the L1 majoriser is quadratic;
-    ``radius``: the neighbours' distance (px), 1 (the 3 x 3 neighbourhood) or 2 (:func:`offsets`);
-    ``saturation``: TAU of the saturating signature (units of the normalised difference n; the module doc), 0 = off
-    (the linear signature)."""
+    ``radius``: the neighbours' distance (px), 1 (the 3 x 3 neighbourhood) or 2 (:func:`offsets`)."""
 
     gain: float = 0.1
     eps: float = 0.01
     delta: float = 0.2
     radius: int = 1
-    saturation: float = 0.0
 
 
 CENSUS = CensusParams()
@@ -97,16 +84,7 @@ def signature(img: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:
     """The soft census signature F(img) of the module doc: (H, W) float32 -> (K, H, W) float32."""
     img = img.astype(np.float32, copy=False)
     diffs = np.stack([shifted(img, dy, dx) - img for dy, dx in offsets(params.radius)])
-    return (saturated(normalised(diffs, params), params.saturation) * np.float32(params.gain)).astype(np.float32)
-
-
-def saturated(n: np.ndarray, tau: float) -> np.ndarray:
-    """The normalised differences n (any shape, units of n) saturated: TAU tanh(n / TAU) for ``tau`` TAU > 0 (the
-    module doc), n itself (the same array) for 0."""
-    if tau <= 0:
-        return n
-    t = np.float32(tau)
-    return (t * np.tanh(n / t)).astype(np.float32, copy=False)
+    return (normalised(diffs, params) * np.float32(params.gain)).astype(np.float32)
 
 
 def normalised(diffs: np.ndarray, params: CensusParams = CENSUS) -> np.ndarray:

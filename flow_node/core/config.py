@@ -136,12 +136,6 @@ class FlowConfig:
                              "zoom, deformation; realtime sets 0.07, quality 0.05, fastest 0.02: issue 25, tasks "
                              "smoothbags, qdelta, fastdelta and fastbags, docs/engine.md 'Presets')",
                              lo=0.0, hi=10.0, lo_open=True)
-    census_saturation: float = _f(0.0, "photometric census: TAU of the saturating ('soft-rank') signature, in units "
-                                  "of the normalised neighbour difference n = d / (RMS + EPS): each signature "
-                                  "element is GAIN TAU tanh(n / TAU) instead of GAIN n, closer to the sign of d -- "
-                                  "invariant to more of a tone curve -- the smaller TAU (0 = off: the linear "
-                                  "signature bit for bit; issue 25, task softrank, docs/engine.md 'The census data "
-                                  "term')", lo=0.0, hi=100.0)
     census_presmooth: float = _f(0.0, "photometric census: presmooth both frames of every pair by a Gaussian of this "
                                  "many px (each colour channel alike), whatever their quantisation, also at half "
                                  "size on top of the anti-alias blur; coarsely quantised pairs keep at least the 1 px "

@@ -29,7 +29,7 @@ from numba import get_thread_id, njit, prange
 
 from .census import CensusParams
 from .numba_backend import LINEARISE_PARALLEL_MIN_PIXELS, row_base, threads
-from .numba_signature import F32, JIT, ROWS, K, neighbour_row, offset_arrays, saturate, saturation_constants
+from .numba_signature import F32, JIT, ROWS, K, neighbour_row, offset_arrays
 
 # the level signatures and contrast, re-exported (numba_signature.py; backends.py and the tests take them from here)
 from .numba_signature import census_planes_numba as census_planes_numba
@@ -82,50 +82,37 @@ def _factor_row(warped, c, sm, s0, sp, rad, gain, eps, ss, zero):  # noqa: ANN00
         ss[j] = gain / (math.sqrt(t * inv_k) + eps)
 
 
-def _make_pair_diff(saturated: bool):  # noqa: ANN202
-    """:func:`_pair_diff` of the linear signature, or with ``saturated`` of the saturating one (census.saturated,
-    numba_signature.saturate). ``saturated`` is a compile-time constant: one source, two kernels
-    (:data:`_pair_diff`, :data:`_pair_diff_saturated`); the linear one is the same code as before the field existed
-    (its forms the same bit for bit, test_census), and a run-time select inside the vectorised loop would cost it."""
-
-    @njit(inline="always", **ROWS)
-    def put(f0, q, rr, j, d, fac, sat, inv, pair, diff, sq):  # noqa: ANN001, ANN202
-        """P and D of channel q at column j from the warped frame's neighbour difference d and its factor fac
-        (:func:`_pair_diff`)."""
-        a, b = f0[q, rr, j], d * fac
-        if saturated:
-            b = saturate(b, sat, inv)
-        pair[q, sq, j + 1] = a + b
-        diff[q, sq, j] = b - a
-
-    def pair_diff(f0, q, rr, warped, c, s, o, s0, rad, ss, sat, inv, pair, diff, sq):  # noqa: ANN001, ANN202
-        w = diff.shape[2]
-        sa, sb, sc, sd = s
-        oa, ob, oc, od = o
-        for j in range(w):
-            e = warped[c, s0, np.uint64(j + rad)]
-            fac = ss[j]
-            put(f0, q, rr, j, warped[c, sa, np.uint64(j + oa)] - e, fac, sat, inv, pair, diff, sq)
-            put(f0, q + 1, rr, j, warped[c, sb, np.uint64(j + ob)] - e, fac, sat, inv, pair, diff, sq)
-            put(f0, q + 2, rr, j, warped[c, sc, np.uint64(j + oc)] - e, fac, sat, inv, pair, diff, sq)
-            put(f0, q + 3, rr, j, warped[c, sd, np.uint64(j + od)] - e, fac, sat, inv, pair, diff, sq)
-        for k in range(q, q + 4):
-            pair[k, sq, 0] = pair[k, sq, min(2, w)]
-            pair[k, sq, w + 1] = pair[k, sq, max(w - 1, 1)]
-
-    pair_diff.__doc__ = """Channels q .. q + 3 (of channel c's signature) of one row (image row rr) into ring slot sq
-    of pair and diff: with F0 = frame 0's signature f0[q, rr] (:func:`level_signature_numba`) and F1 = d ss (the
-    warped frame's: d its neighbour difference -- the padded row in slot s[k] at column j + o[k] minus the row in
-    slot s0 at j + rad, as :func:`_factor_row` took it -- and ss its factor; saturated by (sat, inv) when the kernel
-    is the saturated one), pair[q, sq, 1:W + 1] = F0 + F1 and diff[q, sq] = F1 - F0; the pair row's ends mirror its
-    columns 1 and W - 2 (P(1) before, P(W - 2) after; both P(0) when W == 1), so that P(x + 1) - P(x - 1) is 0 on
-    the border columns. Four channels a pass (one: 1.2x slower; all eight with the factor: not vectorised, 2.4x
-    slower)."""
-    pair_diff.__name__ = pair_diff.__qualname__ = "pair_diff_saturated" if saturated else "pair_diff"
-    return njit(**ROWS)(pair_diff)
+@njit(inline="always", **ROWS)
+def _put(f0, q, rr, j, d, fac, pair, diff, sq):  # noqa: ANN001, ANN201
+    """P and D of channel q at column j from the warped frame's neighbour difference d and its factor fac
+    (:func:`_pair_diff`)."""
+    a, b = f0[q, rr, j], d * fac
+    pair[q, sq, j + 1] = a + b
+    diff[q, sq, j] = b - a
 
 
-_pair_diff, _pair_diff_saturated = _make_pair_diff(False), _make_pair_diff(True)
+@njit(**ROWS)
+def _pair_diff(f0, q, rr, warped, c, s, o, s0, rad, ss, pair, diff, sq):  # noqa: ANN001, ANN201
+    """Channels q .. q + 3 (of channel c's signature) of one row (image row rr) into ring slot sq of pair and
+    diff: with F0 = frame 0's signature f0[q, rr] (:func:`level_signature_numba`) and F1 = d ss (the warped
+    frame's: d its neighbour difference -- the padded row in slot s[k] at column j + o[k] minus the row in slot
+    s0 at j + rad, as :func:`_factor_row` took it -- and ss its factor), pair[q, sq, 1:W + 1] = F0 + F1 and
+    diff[q, sq] = F1 - F0; the pair row's ends mirror its columns 1 and W - 2 (P(1) before, P(W - 2) after; both
+    P(0) when W == 1), so that P(x + 1) - P(x - 1) is 0 on the border columns. Four channels a pass (one: 1.2x
+    slower; all eight with the factor: not vectorised, 2.4x slower)."""
+    w = diff.shape[2]
+    sa, sb, sc, sd = s
+    oa, ob, oc, od = o
+    for j in range(w):
+        e = warped[c, s0, np.uint64(j + rad)]
+        fac = ss[j]
+        _put(f0, q, rr, j, warped[c, sa, np.uint64(j + oa)] - e, fac, pair, diff, sq)
+        _put(f0, q + 1, rr, j, warped[c, sb, np.uint64(j + ob)] - e, fac, pair, diff, sq)
+        _put(f0, q + 2, rr, j, warped[c, sc, np.uint64(j + oc)] - e, fac, pair, diff, sq)
+        _put(f0, q + 3, rr, j, warped[c, sd, np.uint64(j + od)] - e, fac, pair, diff, sq)
+    for k in range(q, q + 4):
+        pair[k, sq, 0] = pair[k, sq, min(2, w)]
+        pair[k, sq, w + 1] = pair[k, sq, max(w - 1, 1)]
 
 
 @njit(**ROWS)
@@ -214,7 +201,7 @@ _form_row_first, _form_row_add, _form_row_last = (_make_form_row(*f) for f in ((
 
 
 @njit(**ROWS)
-def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, sat, inv, robust, d2, weight, out, r0, r1,  # noqa: ANN001, ANN201
+def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, r0, r1,  # noqa: ANN001, ANN201
                  warped, keep, pair, diff, ss, taps, base, zero):
     """Rows r0 .. r1 - 1 of :func:`census_kernel`, with one thread's rings: warped (C, M, W + 2 rad) and keep
     (M, W) hold rows of frame 1 warped (padded with rad edge values on either side: :func:`_pad_row`) and its
@@ -238,13 +225,13 @@ def _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, sat, inv, r
         rr = r - rad
         if rr >= r0 - 1:  # the signatures of row rr (warped rows rr - rad, rr, rr + rad) into diff, then P and D
             _pair_rows(f0, min(max(rr, 0), h - 1), warped, (rr - rad + 2 * m) % m, (rr + 2 * m) % m, s,
-                       (rr + 3) % 3, dy, dx, gain, eps, sat, inv, pair, diff, ss, zero)
+                       (rr + 3) % 3, dy, dx, gain, eps, pair, diff, ss, zero)
         if rr - 1 >= r0:  # output row i: signature rows i - 1, i, i + 1 are in the ring
             _form_rows(out, rr - 1, pair, diff, keep, (rr - 1 + 2 * m) % m, flow, d2, robust)
 
 
 @njit(**ROWS)
-def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, sat, inv, pair, diff, ss, zero):  # noqa: ANN001, ANN201
+def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, pair, diff, ss, zero):  # noqa: ANN001, ANN201
     """P and D of one row (image row rr) into ring slot sq of pair and diff, from the warped rows in slots sm,
     s0, sp (rad rows above, at, rad below; padded) and frame 0's level f0 (C K, H, W): its channels' signatures
     (:func:`level_signature_numba`) (:func:`_census_rows`). Per channel the factor (:func:`_factor_row`), then
@@ -258,11 +245,7 @@ def _pair_rows(f0, rr, warped, sm, s0, sp, sq, dy, dx, gain, eps, sat, inv, pair
             slots = (neighbour_row(dy[k], sm, s0, sp), neighbour_row(dy[k + 1], sm, s0, sp),
                      neighbour_row(dy[k + 2], sm, s0, sp), neighbour_row(dy[k + 3], sm, s0, sp))
             cols = (rad + dx[k], rad + dx[k + 1], rad + dx[k + 2], rad + dx[k + 3])
-            if sat > 0:  # the saturated signature (census.saturated): its own kernel, the linear one unchanged
-                _pair_diff_saturated(f0, c * k_n + k, rr, warped, c, slots, cols, s0, rad, ss, sat, inv, pair, diff,
-                                     sq)
-            else:
-                _pair_diff(f0, c * k_n + k, rr, warped, c, slots, cols, s0, rad, ss, sat, inv, pair, diff, sq)
+            _pair_diff(f0, c * k_n + k, rr, warped, c, slots, cols, s0, rad, ss, pair, diff, sq)
 
 
 @njit(**ROWS)
@@ -316,7 +299,7 @@ def _ring_views(rings, t, n_c, m, w):  # noqa: ANN001, ANN201
 
 
 @njit(parallel=True, **JIT)
-def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, sat, robust, delta, weight, out,  # noqa: ANN001, ANN201
+def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, delta, weight, out,  # noqa: ANN001, ANN201
                   rings, base, blocks, zero):
     """census.census_form in one pass: out (5, H, W) from frame 0's level f0 (C K, H, W) (its channels'
     signatures, :func:`level_signature_numba`), frame 1's interpolation coefficients
@@ -325,11 +308,9 @@ def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, sat, robus
     times rad, in that order: :func:`_factor_row`), the warped rings' M = 2 rad + 1 rows. The rows in ``blocks``
     contiguous blocks, in parallel when more than one (:func:`_census_rows`; per-thread rings cut from
     ``rings``, :func:`_ring_views`, for T = base.shape[0] threads, and the warp's row scratch base (T, 2, W)
-    int32). ``zero``: 0.0, passed in so that the compiler cannot fold it (:func:`_factor_row`). ``sat``: GAIN TAU
-    of the saturating signature, 0 for the linear one (numba_signature.saturation_constants)."""
+    int32). ``zero``: 0.0, passed in so that the compiler cannot fold it (:func:`_factor_row`)."""
     n_c, h, w = frames.shape
     d2 = delta * delta
-    inv = F32(1.0) / sat if sat > 0 else F32(0.0)
     t_n = base.shape[0]
     rad = 0
     for k in range(dy.shape[0]):
@@ -338,11 +319,11 @@ def census_kernel(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, sat, robus
     if blocks > 1:
         for b in prange(blocks):
             t = get_thread_id()
-            _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, sat, inv, robust, d2, weight, out,
+            _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out,
                          b * h // blocks, (b + 1) * h // blocks, warped[t], keep[t], pair[t], diff[t], ss[t],
                          taps[t], base[t], zero)
     else:
-        _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, sat, inv, robust, d2, weight, out, 0, h,
+        _census_rows(f0, coefs, frames, flow, kernel, dy, dx, gain, eps, robust, d2, weight, out, 0, h,
                      warped[0], keep[0], pair[0], diff[0], ss[0], taps[0], base[0], zero)
 
 
@@ -360,8 +341,7 @@ def census_form_numba(f0: np.ndarray, g0: None, coefs: np.ndarray, frames: np.nd
     out = np.empty((5, h, w), F32) if out is None else out
     census_kernel(np.ascontiguousarray(f0, dtype=F32), np.ascontiguousarray(coefs, dtype=F32),
                   np.ascontiguousarray(frames, dtype=F32), np.ascontiguousarray(v0, dtype=F32),
-                  KERNEL_CODES[kernel], *offset_arrays(params.radius), F32(params.gain), F32(params.eps),
-                  saturation_constants(params)[0], robust,
+                  KERNEL_CODES[kernel], *offset_arrays(params.radius), F32(params.gain), F32(params.eps), robust,
                   F32(params.delta), F32(1.0 / n_c), out, rings,
                   row_base(w), blocks, F32(0.0))
     return out

@@ -102,46 +102,8 @@ def _differences(img, ru, rc, rd, dy, dx, gain, eps, out, i, ss):  # noqa: ANN00
         ss[j] = gain / (math.sqrt(ss[j] * inv_k) + eps)
 
 
-# tanh(x) in float32 as an odd rational function, x clamped to +-TANH_CLAMP (Eigen's generic_fast_tanh_float, a 13/6
-# minimax fit): within 3.6e-7 of tanh everywhere (and 2.4e-7 relative near 0), and only multiplications, additions,
-# a division and a clamp, so that the signatures' row loops still vectorise. math.tanh (libm's tanhf, a call per
-# element: numba has no vector tanh without SVML) made the census form 9x slower (task softrank)
-TANH_CLAMP = F32(7.90531110763549805)
-TANH_P = tuple(F32(c) for c in (4.89352455891786e-03, 6.37261928875436e-04, 1.48572235717979e-05, 5.12229709037114e-08,
-                                -8.60467152213735e-11, 2.00018790482477e-13, -2.76076847742355e-16))
-TANH_Q = tuple(F32(c) for c in (4.89352518554385e-03, 2.26843463243900e-03, 1.18534705686654e-04,
-                                1.19825839466702e-06))
-_P0, _P1, _P2, _P3, _P4, _P5, _P6 = TANH_P
-_Q0, _Q1, _Q2, _Q3 = TANH_Q
-
-
-@njit(inline="always", **ROWS)
-def tanh_f32(x):  # noqa: ANN001, ANN201
-    """tanh(x) of a float32 x to 3.6e-7 (:data:`TANH_CLAMP`'s comment)."""
-    x = min(max(x, -TANH_CLAMP), TANH_CLAMP)
-    x2 = x * x
-    p = ((((((_P6 * x2 + _P5) * x2 + _P4) * x2 + _P3) * x2 + _P2) * x2 + _P1) * x2 + _P0) * x
-    return p / (((_Q3 * x2 + _Q2) * x2 + _Q1) * x2 + _Q0)
-
-
-@njit(inline="always", **ROWS)
-def saturate(b, sat, inv):  # noqa: ANN001, ANN201
-    """A signature value b = GAIN n saturated: sat tanh(b inv), sat = GAIN TAU and inv = 1 / sat (census.saturated:
-    GAIN TAU tanh(n / TAU); :func:`tanh_f32`)."""
-    return sat * tanh_f32(b * inv)
-
-
-def saturation_constants(params: CensusParams) -> tuple[np.float32, np.float32]:
-    """(sat, inv) of :func:`saturate` for ``params``: GAIN TAU and its inverse, (0, 0) when TAU is 0 (off: the
-    kernels then compute the linear signature, the same operations as before the field existed)."""
-    if params.saturation <= 0:
-        return F32(0.0), F32(0.0)
-    sat = F32(params.gain * params.saturation)
-    return sat, F32(1.0) / sat
-
-
 @njit(**JIT)
-def _factor_image_row(img, rc, dy, dx, rad, gain, eps, sat, inv, out, planes, sigs):  # noqa: ANN001, ANN201
+def _factor_image_row(img, rc, dy, dx, rad, gain, eps, out, planes, sigs):  # noqa: ANN001, ANN201
     """Row rc of :func:`factor_kernel`."""
     h, w = img.shape
     k_n = dy.shape[0]
@@ -151,10 +113,6 @@ def _factor_image_row(img, rc, dy, dx, rad, gain, eps, sat, inv, out, planes, si
         for k in range(k_n):  # the same product as the planes' below
             for j in range(w):
                 sigs[k, rc, j] = sigs[k, rc, j] * out[rc, j]
-        if sat > 0:  # saturated: a pass of its own, so that the linear signature's loop stays as it was
-            for k in range(k_n):
-                for j in range(w):
-                    sigs[k, rc, j] = saturate(sigs[k, rc, j], sat, inv)
     else:
         tmp = np.empty((k_n, 1, w), np.float32)
         _differences(img, ru, rc, rd, dy, dx, gain, eps, tmp, 0, out[rc])
@@ -162,29 +120,24 @@ def _factor_image_row(img, rc, dy, dx, rad, gain, eps, sat, inv, out, planes, si
             for j in range(w):
                 for k in range(k_n):
                     planes[rc, j, k] = tmp[k, 0, j] * out[rc, j]
-            if sat > 0:
-                for j in range(w):
-                    for k in range(k_n):
-                        planes[rc, j, k] = saturate(planes[rc, j, k], sat, inv)
 
 
 @njit(parallel=True, **JIT)
-def factor_kernel(img, dy, dx, rad, gain, eps, sat, inv, out, planes, sigs, parallel):  # noqa: ANN001, ANN201
+def factor_kernel(img, dy, dx, rad, gain, eps, out, planes, sigs, parallel):  # noqa: ANN001, ANN201
     """The factor GAIN / (RMS + EPS) of img (H, W) into out (H, W) (:func:`_differences`) for the offsets (dy, dx)
     at distance ``rad``, neighbours clamped to the image (edge values), and the signature -- the neighbour
-    differences times the factor, saturated when ``sat`` > 0 (:func:`saturate`, ``inv`` = 1 / sat:
-    :func:`saturation_constants`); census.signature to float32 rounding -- into sigs (K, H, W) unless ``sigs`` is
+    differences times the factor; census.signature to float32 rounding -- into sigs (K, H, W) unless ``sigs`` is
     None (a compile-time case; a census level's, :func:`census_kernel` reads them), else into planes (H, W, K),
     interleaved, unless ``planes`` is None (a compile-time case; fusion.census_planes). Row by row
     (:func:`_factor_image_row`), in parallel when ``parallel`` (:func:`factor_parallel`; each row the same
     arithmetic either way)."""
     if parallel:
         for i in prange(img.shape[0]):
-            _factor_image_row(img, np.int64(i), dy, dx, rad, gain, eps, sat, inv, out, planes, sigs)  # (prange's
-            # index is unsigned: mixed with rad, float64)
+            _factor_image_row(img, np.int64(i), dy, dx, rad, gain, eps, out, planes, sigs)  # (prange's index is
+            # unsigned: mixed with rad, float64)
     else:
         for i in range(img.shape[0]):
-            _factor_image_row(img, i, dy, dx, rad, gain, eps, sat, inv, out, planes, sigs)
+            _factor_image_row(img, i, dy, dx, rad, gain, eps, out, planes, sigs)
 
 
 def factor_parallel(shape: tuple[int, ...]) -> bool:
@@ -199,12 +152,12 @@ def factor_parallel(shape: tuple[int, ...]) -> bool:
 def factor_numba(img: np.ndarray, params: CensusParams, out: np.ndarray | None = None,
                  sigs: np.ndarray | None = None) -> np.ndarray:
     """GAIN / (RMS + EPS) of an image (H, W) with :func:`factor_kernel`: (H, W) float32 (into ``out`` when
-    given); census.signature = the neighbour differences (census.shifted) times it (saturated with
-    CensusParams.saturation), which go into ``sigs`` (K, H, W) float32 C-contiguous when given."""
+    given); census.signature = the neighbour differences (census.shifted) times it, which go into ``sigs``
+    (K, H, W) float32 C-contiguous when given."""
     src = np.ascontiguousarray(img, dtype=F32)
     out = np.empty(src.shape, F32) if out is None else out
-    factor_kernel(src, *offset_arrays(params.radius), params.radius, F32(params.gain), F32(params.eps),
-                  *saturation_constants(params), out, None, sigs, factor_parallel(src.shape))
+    factor_kernel(src, *offset_arrays(params.radius), params.radius, F32(params.gain), F32(params.eps), out, None,
+                  sigs, factor_parallel(src.shape))
     return out
 
 
@@ -214,7 +167,7 @@ def census_planes_numba(img: np.ndarray, params: CensusParams) -> np.ndarray:
     src = np.ascontiguousarray(img, dtype=F32)
     out = np.empty(src.shape + (K,), F32)
     factor_kernel(src, *offset_arrays(params.radius), params.radius, F32(params.gain), F32(params.eps),
-                  *saturation_constants(params), np.empty(src.shape, F32), out, None, factor_parallel(src.shape))
+                  np.empty(src.shape, F32), out, None, factor_parallel(src.shape))
     return out
 
 

@@ -219,13 +219,12 @@ def level_census(cfg: FlowConfig, width: int, eps_floor: float = 0.0, contrast: 
     larger of both frames' census.median_contrast) is below ``cfg.census_empty_contrast`` (docs/engine.md,
     "Presets"), raised to ``eps_floor`` (the pair's noise on that level, Pyramid.census_eps) where that is
     larger; on the ``finest`` solved level the neighbours at distance ``cfg.census_finest_radius``; the L1
-    majoriser's DELTA ``cfg.census_delta``; the signature's saturation TAU ``cfg.census_saturation``."""
+    majoriser's DELTA ``cfg.census_delta``."""
     coarse = width < cfg.census_coarse_width or contrast < cfg.census_empty_contrast
     base = CENSUS if (cfg.census_delta, cfg.census_eps) == (CENSUS.delta, CENSUS.eps) else replace(
         CENSUS, delta=cfg.census_delta, eps=cfg.census_eps)
     params = replace(base, eps=cfg.census_coarse_eps) if coarse else base
     params = replace(params, radius=cfg.census_finest_radius) if finest and cfg.census_finest_radius != 1 else params
-    params = replace(params, saturation=cfg.census_saturation) if cfg.census_saturation > 0 else params
     return replace(params, eps=eps_floor) if eps_floor > params.eps else params
 
 
