@@ -236,16 +236,16 @@ class FlowEstimator:
                 reason = attempt if isinstance(attempt, str) else None
                 if reason is None:
                     state, stats, judged, seen = attempt
-                    flow = interleaved_flow(state.v, stats.shapes[0])
-                    unexplained = unexplained_of(flow, judged, self._config.stream_check_samples)
+                    flow = interleaved_flow(state.v, stats.shapes[0], ensure_finite)
+                    unexplained = unexplained_of(flow, judged, self._config.stream_check_samples, checked=True)
                     reason = result_fails(self._config, prior, unexplained)
             if reason is not None or not self._config.stream_levels or prior is None:
                 known = None if prior is None or prior.seen is None else prior.seen.sample
                 state, stats, judged = solve_pair(i0, i1, self._config, self._backend, channels=channels,
                                                   valid=valid, sample0=known)
                 seen = Seen(judged.samples[1]) if valid is None else None  # i1 as given
-                flow = interleaved_flow(state.v, stats.shapes[0])
-                unexplained = unexplained_of(flow, judged)
+                flow = interleaved_flow(state.v, stats.shapes[0], ensure_finite)
+                unexplained = unexplained_of(flow, judged, checked=True)
                 stats.stream = "" if reason is None else f"{FULL}: {reason}"
         seconds = time.perf_counter() - start
         return FlowResult(flow, stats, seconds, self._backend.name, unexplained, judged.frames, state, seen)
@@ -273,10 +273,12 @@ def check_pair(i0: np.ndarray, i1: np.ndarray, channels: tuple[np.ndarray, np.nd
     return as_masks(mask, i0.shape)
 
 
-def unexplained_of(flow: np.ndarray, judged: Judged, samples: int | None = None) -> float:
+def unexplained_of(flow: np.ndarray, judged: Judged, samples: int | None = None, checked: bool = False) -> float:
     """The unexplained fraction of a finished ``flow`` (H, W, 2) by the photometric stage's own judge (on about
-    ``samples`` pixels: photometric.reliability_stride), after :func:`ensure_finite`."""
-    ensure_finite(flow)
+    ``samples`` pixels: photometric.reliability_stride), after :func:`ensure_finite` (``checked``: the flow was
+    checked on its solved grid already, layout.interleaved_flow's ``check``)."""
+    if not checked:
+        ensure_finite(flow)
     return judged.unexplained(flow, samples)
 
 
