@@ -32,14 +32,7 @@ from flow_node.core.photometric import (
     sorted_sample,
     stage,
 )
-from flow_node.core.pyramid import (
-    antialias_steps,
-    build_pyramid,
-    make_pyramid,
-    pyramid_shapes,
-    step_sigmas,
-    step_sizes,
-)
+from flow_node.core.pyramid import antialias_steps, build_pyramid, make_pyramid, pyramid_shapes, step_sigmas
 from flow_node.core.refine import level_census
 
 CENSUS_RT = FlowConfig.preset("realtime").replace(photometric="census")
@@ -112,13 +105,11 @@ def test_the_carried_noise_matches_the_pyramid_of_white_noise(cfg: FlowConfig, b
 # the floor reaching the form (numpy and numba): test_census_schedule.test_census_problem_uses_the_level_eps
 
 
-def _dense_gains(shapes: list[tuple[int, int]], sigmas: tuple[float, ...], blur: float, lag: int,
-                 sizes: tuple[int, ...] = ()) -> tuple[float, ...]:
+def _dense_gains(shapes: list[tuple[int, int]], sigmas: tuple[float, ...], blur: float, lag: int) -> tuple[float, ...]:
     """difference_noise_gains as it was built before: per axis, the whole n_0 x n_0 impulse matrix at once,
-    through the pyramid's blurs (OpenCV's kernel size for float input, or the step's ``sizes``) and bilinear
-    resampling."""
-    def blurred(m: np.ndarray, sigma: float, border: int, size: int = 0) -> np.ndarray:
-        kernel = cv2.getGaussianKernel(size or (int(round(sigma * 4 * 2 + 1)) | 1), sigma, cv2.CV_32F)
+    through the pyramid's blurs (OpenCV's kernel size for float input) and bilinear resampling."""
+    def blurred(m: np.ndarray, sigma: float, border: int) -> np.ndarray:
+        kernel = cv2.getGaussianKernel(int(round(sigma * 4 * 2 + 1)) | 1, sigma, cv2.CV_32F)
         return cv2.sepFilter2D(m, cv2.CV_32F, kernel, np.ones((1, 1), np.float32), borderType=border)
 
     def axis(lengths: list[int]) -> tuple[list[float], list[float]]:
@@ -128,7 +119,7 @@ def _dense_gains(shapes: list[tuple[int, int]], sigmas: tuple[float, ...], blur:
         var, dvar = [], []
         for level, n in enumerate(lengths):
             if level:
-                m = blurred(m, sigmas[level - 1], cv2.BORDER_REPLICATE, sizes[level - 1] if sizes else 0)
+                m = blurred(m, sigmas[level - 1], cv2.BORDER_REPLICATE)
                 m = cv2.resize(m, (n, m.shape[0]), interpolation=cv2.INTER_LINEAR)
             inner = (m[:, 2:-2] if n > 8 else m).astype(np.float64)
             var.append(float(np.mean(np.sum(inner ** 2, axis=0))))
@@ -280,25 +271,3 @@ def test_colour_channels_measure_their_own_noise() -> None:
     colour = channel_noise((planes[0], planes[1]), maps, 1.0, normalise_channel_pair(*planes, maps=maps))
     assert luma.sigma > 2.0 * CENSUS.eps  # the luma would damp every signature
     assert 2.0 * colour.sigma < CENSUS.eps
-
-
-@pytest.mark.parametrize("size", [(240, 320), (480, 640)])
-@pytest.mark.parametrize("blur,lag", [(0.0, 1), (1.0, 1)])
-def test_the_gains_of_the_quick_first_step_are_its_pyramid_s(size: tuple[int, int], blur: float, lag: int) -> None:
-    """The stream stage's quick first step (pyramid.quick_steps: 5 taps at sigma 1 px, the second step wider): the
-    gains take its kernel size (``sizes``) and are the dense matrix's and what its levels of white noise measure;
-    on level 2, the solved one, they are the plain pyramid's to 0.2 % (the same total variance), on level 1 not."""
-    cfg = FlowConfig.preset("stream_lite")
-    shapes = pyramid_shapes(size, 3, cfg.scale_factor, cfg.min_size)
-    sigmas, sizes = tuple(step_sigmas(2, cfg.scale_factor, 3, quick=True)), step_sizes(2, quick=True)
-    gains = difference_noise_gains(shapes, sigmas, blur, (lag,), sizes)[lag]
-    np.testing.assert_allclose(gains, _dense_gains(shapes, sigmas, blur, lag, sizes), rtol=1e-7, atol=0.0)
-    plain = difference_noise_gains(shapes, step_sigmas(2, cfg.scale_factor, 3), blur, (lag,))[lag]
-    assert gains[2] == pytest.approx(plain[2], rel=2e-3) and gains[1] > 1.3 * plain[1]
-    noise = np.random.default_rng(3).normal(0.0, 1.0, size).astype(np.float32)
-    if blur:
-        noise = cv2.GaussianBlur(noise, (0, 0), blur, borderType=cv2.BORDER_REFLECT)
-    for level, gain in zip(build_pyramid(noise, shapes, cfg.scale_factor, 3, quick=True), gains, strict=True):
-        inner = level[2:-2, 2:-2].astype(np.float64)
-        dx, dy = inner[:, lag:] - inner[:, :-lag], inner[lag:] - inner[:-lag]
-        assert np.sqrt(0.25 * (np.mean(dx ** 2) + np.mean(dy ** 2))) == pytest.approx(gain, rel=0.06), level.shape

@@ -113,36 +113,33 @@ def channel_noise(raw: tuple[np.ndarray, np.ndarray], maps: Sequence[FrameMaps],
 
 
 def difference_noise_gains(shapes: list[tuple[int, int]], sigmas: list[float], blur: float = 0.0,
-                           lags: tuple[int, ...] = (1,), sizes: tuple[int, ...] = ()) -> dict[int, tuple[float, ...]]:
+                           lags: tuple[int, ...] = (1,)) -> dict[int, tuple[float, ...]]:
     """Per lag in ``lags``, per pyramid level (finest first): the RMS of white noise's differences between pixels
     ``lag`` px apart (along x and y) on that level over the RMS of its neighbour differences on the input (1 on
     level 0 without ``blur``, for any lag). ``shapes`` (h, w) per level; ``sigmas``: the Gaussian blur (px of the
     finer level) of each step before its bilinear resampling (pyramid.build_pyramid), one per step; ``blur``: a
-    Gaussian (px) on the input first (the photometric stage's presmoothing; 0: none); ``sizes``: each step's kernel
-    size (pyramid.step_sizes; 0 or missing: OpenCV's for its sigma). Computed exactly from the
+    Gaussian (px) on the input first (the photometric stage's presmoothing; 0: none). Computed exactly from the
     separable linear map of each axis (:func:`_axis_gains`; one pass for every lag), cached per argument set."""
     lags = tuple(sorted({int(lag) for lag in lags}))
-    steps = tuple(float(s) for s in sigmas)
-    sizes = tuple(int(n) for n in sizes) + (0,) * (len(steps) - len(sizes))
-    gains = _difference_noise_gains(tuple(tuple(s) for s in shapes), steps, float(blur), lags, sizes)
+    gains = _difference_noise_gains(tuple(tuple(s) for s in shapes), tuple(float(s) for s in sigmas), float(blur),
+                                    lags)
     return dict(zip(lags, gains, strict=True))
 
 
 @lru_cache(maxsize=64)
 def _difference_noise_gains(shapes: tuple[tuple[int, int], ...], sigmas: tuple[float, ...], blur: float,
-                            lags: tuple[int, ...], sizes: tuple[int, ...]) -> tuple[tuple[float, ...], ...]:
+                            lags: tuple[int, ...]) -> tuple[tuple[float, ...], ...]:
     """:func:`difference_noise_gains` on hashable arguments, a tuple of gains per lag."""
-    vy, dys = _axis_gains(tuple(s[0] for s in shapes), sigmas, blur, lags, sizes)
-    vx, dxs = _axis_gains(tuple(s[1] for s in shapes), sigmas, blur, lags, sizes)
+    vy, dys = _axis_gains(tuple(s[0] for s in shapes), sigmas, blur, lags)
+    vx, dxs = _axis_gains(tuple(s[1] for s in shapes), sigmas, blur, lags)
     # white noise through a separable map: Var(x difference) = dx * vy, Var(y difference) = vx * dy; 2 on level 0
     return tuple(tuple(float(np.sqrt((dx[k] * vy[k] + vx[k] * dy[k]) / 4.0)) for k in range(len(shapes)))
                  for dx, dy in zip(dxs, dys, strict=True))
 
 
-def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0, lags: tuple[int, ...] = (1,),
-                sizes: tuple[int, ...] = ()) -> tuple[list[float], list[list[float]]]:
-    """For one axis of lengths n_0 > n_1 > ..., the step blurs ``sigmas`` (kernel ``sizes``: 0 or missing,
-    OpenCV's for the sigma) and a first ``blur`` on n_0: per
+def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0, lags: tuple[int, ...] = (1,)
+                ) -> tuple[list[float], list[list[float]]]:
+    """For one axis of lengths n_0 > n_1 > ..., the step blurs ``sigmas`` and a first ``blur`` on n_0: per
     level, the mean over interior samples of the variance of (white noise of variance 1 through the axis's
     linear map), and per lag in ``lags`` that of its difference between samples ``lag`` apart. The map is built as a
     matrix (rows: input impulses) by the very operations of pyramid.build_pyramid along that axis (a Gaussian of
@@ -154,8 +151,7 @@ def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float
     exact zeros aside), n_0 / period times fewer rows. The gains agree with the dense matrix's to float32 rounding
     (OpenCV's float32 filters round a block of rows a little differently here and there: ~4e-9 relative,
     test_census_noise.py)."""
-    sizes = tuple(sizes) + (0,) * (len(sigmas) - len(sizes))
-    period = max(comb_period(lengths, sigmas, blur, lag, sizes) for lag in lags)
+    period = max(comb_period(lengths, sigmas, blur, lag) for lag in lags)
     sq: list[np.ndarray | None] = [None] * len(lengths)  # per level, the column sums over the impulses so far
     dsq: list[list[np.ndarray | None]] = [[None] * len(lengths) for _ in lags]  # per lag, the same of differences
     for start in range(0, period, GAIN_ROWS):  # the rows are independent: a block at a time, in cache
@@ -167,7 +163,7 @@ def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float
             m = _blurred(m, blur, cv2.BORDER_REFLECT)
         for level, n in enumerate(lengths):
             if level:
-                m = _blurred(m, sigmas[level - 1], cv2.BORDER_REPLICATE, sizes[level - 1])
+                m = _blurred(m, sigmas[level - 1], cv2.BORDER_REPLICATE)
                 m = cv2.resize(m, (n, m.shape[0]), interpolation=cv2.INTER_LINEAR)
             inner = (m[:, 2:-2] if n > 8 else m).astype(np.float64)
             sq[level] = _column_sums(sq[level], inner ** 2)
@@ -179,25 +175,22 @@ def _axis_gains(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float
     return var, dvar
 
 
-def comb_period(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0, lag: int = 1,
-                sizes: tuple[int, ...] = ()) -> int:
+def comb_period(lengths: tuple[int, ...], sigmas: tuple[float, ...], blur: float = 0.0, lag: int = 1) -> int:
     """The spacing (input samples) of the impulses :func:`_axis_gains` puts in one row: more than twice the reach
     of an impulse's response on the coarsest level plus ``lag`` samples of that level, in input samples, bounded
     by n_0 (one impulse a row). The reach grows per step by the Gaussian's kernel radius (OpenCV's size for
-    float input, or ``sizes``' where given and not 0) and the bilinear resampling's two taps, scaled to the input;
-    the first ``blur`` adds its own."""
+    float input) and the bilinear resampling's two taps, scaled to the input; the first ``blur`` adds its own."""
     reach = _kernel_radius(blur) if blur > 0 else 0.0  # input samples
     for level in range(1, len(lengths)):
         finer, coarser = lengths[0] / lengths[level - 1], lengths[0] / lengths[level]  # input samples a sample
-        size = sizes[level - 1] if level - 1 < len(sizes) else 0
-        reach += _kernel_radius(sigmas[level - 1], size) * finer + 2 * coarser
+        reach += _kernel_radius(sigmas[level - 1]) * finer + 2 * coarser
     far = reach + (lag + 2) * lengths[0] / lengths[-1]
     return min(lengths[0], 2 * math.ceil(far) + 1)
 
 
-def _kernel_radius(sigma: float, size: int = 0) -> int:
-    """The radius of :func:`_blurred`'s kernel of sigma px (``size`` taps; 0: OpenCV's size for the sigma)."""
-    return (size or (int(round(sigma * 4 * 2 + 1)) | 1)) // 2
+def _kernel_radius(sigma: float) -> int:
+    """The radius of :func:`_blurred`'s kernel of sigma px."""
+    return (int(round(sigma * 4 * 2 + 1)) | 1) // 2
 
 
 def _column_sums(acc: np.ndarray | None, block: np.ndarray) -> np.ndarray:
@@ -206,10 +199,10 @@ def _column_sums(acc: np.ndarray | None, block: np.ndarray) -> np.ndarray:
     return sums if acc is None else acc + sums
 
 
-def _blurred(m: np.ndarray, sigma: float, border: int, size: int = 0) -> np.ndarray:
-    """m (rows, n) float32 blurred along its rows by a Gaussian of sigma px (``size`` taps; 0: OpenCV's kernel size
-    for float input, as cv2.GaussianBlur with size (0, 0))."""
-    kernel = cv2.getGaussianKernel(2 * _kernel_radius(sigma, size) + 1, sigma, cv2.CV_32F)
+def _blurred(m: np.ndarray, sigma: float, border: int) -> np.ndarray:
+    """m (rows, n) float32 blurred along its rows by a Gaussian of sigma px (OpenCV's kernel size for float
+    input, as cv2.GaussianBlur with size (0, 0))."""
+    kernel = cv2.getGaussianKernel(2 * _kernel_radius(sigma) + 1, sigma, cv2.CV_32F)
     return cv2.sepFilter2D(m, cv2.CV_32F, kernel, np.ones((1, 1), np.float32), borderType=border)
 
 

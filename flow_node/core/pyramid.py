@@ -21,8 +21,6 @@ from .photometric import compares_signatures
 from .solver import PDState
 from .validity import mask_levels
 
-# the quick first step of the stream stage's pyramid (:func:`quick_steps`): a 5-tap Gaussian of sigma 1 px
-QUICK_SIGMA, QUICK_TAPS = 1.0, 5
 ANTIALIAS = 0.7  # blur (px of the finer level, times 1/scale) of every step when the finest solved level is coarser
 
 
@@ -45,56 +43,23 @@ def _pyramid_shapes(shape: tuple[int, ...], levels: int, scale: float, min_size:
     return tuple(shapes)
 
 
-def build_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0,
-                  quick: bool = False) -> list[np.ndarray]:
+def build_pyramid(img: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0
+                  ) -> list[np.ndarray]:
     """Gaussian pyramid on the given shapes: blur then bilinear-resample each step. The blur is sigma =
     1/(3 scale) px of the finer level (weak: some aliasing on a level that a finer one corrects is
     harmless), except on the first ``antialias_levels`` steps, where it is ANTIALIAS / scale (see
-    :func:`make_pyramid`). ``quick``: the first step's blur is QUICK_TAPS wide instead (:func:`step_sizes`,
-    :func:`step_sigmas`)."""
+    :func:`make_pyramid`)."""
     levels = [img]
-    steps = len(shapes) - 1
-    for sigma, size, (h, w) in zip(step_sigmas(steps, scale, antialias_levels, quick), step_sizes(steps, quick),
-                                   shapes[1:], strict=True):
-        blurred = cv2.GaussianBlur(levels[-1], (size, size), sigmaX=sigma, sigmaY=sigma,
+    for sigma, (h, w) in zip(step_sigmas(len(shapes) - 1, scale, antialias_levels), shapes[1:], strict=True):
+        blurred = cv2.GaussianBlur(levels[-1], (0, 0), sigmaX=sigma, sigmaY=sigma,
                                    borderType=cv2.BORDER_REPLICATE)
         levels.append(cv2.resize(blurred, (w, h), interpolation=cv2.INTER_LINEAR))
     return levels
 
 
-def step_sigmas(steps: int, scale: float, antialias_levels: int = 0, quick: bool = False) -> list[float]:
-    """The blur (px of the finer level) of each of :func:`build_pyramid`'s ``steps`` steps; ``quick``: the first
-    step's QUICK_SIGMA (its QUICK_TAPS-tap kernel: :func:`step_sizes`) and the second's raised by the variance the
-    first then lacks, so that level 2 gets the same total blur (:func:`quick_steps`)."""
-    sigmas = [(ANTIALIAS if step < antialias_levels else 1.0 / 3.0) / scale for step in range(steps)]
-    if quick:
-        lack = sigmas[0] ** 2 - _kernel_variance(QUICK_SIGMA, QUICK_TAPS)  # px^2 of level 0
-        sigmas[:2] = [QUICK_SIGMA, math.sqrt(sigmas[1] ** 2 + lack * scale * scale)]
-    return sigmas
-
-
-def step_sizes(steps: int, quick: bool = False) -> tuple[int, ...]:
-    """The kernel size of each step's blur (0: OpenCV's for its sigma, cv2.GaussianBlur with size (0, 0));
-    ``quick``: QUICK_TAPS on the first."""
-    return ((QUICK_TAPS,) if quick else ()) + (0,) * (steps - quick)
-
-
-def quick_steps(cfg: FlowConfig, levels: int, antialias: int) -> bool:
-    """Whether the stream stage's pyramid of ``levels`` levels for ``cfg`` (``antialias`` steps anti-aliased:
-    :func:`antialias_steps`) takes the quick first step (:func:`step_sigmas`): when its finest solved level is
-    level 2 or coarser, at a scale factor of 0.5 or less, and both of the first two steps are anti-aliased. Level 1
-    is then never solved on, and the first blur only has to keep what folds into level 2's band out of it: its
-    5 taps at sigma 1 px pass ~0.5 % of it after the bilinear step (13 taps at 1.4 px: less), at 0.47x the time
-    at 640x480 (task litefast: bench/results/suite/stream/litefast/summary.md)."""
-    return min(cfg.finest_level, levels - 1) >= 2 and cfg.scale_factor <= 0.5 and antialias >= 2
-
-
-@lru_cache(maxsize=8)
-def _kernel_variance(sigma: float, size: int) -> float:
-    """The variance (px^2) of OpenCV's ``size``-tap Gaussian kernel of ``sigma`` px (normalised, truncated)."""
-    kernel = cv2.getGaussianKernel(size, sigma, cv2.CV_64F).ravel()
-    x = np.arange(size) - size // 2
-    return float(np.sum(kernel * x * x))
+def step_sigmas(steps: int, scale: float, antialias_levels: int = 0) -> list[float]:
+    """The blur (px of the finer level) of each of :func:`build_pyramid`'s ``steps`` steps."""
+    return [(ANTIALIAS if step < antialias_levels else 1.0 / 3.0) / scale for step in range(steps)]
 
 
 def resize_field(f: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -201,8 +166,7 @@ def _noise_gain(shape: tuple[int, int], levels: int, scale: float, min_size: int
 def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
                  channels: tuple[np.ndarray, np.ndarray] | None = None,
                  valid: tuple[np.ndarray, np.ndarray] | None = None, levels0: list[np.ndarray] | None = None,
-                 noise: PairNoise | None = None, contrasts0: dict[int, float] | None = None,
-                 stream: bool = False) -> Pyramid:
+                 noise: PairNoise | None = None, contrasts0: dict[int, float] | None = None) -> Pyramid:
     """The Gaussian pyramids of a pair for ``cfg`` (levels, scale_factor, min_size). When the finest solved
     level is coarser than the input (``cfg.finest_level``), every step is anti-aliased (ANTIALIAS): nothing
     finer corrects what aliases on that level, and the few warps it gets start from the coarser levels'
@@ -217,28 +181,22 @@ def make_pyramid(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, *,
     (Pyramid.contrasts; taken without colour channels, whose contrasts the census term measures instead). With the
     census data term and ``cfg.census_noise_k`` > 0, the floor of
     the signature's EPS per level (Pyramid.census_eps) from ``noise``, the pair's noise as the photometric stage
-    measured it (census_noise.pair_noise; None: measured here on i0 and i1, taken as white). ``stream``: the stream
-    stage's pyramid (temporal.py), with the quick first step where :func:`quick_steps` allows it (``levels0`` then
-    built the same way: a stream's previous pair's).
+    measured it (census_noise.pair_noise; None: measured here on i0 and i1, taken as white).
     """
     shapes = pyramid_shapes(i0.shape, cfg.levels, cfg.scale_factor, cfg.min_size)
     antialias = antialias_steps(cfg, len(shapes))
-    quick = stream and quick_steps(cfg, len(shapes), antialias)
     known = levels0 is not None and [level.shape for level in levels0] == shapes
-    grey = [levels0 if known and k == 0 else build_pyramid(img, shapes, cfg.scale_factor, antialias, quick)
+    grey = [levels0 if known and k == 0 else build_pyramid(img, shapes, cfg.scale_factor, antialias)
             for k, img in enumerate((i0, i1))]
     colour = [None, None] if channels is None else \
-        [channel_pyramid(frame, shapes, cfg.scale_factor, antialias, quick) for frame in channels]
+        [channel_pyramid(frame, shapes, cfg.scale_factor, antialias) for frame in channels]
     masks = [None, None] if valid is None else \
-        [mask_levels(m, build_pyramid(m.astype(np.float32), shapes, cfg.scale_factor, antialias, quick))
-         for m in valid]
+        [mask_levels(m, build_pyramid(m.astype(np.float32), shapes, cfg.scale_factor, antialias)) for m in valid]
     floors: list[tuple[float, ...] | None] = [None, None]  # neighbours at distance 1, 2
     if compares_signatures(cfg.photometric) and cfg.census_noise_k > 0:
         noise = PairNoise(max(noise_sigma(i0), noise_sigma(i1))) if noise is None else noise
-        steps = len(shapes) - 1
-        sigmas = step_sigmas(steps, cfg.scale_factor, antialias, quick)
-        gains = difference_noise_gains(shapes, sigmas, noise.blur, (1, cfg.census_finest_radius),
-                                       step_sizes(steps, quick))
+        sigmas = step_sigmas(len(shapes) - 1, cfg.scale_factor, antialias)
+        gains = difference_noise_gains(shapes, sigmas, noise.blur, (1, cfg.census_finest_radius))
         for lag, lag_gains in gains.items():
             floors[lag - 1] = eps_floors(noise, cfg.census_noise_k, lag_gains)
     contrasts = (dict(contrasts0) if known and contrasts0 is not None and channels is None else {}, {})
@@ -257,9 +215,9 @@ def antialias_steps(cfg: FlowConfig, levels: int) -> int:
     return 0
 
 
-def channel_pyramid(frame: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0,
-                    quick: bool = False) -> list[np.ndarray]:
+def channel_pyramid(frame: np.ndarray, shapes: list[tuple[int, int]], scale: float, antialias_levels: int = 0
+                    ) -> list[np.ndarray]:
     """:func:`build_pyramid` of every channel of frame (C, H, W): (C, h, w) per level. OpenCV filters the
     channels interleaved, one call per step for all of them (the same filter on each)."""
-    levels = build_pyramid(np.ascontiguousarray(np.moveaxis(frame, 0, -1)), shapes, scale, antialias_levels, quick)
+    levels = build_pyramid(np.ascontiguousarray(np.moveaxis(frame, 0, -1)), shapes, scale, antialias_levels)
     return [np.ascontiguousarray(np.moveaxis(level.reshape(level.shape[:2] + (-1,)), -1, 0)) for level in levels]

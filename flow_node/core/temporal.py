@@ -205,7 +205,7 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
     key, key1 = judged.keys
     same = key is not None and seen is not None and seen.key == key  # i0 normalised as the previous pair did
     pyr = make_pyramid(s0, s1, schedule, levels0=seen.levels if same else None, noise=judged.noise,
-                       contrasts0=seen.contrasts if same else None, stream=True)
+                       contrasts0=seen.contrasts if same else None)
     start, _ = stream_span(pyr, schedule)
     predicted = predict(prior.state, pyr.shapes[start], prior.interval_ratio, backend.splat, backend.fill,
                         cfg.stream_duals)
