@@ -15,8 +15,9 @@ import small_frames
 from frame_messages import I0, I1, image, mono8, set_stamp
 from sensor_msgs.msg import CompressedImage
 
-from flow_node.core.api import FLOAT_INPUT_LIMIT, FlowEstimator, ensure_finite, to_grey
+from flow_node.core.api import FLOAT_INPUT_LIMIT, FlowEstimator, to_grey
 from flow_node.core.errors import InputError, NonFiniteResult
+from flow_node.core.layout import ensure_finite
 from flow_node.pipeline.codec import MAX_IMAGE_SIDE, MalformedImage, declared_size, decode, decode_bytes
 from flow_node.pipeline.stream import FlowStream, StreamSettings
 

@@ -296,7 +296,7 @@ def estimate_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Back
     filled before every stage and carry no data term in the refinement.
     """
     state, stats, judged = solve_pair(i0, i1, cfg, backend, initial_flow, previous_flow, channels, valid)
-    return interleaved_flow(state.v, stats.shapes[0]), stats, judged
+    return interleaved_flow(state.v, stats.shapes[0], check_finite=True), stats, judged
 
 
 def solve_pair(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend: Backend,
