@@ -80,10 +80,12 @@ def test_predicted_pairs_refine_on_the_stream_level_and_full_solves_on_finest_le
 def test_predicted_pairs_are_stream_lites_and_single_pairs_are_solved_at_half_size() -> None:
     """From the same prior state the candidate's predicted pair is today's stream_lite's (quarter size), bit for
     bit -- the schedule and the photometric stage's noise gain are the same --; its single pair is stream_lite's
-    fields at finest_level 1 (task litesc's "fl1")."""
+    fields at finest_level 1 (task litesc's "fl1"). The frames span ~15 8-bit grey levels: coarse steps after
+    level 1's noise gain, fine ones after level 2's (photometric.affine_normalised), so a stage that took the
+    full solve's gain would change the predicted pair."""
     lite = FlowConfig.preset("stream_lite").replace(backend="numpy")
     cand = lite.replace(**CAND)
-    seq = frames(pan(4, size=SIZE), 4)
+    seq = [np.round((0.45 + 0.06 * f) * 255).astype(np.float32) / 255 for f in frames(pan(4, size=SIZE), 4)]
     est_lite, est_cand = FlowEstimator(lite), FlowEstimator(cand)
     prev = stream(est_lite, seq[:3])[-1]
     assert prev.stats.stream == PREDICTED
