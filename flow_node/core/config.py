@@ -242,11 +242,6 @@ class FlowConfig:
                             "frame, starts the refinement on this many finest solved levels, skipping the coarser "
                             "ones and the initialisation while the prediction holds (0 = off: every pair solved "
                             "in full)", lo=0, hi=4)
-    stream_finest_level: int = _f(-1, "stream mode: finest pyramid level a pair refined from the prediction is "
-                                  "solved on (-1 = finest_level; else >= finest_level): a coarser one makes the "
-                                  "predicted frames cheaper while single pairs, first frames, cuts and fallbacks "
-                                  "keep finest_level; the flow is upsampled to full resolution either way",
-                                  lo=-1, hi=29)
     stream_warps: int = _f(2, "stream mode: warps per level refined from the prediction", lo=1, hi=100)
     stream_iterations: int = _f(10, "stream mode: primal-dual iterations per warp on those levels", lo=1,
                                 hi=100000)
@@ -302,10 +297,6 @@ class FlowConfig:
                               f"{self.photometric!r}: it shifts or reshapes intensities, which changes mass)")
         if self.finest_level >= self.levels:
             raise ConfigError(f"finest_level must be < levels (got finest_level={self.finest_level}, "
-                              f"levels={self.levels})")
-        if 0 <= self.stream_finest_level < self.finest_level or self.stream_finest_level >= self.levels:
-            raise ConfigError(f"stream_finest_level must be -1 or in [finest_level, levels) (got "
-                              f"stream_finest_level={self.stream_finest_level}, finest_level={self.finest_level}, "
                               f"levels={self.levels})")
 
     # ----------------------------------------------------------------------------------------- builders

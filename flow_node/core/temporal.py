@@ -12,9 +12,7 @@ iterations to regularise that again, while with the carried duals a few iteratio
 The prediction replaces the coarse levels, the initialisation matcher and their warps:
 :func:`refine_prediction` refines it on the levels ``finest + cfg.stream_levels - 1`` down to the finest
 solved one, with ``cfg.stream_warps`` warps of ``cfg.stream_iterations`` primal-dual iterations each (on the
-finest solved level ``cfg.stream_finest_warps`` x ``cfg.stream_finest_iterations`` where set). That finest
-level is ``cfg.stream_finest_level`` where set (:func:`stream_finest`: a predicted pair solved coarser than a
-full solve, whose state :func:`predict` resizes to it); the flow is upsampled to full resolution either way.
+finest solved level ``cfg.stream_finest_warps`` x ``cfg.stream_finest_iterations`` where set).
 
 A pair's second frame is the next pair's first: what the pair computed of it -- its sorted sample, and where the
 frame's normalising map repeats (``normalise``: the pair's map; census: the frame's own, so always) its normalised
@@ -104,18 +102,9 @@ def predict(previous: PDState, shape: tuple[int, int], ratio: float, splat: Spla
 
 def stream_span(pyr: Pyramid, cfg: FlowConfig) -> tuple[int, int]:
     """(start, finest): the levels a predicted pair is refined on, coarse to fine -- ``cfg.stream_levels``
-    levels ending at the finest solved one (clamped to the pyramid; ``cfg`` is :func:`stream_schedule`'s, whose
-    finest solved level is the stream's, :func:`stream_finest`)."""
+    levels ending at the finest solved one (clamped to the pyramid)."""
     finest = finest_level(pyr, cfg)
     return min(pyr.coarsest, finest + max(cfg.stream_levels, 1) - 1), finest
-
-
-def stream_finest(cfg: FlowConfig) -> int:
-    """The finest pyramid level a predicted pair is solved on: ``cfg.stream_finest_level`` where set (>= 0; the
-    config checks it is not finer than ``cfg.finest_level``), else ``cfg.finest_level``. A pair solved in full
-    (a single pair, a stream's first frame, a cut, a fallback) keeps ``cfg.finest_level``; the previous state,
-    on either level, reaches the stream's through :func:`predict`'s resize."""
-    return cfg.finest_level if cfg.stream_finest_level < 0 else cfg.stream_finest_level
 
 
 @lru_cache(maxsize=8)
@@ -124,15 +113,14 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
     of ``cfg.stream_iterations`` iterations -- the finest solved level at ``cfg.stream_finest_warps`` x
     ``cfg.stream_finest_iterations`` where those are set (0: the same as the others) --, the regularisation
     weight ``cfg.stream_alpha`` where set (0: ``cfg.alpha``, or ``cfg.census_alpha`` with the census term; the
-    census term's own iteration and warp counts do not apply here), the finest solved level the stream's
-    (:func:`stream_finest`) and the pyramid cut below the levels it visits (the shapes of the levels kept are
-    the same). Derived, never written back; cached per config."""
-    finest = stream_finest(cfg)
-    levels = min(cfg.levels, finest + max(cfg.stream_levels, 1))
+    census term's own iteration and warp counts do not apply here) and the pyramid cut
+    below the levels it visits (the shapes of the levels kept are the same). Derived, never written back;
+    cached per config."""
+    levels = min(cfg.levels, cfg.finest_level + max(cfg.stream_levels, 1))
     return cfg.replace(warps=cfg.stream_warps, iterations=cfg.stream_iterations,
                        finest_warps=cfg.stream_finest_warps, finest_iterations=cfg.stream_finest_iterations,
                        census_iterations=0, census_finest_iterations=0, census_finest_warps=0,
-                       levels=levels, finest_level=finest, alpha=cfg.stream_alpha or cfg.alpha,
+                       levels=levels, alpha=cfg.stream_alpha or cfg.alpha,
                        census_alpha=0.0 if cfg.stream_alpha else cfg.census_alpha)
 
 
@@ -208,9 +196,7 @@ def estimate_predicted(i0: np.ndarray, i1: np.ndarray, cfg: FlowConfig, backend:
         return reason
     schedule = stream_schedule(cfg)
     seen = prior.seen
-    # the schedule's finest level sets the stage's noise gain (pyramid.noise_gain): cfg's when the stream's
-    # finest level is cfg's (the cut pyramid keeps that level), the stream's own level otherwise
-    (s0, s1), judged = photometric_stage(i0, i1, schedule, backend, None if seen is None else seen.sample, seen)
+    (s0, s1), judged = photometric_stage(i0, i1, cfg, backend, None if seen is None else seen.sample, seen)
     normalised = judged.frames
     if cfg.photometric == "normalise" and s0 is not normalised[0]:
         # the stage hands the solver the normalised pair itself unless it found an exposure change between the
