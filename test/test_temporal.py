@@ -120,8 +120,7 @@ def test_a_steady_stream_is_predicted_and_a_scene_cut_is_solved_in_full(backend:
     # another scene: its grey-value distribution differs too (the stage sees an "exposure step"), or the
     # prediction does not fit
     assert res.stats.stream in (FULL + ": exposure step",) or res.stats.stream.startswith(
-        FULL + ": prediction does not fit")
-    assert res.stats.total_iterations == est.estimate_grey(seq[3], cut).stats.total_iterations
+        FULL + ": prediction does not fit")  # the flow of such a cut: test_a_cut_after_predictions_is_...
 
 
 def test_stream_mode_off_is_the_single_pair_solve() -> None:
@@ -366,10 +365,12 @@ def test_a_jump_of_a_few_pixels_is_solved_in_full() -> None:
     assert aee(out[0.5].flow, gt) > 2 * aee(single.flow, gt), (aee(out[0.5].flow, gt), aee(single.flow, gt))
 
 
-def test_a_cut_after_stream_lite_predictions_is_the_single_pair_solve() -> None:
-    """stream_lite's predicted pairs build their pyramid only down to the level they refine (level 2); a scene cut
-    after them is solved in full, and its flow is the single-pair solve's bit for bit (task litefast)."""
-    cfg = FlowConfig.preset("stream_lite").replace(backend="numpy")
+@pytest.mark.parametrize("preset", ["stream_fast", "stream_lite"])
+def test_a_cut_after_predictions_is_the_single_pair_solve(preset: str) -> None:
+    """A stream's predicted pairs build their pyramid only down to the level they refine (stream_lite: level 2)
+    and hand what they computed of their second frame on (``seen``); a scene cut after them is solved in full,
+    and its flow is the single-pair solve's bit for bit (task litefast; numpy: numba's threads reorder sums)."""
+    cfg = FlowConfig.preset(preset).replace(backend="numpy")
     seq, cut = frames(pan(1, size=(320, 240)), 4), frames(pan(7, (-1.5, 0.5), size=(320, 240)), 1)[0]
     est = FlowEstimator(cfg)
     prev = est.estimate_next(seq[0], seq[1], None)
