@@ -12,6 +12,7 @@ from flow_node.core.errors import ConfigError, InputError
 from flow_node.core.joint import JointParams, JointState, joint_energy, reconstruct, reconstruct_images, warp_operator
 from flow_node.core.models import MODEL_SPECS, joint_data, prox_data_joint, prox_data_l1
 from flow_node.core.numba_backend import solve_numba
+from flow_node.core.refine import level_params
 from flow_node.core.solver import PDState, Problem, SolveParams, solve_numpy
 
 
@@ -59,6 +60,12 @@ def test_joint_solve_numba_matches_numpy(model: str) -> None:
 def test_joint_config() -> None:
     cfg = FlowConfig.preset("joint")
     assert cfg.reconstruction == "joint" and MODEL_SPECS[cfg.model].data == "l1"
+    # every level's solve gets the joint data term's weight, and no incompressibility (a positional slip once
+    # passed image_gamma as SolveParams' 7th field, the incompressibility: the numba backend solved plain L1)
+    for level in range(cfg.levels):
+        params = level_params(cfg, level, 6)
+        assert (params.gamma, params.incompressibility) == (cfg.image_gamma, 0.0)
+    assert level_params(FlowConfig.preset("realtime"), 0, 6).gamma == 0.0
     with pytest.raises(ConfigError, match="L1 data term"):
         FlowConfig(model="l2_tv", reconstruction="joint")
 
