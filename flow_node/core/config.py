@@ -168,6 +168,9 @@ class FlowConfig:
     iterations: int = _f(50, "maximum primal-dual iterations per warp", lo=1, hi=100000)
     tolerance: float = _f(0.0, "stop a warp early when the RMS flow update per iteration (px) falls "
                           "below this; 0 runs all iterations", lo=0.0, hi=1.0)
+    pd_relaxation: float = _f(1.0, "over-relaxation rho of the primal-dual iteration on images: each step's "
+                              "new primal and dual variables are moved rho times their change (1 = the plain "
+                              "iteration; docs/engine.md 'Primal-dual')", lo=0.0, hi=1.99, lo_open=True)
     levels: int = _f(5, "maximum pyramid levels (1 = no coarse-to-fine)", lo=1, hi=30)
     scale_factor: float = _f(0.5, "pyramid downscale factor between levels", lo=0.2, hi=0.95)
     min_size: int = _f(16, "smallest image side allowed on the coarsest level (px)", lo=4, hi=100000)
@@ -254,6 +257,8 @@ class FlowConfig:
                                   "0 = none)", choices=(-1, 0, 3, 5))
     stream_alpha: float = _f(0.0, "stream mode: regularisation weight of the refinement from the prediction (0 = "
                              "alpha; a pair solved in full always uses alpha)", lo=0.0, hi=1000.0)
+    stream_relaxation: float = _f(0.0, "stream mode: pd_relaxation of the refinement from the prediction (0 = "
+                                  "pd_relaxation)", lo=0.0, hi=1.99)
     stream_duals: float = _f(1.0, "stream mode: the carried regulariser duals are multiplied by this before the "
                              "refinement from the prediction (1 = as the previous pair left them; 0 = restarted "
                              "from zero, the flow alone carried)", lo=0.0, hi=1.0)

@@ -202,7 +202,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
         sp if mass else _DUMMY2,
         tv if mass else rows["tv"], _F32(1.0 / p.alpha),
         _f32c(problem.ab) if bc else _DUMMY3, _f32c(problem.cb) if bc else _DUMMY2,
-        unit_row(state.v.shape[2]) if problem.g is None else _f32c(problem.g)))
+        unit_row(state.v.shape[2]) if problem.g is None else _f32c(problem.g), _F32(p.relaxation - 1.0)))
     if mass:
         shift_slow_modes(problem, state, p)
     return k

@@ -112,10 +112,11 @@ def prox_quadratic(vt0, vt1, t11, t12, t22, g0, g1, tau_d):  # noqa: ANN001, ANN
 
 
 @njit(**_JIT)
-def _mass_px(i, j, jl, jr, wx, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1):  # noqa: ANN001, ANN201
+def _mass_px(i, j, jl, jr, wx, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1, rl):  # noqa: ANN001, ANN201
     """The data dual at pixel (i, j): p <- prox_{sigma_p D*}(p + sigma_p (A v_bar + c)) (models.prox_dual_data),
-    then qpad[k, l, i + 1, j + 1] = M[k, l] p, zero where the central difference along l is (border): what
-    the primal pass's A* reads. jl/jr, iu/idn: clamped neighbours; wx, wy: 1 inside, 0 on the border."""
+    relaxed by ``rl`` = rho - 1 (solver.relax: p~ + rl (p~ - p); 0 = plain), then qpad[k, l, i + 1, j + 1] =
+    M[k, l] p, zero where the central difference along l is (border): what the primal pass's A* reads.
+    jl/jr, iu/idn: clamped neighbours; wx, wy: 1 inside, 0 on the border."""
     hx = np.float32(0.5) * wx
     hy = np.float32(0.5) * wy
     r = (a[0, i, j] * v_bar[0, i, j] + a[1, i, j] * v_bar[1, i, j] + c[i, j]
@@ -123,8 +124,10 @@ def _mass_px(i, j, jl, jr, wx, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, da
                  + m[1, 0, i, j] * (v_bar[1, i, jr] - v_bar[1, i, jl]))
          + hy * (m[0, 1, i, j] * (v_bar[0, idn, j] - v_bar[0, iu, j])
                  + m[1, 1, i, j] * (v_bar[1, idn, j] - v_bar[1, iu, j])))
-    t = p[i, j] + sp[i, j] * r
+    p0 = p[i, j]
+    t = p0 + sp[i, j] * r
     pn = min(max(t, -lam), lam) if data_l1 else t / (_ONE + sp[i, j] / lam)
+    pn = pn + rl * (pn - p0)
     p[i, j] = pn
     for k in range(2):
         qpad[k, 0, i + 1, j + 1] = m[k, 0, i, j] * pn * wx
@@ -132,58 +135,63 @@ def _mass_px(i, j, jl, jr, wx, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, da
 
 
 @njit(**_JIT)
-def p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1):  # noqa: ANN001, ANN201
-    """The mass-preservation data dual, row i (:func:`_mass_px`): the two border columns, then the interior
-    (no index tests in its loop)."""
+def p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1, rl):  # noqa: ANN001, ANN201
+    """The mass-preservation data dual, row i (:func:`_mass_px`, relaxed by ``rl``): the two border columns, then
+    the interior (no index tests in its loop)."""
     h, wd = v_bar.shape[1], v_bar.shape[2]
     wy = _ONE if (i >= 1 and i <= h - 2) else _ZERO
     iu, idn = max(i - 1, 0), min(i + 1, h - 1)
-    _mass_px(i, 0, 0, 0, _ZERO, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
+    _mass_px(i, 0, 0, 0, _ZERO, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1, rl)
     if wd > 1:
-        _mass_px(i, wd - 1, wd - 1, wd - 1, _ZERO, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
+        _mass_px(i, wd - 1, wd - 1, wd - 1, _ZERO, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1, rl)
     for j in range(1, wd - 1):
-        _mass_px(i, j, j - 1, j + 1, _ONE, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
+        _mass_px(i, j, j - 1, j + 1, _ONE, iu, idn, wy, v_bar, a, m, c, p, qpad, sp, lam, data_l1, rl)
 
 
 # ------------------------------------------------------------------------------------ row updates
 @njit(**_JIT)
-def z_row(i, ir, rm, w_bar, z, sigma, rel1, iso):  # noqa: ANN001, ANN201
+def z_row(i, ir, rm, w_bar, z, sigma, rel1, iso, rl):  # noqa: ANN001, ANN201
     """z <- projection of z + sigma grad w_bar onto the ball of radius rel1 (8 components per pixel,
-    Euclidean if iso else clip), row i."""
+    Euclidean if iso else clip), relaxed by ``rl`` = rho - 1 (solver.relax; 0 = plain), row i."""
     wd = z.shape[4]
     for seg in range(2):
         j0, j1, rr = (0, wd - 1, 1) if seg == 0 else (wd - 1, wd, 0)
         for j in range(j0, j1):
-            _z_px(i, j, j + rr, ir, rm, w_bar, z, sigma, rel1, iso)
+            _z_px(i, j, j + rr, ir, rm, w_bar, z, sigma, rel1, iso, rl)
 
 
 @njit(**_JIT)
-def _z_px(i, j, jr, ir, rm, w_bar, z, sigma, rel1, iso):  # noqa: ANN001, ANN201
-    """z update at one pixel (see :func:`z_row`)."""
+def _z_px(i, j, jr, ir, rm, w_bar, z, sigma, rel1, iso, rl):  # noqa: ANN001, ANN201
+    """z update at one pixel (see :func:`z_row`): the ball's scale from the 8 components first (isotropic), then
+    each component projected and relaxed against its old value."""
     n2 = _ZERO
+    if iso:
+        for d in range(2):
+            for cc in range(2):
+                wc = w_bar[d, cc, i, j]
+                qx = z[0, d, cc, i, j] + sigma * (w_bar[d, cc, i, jr] - wc)
+                qy = z[1, d, cc, i, j] + sigma * ((w_bar[d, cc, ir, j] - wc) * rm)
+                n2 += qx * qx + qy * qy
+    m = max(_ONE, np.float32(math.sqrt(n2)) / rel1)
     for d in range(2):
         for cc in range(2):
             wc = w_bar[d, cc, i, j]
-            qx = z[0, d, cc, i, j] + sigma * (w_bar[d, cc, i, jr] - wc)
-            qy = z[1, d, cc, i, j] + sigma * ((w_bar[d, cc, ir, j] - wc) * rm)
+            zx, zy = z[0, d, cc, i, j], z[1, d, cc, i, j]
+            qx = zx + sigma * (w_bar[d, cc, i, jr] - wc)
+            qy = zy + sigma * ((w_bar[d, cc, ir, j] - wc) * rm)
             if iso:
-                n2 += qx * qx + qy * qy
+                qx, qy = qx / m, qy / m
             else:
                 qx = min(max(qx, -rel1), rel1)
                 qy = min(max(qy, -rel1), rel1)
-            z[0, d, cc, i, j] = qx
-            z[1, d, cc, i, j] = qy
-    if iso:
-        m = max(_ONE, np.float32(math.sqrt(n2)) / rel1)
-        for d in range(2):
-            for cc in range(2):
-                z[0, d, cc, i, j] /= m
-                z[1, d, cc, i, j] /= m
+            z[0, d, cc, i, j] = qx + rl * (qx - zx)
+            z[1, d, cc, i, j] = qy + rl * (qy - zy)
 
 
 @njit(**_JIT)
-def w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg):  # noqa: ANN001, ANN201
-    """w <- w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w_new - w. Row i."""
+def w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg, rl):  # noqa: ANN001, ANN201
+    """w~ = w + tau (y + div z) (tv_tv) or (w + tau y) / (1 + tau rel1) (tv_l2); w_bar = 2 w~ - w and
+    w <- w~ + rl (w~ - w) (rl = rho - 1, solver.relax; 0 = plain). Row i."""
     wd = w.shape[3]
     shrink = _ONE + tau * rel1
     for d in range(2):
@@ -202,8 +210,9 @@ def w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg):  # noqa: ANN001, ANN20
                         wt += tau * dz
                     else:
                         wt = wt / shrink
-                    w_bar[d, cc, i, j] = wt + (wt - w[d, cc, i, j])
-                    w[d, cc, i, j] = wt
+                    dw = wt - w[d, cc, i, j]
+                    w_bar[d, cc, i, j] = wt + dw
+                    w[d, cc, i, j] = wt + rl * dw
 
 
 # The data terms the primal pass is compiled for (compile-time constants of its pixel loop, :func:`_make_passes`):
@@ -230,10 +239,11 @@ def _make_passes(parallel: bool, data: int | None = None, regulariser: int = 0):
     Distinct function names keep the on-disk cache entries of the variants apart."""
     bc = data == BC
 
-    def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1, g):  # noqa: ANN001, ANN202
+    def dual_pass(v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1, g, rl):  # noqa: ANN001, ANN202
         """One dual step over the whole image, in place on y (and z, and with ``mass`` the data dual p). ``g``: the
         edge weight (H, W) of the first regulariser term (the radius of y's ball, :func:`prox_dual4`), or without
-        one a (1, W) row of ones (row index clamped, like ``b``'s)."""
+        one a (1, W) row of ones (row index clamped, like ``b``'s). ``rl`` = rho - 1: each new dual is relaxed
+        against its old value, t + rl (t - old) (solver.relax; 0 = plain, the same values bit for bit)."""
         h, wd = v_bar.shape[1], v_bar.shape[2]
         reg = regulariser  # the argument agrees with this variant's constant
         ext = reg >= 2
@@ -257,21 +267,22 @@ def _make_passes(parallel: bool, data: int | None = None, regulariser: int = 0):
                         g11 -= w_bar[1, 1, iw, j]
                     r = g[ig, j]
                     l2_scale = _ONE / (_ONE + sigma / r) if reg == 0 else _ONE
+                    y0, y1, y2, y3 = y[0, 0, i, j], y[0, 1, i, j], y[1, 0, i, j], y[1, 1, i, j]
                     t0, t1, t2, t3 = prox_dual4(
-                        (y[0, 0, i, j] + sigma * g00) * l2_scale, (y[0, 1, i, j] + sigma * g01) * l2_scale,
-                        (y[1, 0, i, j] + sigma * g10) * l2_scale, (y[1, 1, i, j] + sigma * g11) * l2_scale,
+                        (y0 + sigma * g00) * l2_scale, (y1 + sigma * g01) * l2_scale,
+                        (y2 + sigma * g10) * l2_scale, (y3 + sigma * g11) * l2_scale,
                         reg, iso, r)
-                    y[0, 0, i, j] = t0
-                    y[0, 1, i, j] = t1
-                    y[1, 0, i, j] = t2
-                    y[1, 1, i, j] = t3
+                    y[0, 0, i, j] = t0 + rl * (t0 - y0)
+                    y[0, 1, i, j] = t1 + rl * (t1 - y1)
+                    y[1, 0, i, j] = t2 + rl * (t2 - y2)
+                    y[1, 1, i, j] = t3 + rl * (t3 - y3)
             if reg == 3:
-                z_row(i, ir, rm, w_bar, z, sigma, rel1, iso)
+                z_row(i, ir, rm, w_bar, z, sigma, rel1, iso, rl)
             if mass:
-                p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1)
+                p_row(i, v_bar, a, m, c, p, qpad, sp, lam, data_l1, rl)
 
     def primal_pass(v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad,  # noqa: ANN001, ANN202
-                    soft, mass, p, qpad, tv, measure, ab, cb, lam):
+                    soft, mass, p, qpad, tv, measure, ab, cb, lam, rl):
         """One primal step over the whole image, in place on v, v_bar (and w, w_bar); returns
         sum |v_new - v|^2 if ``measure``, else 0 (a sum inside the row loop would keep it from being vectorised:
         fastmath without "reassoc" may not reorder it; so the row keeps the change in v_bar, sums it when
@@ -280,7 +291,8 @@ def _make_passes(parallel: bool, data: int | None = None, regulariser: int = 0):
         ``mass``: the data term is dualised: v <- v + tv (div y + b - A* p), per-pixel tv, A* p = a p + the
         central differences' adjoint of ``qpad`` = M p (zero-padded by one pixel, see :func:`_mass_px`); ``bc``
         (with ``mass``): then the prox of lam D on the brightness term ab . v + cb in the metric tv
-        (:func:`prox_data_metric`)."""
+        (:func:`prox_data_metric`). ``rl`` = rho - 1: v (and w) <- x~ + rl (x~ - x), v_bar = 2 x~ - x with the
+        unrelaxed x~ (solver.relax; 0 = plain, the same values bit for bit)."""
         h, wd = v.shape[1], v.shape[2]
         # the data term is a constant of this variant (the arguments ``quad`` and ``mass`` agree with it), so
         # the pixel loop keeps its path alone
@@ -333,16 +345,16 @@ def _make_passes(parallel: bool, data: int | None = None, regulariser: int = 0):
                 e0, e1 = n0 - v0, n1 - v1  # the change; measured, the extrapolation v_new + change is made below
                 v_bar[0, i, j] = e0 if measure else e0 + n0
                 v_bar[1, i, j] = e1 if measure else e1 + n1
-                v[0, i, j] = n0
-                v[1, i, j] = n1
+                v[0, i, j] = n0 + rl * e0
+                v[1, i, j] = n1 + rl * e1
             if measure:  # the row's sum of squared changes (not inside the loop above: see the docstring)
                 for j in range(wd):
                     acc += v_bar[0, i, j] * v_bar[0, i, j] + v_bar[1, i, j] * v_bar[1, i, j]
-                for j in range(wd):
-                    v_bar[0, i, j] += v[0, i, j]
-                    v_bar[1, i, j] += v[1, i, j]
+                for j in range(wd):  # v - rl e = n (rl = 0: exactly)
+                    v_bar[0, i, j] += v[0, i, j] - rl * v_bar[0, i, j]
+                    v_bar[1, i, j] += v[1, i, j] - rl * v_bar[1, i, j]
             if reg >= 2:
-                w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg)
+                w_row(i, iu, ru, rd, w, w_bar, y, z, tau, rel1, reg, rl)
             total += acc
         return total
 
@@ -372,7 +384,7 @@ def _make_iterate(data: int):  # noqa: ANN202
 
     def iterate(v, y, w, z, v_bar, w_bar, a, c, b, xbuf, tau, sigma, tau_d, rel1,  # noqa: ANN001, ANN202
                 data_l1, soft, reg, iso, has_b, iterations, tolerance, check_every, parallel, quad,
-                mass, m, p, qpad, sp, tv, lam, ab, cb, g):
+                mass, m, p, qpad, sp, tv, lam, ab, cb, g, rl):
         """Up to ``iterations`` primal-dual steps; stops when, every ``check_every`` steps, the RMS change of v
         per iteration is below ``tolerance`` (if > 0). ``parallel`` selects the prange kernels (else serial,
         cheaper on small levels); ``quad``: ``a`` is a quadratic data term (see primal_pass); ``soft``: the joint
@@ -382,15 +394,16 @@ def _make_iterate(data: int):  # noqa: ANN202
         ``lam`` (else dummies; zero rows for p, qpad and tv: numba_backend.zero_rows); in ``iterate_bc``, with
         mass, the brightness term ``ab`` (2, H, W), ``cb`` (H, W) beside it (models.prox_data_metric; else
         dummies); ``g`` the edge weight (H, W) of the first regulariser term, or a (1, W) row of ones
-        (:func:`prox_dual4`). Returns the number of iterations run."""
+        (:func:`prox_dual4`); ``rl`` = rho - 1 of the over-relaxed iteration (float32; 0 = plain, solver.relax).
+        Returns the number of iterations run."""
         n = 2.0 * v.shape[1] * v.shape[2]
         k = 0
         head = (v, v_bar, w, w_bar, y, z, a, c, b, xbuf, tau, tau_d, rel1, data_l1, reg, has_b, quad, soft, mass, p,
                 qpad, tv)
-        dual = (v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1, g)
+        dual = (v_bar, w_bar, y, z, sigma, rel1, reg, iso, mass, a, m, c, p, qpad, sp, lam, data_l1, g, rl)
         for k in range(1, iterations + 1):
             measure = tolerance > 0.0 and k % check_every == 0
-            tail = (measure, ab, cb, lam)
+            tail = (measure, ab, cb, lam, rl)
             # the regulariser's dual pass and the data term's primal pass (branches per pass, not per pixel)
             if parallel:
                 _ = (dual_pass_par_l2(*dual) if reg == 0 else dual_pass_par_tv(*dual) if reg == 1

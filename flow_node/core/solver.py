@@ -4,6 +4,10 @@
     x^{k+1} = prox_{tau G}(x^k - tau K* y^{k+1})        x = (v, w)
     xbar^{k+1} = 2 x^{k+1} - x^k
 
+Over-relaxed (SolveParams.relaxation rho in (0, 2), FlowConfig.pd_relaxation; He & Yuan 2012, Condat 2013): each
+step's prox outputs y~, x~ are relaxed against the step's inputs, y <- y + rho (y~ - y), x <- x + rho (x~ - x),
+and xbar = 2 x~ - x uses the unrelaxed x~; rho = 1 is the iteration above bit for bit (:func:`relax`).
+
 with the prox operators and step sizes of models.py. This module is the readable reference and the test
 oracle of the numba kernels; both implement :data:`LevelSolver`.
 
@@ -127,6 +131,7 @@ class SolveParams:
     tolerance: float
     incompressibility: float = 0.0  # beta of (beta/2)|div v|^2, absolute like alpha (volumes only)
     gamma: float = 0.0  # > 0: the joint model's data term J_gamma instead of the L1 one (models.prox_data_joint)
+    relaxation: float = 1.0  # rho of the over-relaxed iteration (module docstring, :func:`relax`); 1 = plain
 
 
 # A level solver updates the state in place and returns the number of iterations it ran.
@@ -160,21 +165,22 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
     if incompressible and s is None:
         s = np.zeros(v.shape[1:], np.float32)
     v_bar, w_bar = v.copy(), (None if w is None else w.copy())
+    rho = p.relaxation
     for k in range(1, p.iterations + 1):
-        # dual ascent: y <- prox_{sigma F*}(y + sigma K xbar)
+        # dual ascent: y <- prox_{sigma F*}(y + sigma K xbar) (relaxed against y with rho != 1)
         gv = grad(v_bar, dims=dims)
         ky = gv if w_bar is None else gv - w_bar
         if spec.regulariser == "l2":
-            y = prox_dual_l2(y + sigma * ky, sigma, radius)
+            y = relax(prox_dual_l2(y + sigma * ky, sigma, radius), y, rho)
         else:
-            y = project_dual_tv(y + sigma * ky, radius, p.tv_norm, dims)
+            y = relax(project_dual_tv(y + sigma * ky, radius, p.tv_norm, dims), y, rho)
         if z is not None:
-            z = project_dual_tv(z + sigma * grad(w_bar, dims=dims), rel1, p.tv_norm, dims)
+            z = relax(project_dual_tv(z + sigma * grad(w_bar, dims=dims), rel1, p.tv_norm, dims), z, rho)
         if incompressible:
-            s = prox_dual_incompressibility(s + sigma * flow_divergence(v_bar), sigma, rel_inc)
+            s = relax(prox_dual_incompressibility(s + sigma * flow_divergence(v_bar), sigma, rel_inc), s, rho)
         if mass:
-            p_data = prox_dual_data(p_data + sigma_p * mass_residual(v_bar, a, m, c), sigma_p, 1.0 / p.alpha,
-                                    spec.data)
+            p_data = relax(prox_dual_data(p_data + sigma_p * mass_residual(v_bar, a, m, c), sigma_p, 1.0 / p.alpha,
+                                          spec.data), p_data, rho)
         # primal descent: x <- prox_{tau G}(x - tau K* y); K* of the div v block: -div of s on y's diagonal
         ys = y
         if incompressible:
@@ -195,10 +201,10 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
             wt = w + tau * (y if z is None else y + div(z))
             w_new = wt / (1.0 + tau * rel1) if spec.regulariser == "tv_l2" else wt
             w_bar = 2.0 * w_new - w
-            w = w_new
+            w = relax(w_new, w, rho)
         v_bar = 2.0 * v_new - v
         done = k % CHECK_EVERY == 0 and p.tolerance > 0 and _rms(v_new - v) < p.tolerance
-        v = v_new
+        v = relax(v_new, v, rho)
         if done:
             break
     state.v, state.y, state.w, state.z, state.s = v, y, w, z, s
@@ -238,6 +244,14 @@ def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
                      for v in (state.v, moved))
     if after < before:
         state.v = moved
+
+
+def relax(new: np.ndarray, old: np.ndarray, rho: float) -> np.ndarray:
+    """old + rho (new - old), written new + (rho - 1)(new - old) (any shape, ``new``'s dtype); rho = 1 returns
+    ``new`` itself (the plain iteration bit for bit)."""
+    if rho == 1.0:
+        return new
+    return (new + np.float32(rho - 1.0) * (new - old)).astype(new.dtype, copy=False)
 
 
 def _rms(d: np.ndarray) -> float:

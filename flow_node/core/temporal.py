@@ -112,7 +112,8 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
     """The settings of the refinement of a prediction: ``cfg`` with every level at ``cfg.stream_warps`` warps
     of ``cfg.stream_iterations`` iterations -- the finest solved level at ``cfg.stream_finest_warps`` x
     ``cfg.stream_finest_iterations`` where those are set (0: the same as the others) --, the regularisation
-    weight ``cfg.stream_alpha`` where set (0: ``cfg.alpha``, or ``cfg.census_alpha`` with the census term; the
+    weight ``cfg.stream_alpha`` and the relaxation ``cfg.stream_relaxation`` where set (0: ``cfg.alpha``, or
+    ``cfg.census_alpha`` with the census term; ``cfg.pd_relaxation``; the
     census term's own iteration and warp counts do not apply here) and the pyramid cut
     below the levels it visits (the shapes of the levels kept are the same). Derived, never written back;
     cached per config."""
@@ -121,7 +122,8 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
                        finest_warps=cfg.stream_finest_warps, finest_iterations=cfg.stream_finest_iterations,
                        census_iterations=0, census_finest_iterations=0, census_finest_warps=0,
                        levels=levels, alpha=cfg.stream_alpha or cfg.alpha,
-                       census_alpha=0.0 if cfg.stream_alpha else cfg.census_alpha)
+                       census_alpha=0.0 if cfg.stream_alpha else cfg.census_alpha,
+                       pd_relaxation=cfg.stream_relaxation or cfg.pd_relaxation)
 
 
 def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: PDState,
