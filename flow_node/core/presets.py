@@ -223,8 +223,8 @@ PRESETS: dict[str, dict[str, Any]] = {
     # stream presets (issue 26, docs/engine.md "The stream mode"): fastest's fields (its census fields too, since
     # 2026-12-06) and the stream stage's: a single pair, and a stream's fallback, is
     # solved as fastest (stream_fast) or as fastest at quarter size (stream_lite) does; while the previous flow
-    # predicts the next, only the finest two solved levels (stream_lite: one, a single warp of 34 iterations, below)
-    # run, from the carried state (tuned on the suite's stream regime, tune split:
+    # predicts the next, only the finest two solved levels (stream_lite: one, a single warp of 10 over-relaxed
+    # iterations, below) run, from the carried state (tuned on the suite's stream regime, tune split:
     # bench/results/suite/stream/; docs/engine.md "The stream mode"; stream_fast's coarser level 2 x 10 and its
     # finest 3 x 10 since issue 26's round 4; round 6: finest 3 x 8, a 3x3 median after a level's warps but its
     # last, the result check on ~5,000 pixels). stream_fast keeps the census EPS / alpha fastest had before task
@@ -247,8 +247,15 @@ PRESETS: dict[str, dict[str, Any]] = {
     # Its single pairs and fallbacks compare census signatures too (report 320x240 0.087 -> 0.058).
     # The result check samples ~5,000 pixels, as stream_fast's (the lead, same day: tune 0.89x the CPU at 320x240,
     # report split the same flows and AEE at 0.86x / 0.95x the wall time; bench/results/suite/stream/litezd/checks/)
-    "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=1, stream_iterations=34,
-                        stream_duals=0.0, census_delta=0.003, stream_check_samples=5000),
+    # Task pdrelax (issue 26, T2; 2026-12-07, bench/results/suite/stream/pdrelax/summary.md): the refinement's
+    # primal-dual iteration over-relaxed (stream_relaxation 1.7) with its step length moved to the duals, which
+    # restart from zero (stream_step_balance 0.25: tau / 4, sigma x 4), and 10 iterations instead of 34: tune
+    # 320x240 0.0481 -> 0.0461, 640x480 0.0392 -> 0.0387, bags +1.5 %, at 0.85x the CPU per frame at both sizes
+    # (interleaved); rho 1.9 x 9 and b 0.35 x 10 passed too at the same CPU (ties go to the smaller rho). Either
+    # alone needed 18+ iterations (rho 1.9) or lost (b 0.25 at 10: 0.0548)
+    "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=1, stream_iterations=10,
+                        stream_relaxation=1.7, stream_step_balance=0.25, stream_duals=0.0, census_delta=0.003,
+                        stream_check_samples=5000),
 }
 
 # The general-purpose presets, in order of cost: what the suite judges against the peers on every regime. The
