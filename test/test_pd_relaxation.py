@@ -123,7 +123,7 @@ def test_relaxed_iteration_reaches_the_plain_minimiser(model: str, iterations: i
 
 
 def test_config_fields_reach_the_solver() -> None:
-    cfg = FlowConfig.preset("stream_lite").replace(pd_relaxation=1.3)
+    cfg = FlowConfig.preset("stream_fast").replace(pd_relaxation=1.3)  # stream_fast: no stream_relaxation
     assert level_params(cfg, 0, 10).relaxation == pytest.approx(1.3)
     assert stream_schedule(cfg).pd_relaxation == pytest.approx(1.3)  # stream_relaxation 0: pd_relaxation's
     streamed = stream_schedule(cfg.replace(stream_relaxation=1.6))
@@ -150,3 +150,13 @@ def test_numba_matches_numpy_with_a_step_balance(case: str) -> None:
             np.testing.assert_allclose(fields(fast)[name], r, rtol=0, atol=AGREE, err_msg=name)
             assert np.array_equal(fields(same)[name], fields(plain)[name]), name
         assert np.abs(fast.v - plain.v).max() > 100 * AGREE
+
+
+def test_stream_lite_relaxes_its_refinement_only() -> None:
+    """stream_lite's stream refinement runs rho 1.7, b 0.25 (task pdrelax); its single pairs and fallbacks the plain
+    iteration, as fastest does."""
+    cfg = FlowConfig.preset("stream_lite")
+    refine = level_params(stream_schedule(cfg), cfg.finest_level, cfg.stream_iterations)
+    assert (refine.relaxation, refine.step_balance, refine.iterations) == (pytest.approx(1.7), 0.25, 10)
+    single = level_params(cfg, cfg.finest_level, cfg.iterations)
+    assert (single.relaxation, single.step_balance) == (1.0, 1.0)
