@@ -171,9 +171,6 @@ class FlowConfig:
     pd_relaxation: float = _f(1.0, "over-relaxation rho of the primal-dual iteration on images: each step's "
                               "new primal and dual variables are moved rho times their change (1 = the plain "
                               "iteration; docs/engine.md 'Primal-dual')", lo=0.0, hi=1.99, lo_open=True)
-    pd_step_balance: float = _f(1.0, "primal-dual steps on images: tau times this, sigma divided by it (their "
-                                "product unchanged; < 1 moves step length to the duals; 1 = the model's steps)",
-                                lo=0.01, hi=100.0)
     levels: int = _f(5, "maximum pyramid levels (1 = no coarse-to-fine)", lo=1, hi=30)
     scale_factor: float = _f(0.5, "pyramid downscale factor between levels", lo=0.2, hi=0.95)
     min_size: int = _f(16, "smallest image side allowed on the coarsest level (px)", lo=4, hi=100000)
@@ -262,8 +259,6 @@ class FlowConfig:
                              "alpha; a pair solved in full always uses alpha)", lo=0.0, hi=1000.0)
     stream_relaxation: float = _f(0.0, "stream mode: pd_relaxation of the refinement from the prediction (0 = "
                                   "pd_relaxation)", lo=0.0, hi=1.99)
-    stream_step_balance: float = _f(0.0, "stream mode: pd_step_balance of the refinement from the prediction (0 = "
-                                    "pd_step_balance)", lo=0.0, hi=100.0)
     stream_duals: float = _f(1.0, "stream mode: the carried regulariser duals are multiplied by this before the "
                              "refinement from the prediction (1 = as the previous pair left them; 0 = restarted "
                              "from zero, the flow alone carried)", lo=0.0, hi=1.0)

@@ -30,7 +30,7 @@ from . import numba_kernels as nk
 from . import numba_warp as nw
 from .models import mass_steps
 from .operators import image_gradient
-from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams, balanced, shift_slow_modes
+from .solver import CHECK_EVERY, MASS_DATA_SCALE, PDState, Problem, SolveParams, shift_slow_modes
 from .warping import BSPLINE_POLE, HORIZON, KERNEL_CODES, Warper
 from .workspace import scratch, scratch_parts
 
@@ -167,7 +167,6 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
     thread is bound (same numbers as the serial ones: each pixel's update is the same arithmetic).
     """
     spec = p.spec
-    tau, sigma = balanced(spec.tau, spec.sigma, p.step_balance)
     state.v, state.y = _f32c(state.v), _f32c(state.y)
     if state.w is not None:
         state.w = _f32c(state.w)
@@ -179,7 +178,7 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
     bc = mass and problem.ab is not None
     if mass:
         state.p = _f32c(state.data_dual())
-        sp, tv = mass_steps(problem.a, problem.m, tau, MASS_DATA_SCALE)
+        sp, tv = mass_steps(problem.a, problem.m, spec.tau, MASS_DATA_SCALE)
         h, w = state.v.shape[1:]
         qpad = scratch("numba.mass_q", (2, 2, h + 2, w + 2))
         qpad.fill(0.0)  # the ring stays zero; the kernel writes the inside from p before reading it
@@ -193,8 +192,8 @@ def solve_numba(problem: Problem, state: PDState, p: SolveParams, min_pixels: in
         state.z if state.z is not None else _DUMMY5,
         v_bar, w_bar, _f32c(problem.a if problem.q is None else problem.q), _f32c(problem.c),
         _f32c(problem.b) if problem.b is not None else zero_b, xbuf,
-        _F32(tau), _F32(sigma), _F32(tau / p.alpha), _F32(p.alpha1 / p.alpha),
-        spec.data == "l1", _F32(2.0 * p.gamma * p.alpha / tau),  # soft = 2 gamma / tau_d (nk.prox_data)
+        _F32(spec.tau), _F32(spec.sigma), _F32(spec.tau / p.alpha), _F32(p.alpha1 / p.alpha),
+        spec.data == "l1", _F32(2.0 * p.gamma * p.alpha / spec.tau),  # soft = 2 gamma / tau_d (nk.prox_data)
         nk.REG_CODES[spec.regulariser], p.tv_norm == "isotropic", problem.b is not None,
         int(p.iterations), float(p.tolerance), CHECK_EVERY,
         parallel_at(state.v.shape[1] * state.v.shape[2], PARALLEL_MIN_PIXELS if min_pixels is None else min_pixels),

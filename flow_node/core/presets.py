@@ -250,8 +250,9 @@ PRESETS: dict[str, dict[str, Any]] = {
     # Its refinement's primal-dual iteration is over-relaxed (stream_relaxation 1.9; task pdrelax and the lead,
     # 2026-12-07, bench/results/suite/stream/pdrelax/summary.md): 18 iterations reach 34 plain ones' AEE (tune
     # 320x240 0.0481 -> 0.0477, report 0.0504 -> 0.0501 / 0.0421 -> 0.0422, bags +0.2 %, held-out +0.4 %) at
-    # 0.90-0.92x the CPU per frame. The task's rule picked rho 1.7 with the step length on the duals
-    # (stream_step_balance 0.25) and 10 iterations, 0.85x the CPU, but it lost the held-out split 12 % (shake, wave)
+    # 0.90-0.92x the CPU per frame. The task's rule picked rho 1.7 with the step length on the duals (tau / 4,
+    # sigma x 4: a field retired since, git show 99f0f54) and 10 iterations, 0.85x the CPU, but it lost the
+    # held-out split 12 % (shake, wave)
     "stream_lite": dict(FASTEST, finest_level=2, stream_levels=1, stream_warps=1, stream_iterations=18,
                         stream_relaxation=1.9, stream_duals=0.0, census_delta=0.003, stream_check_samples=5000),
 }

@@ -108,8 +108,7 @@ def level_params(cfg: FlowConfig, level: int, iterations: int) -> SolveParams:
     gamma = cfg.image_gamma if cfg.reconstruction == "joint" else 0.0  # the joint model's data term (joint.py)
     alpha = (cfg.census_alpha or cfg.alpha) if compares_signatures(cfg.photometric) else cfg.alpha
     return SolveParams(MODEL_SPECS[cfg.model], alpha * cfg.level_alpha_factor**level, cfg.alpha1,
-                       cfg.tv_norm, iterations, cfg.tolerance, gamma=gamma, relaxation=cfg.pd_relaxation,
-                       step_balance=cfg.pd_step_balance)
+                       cfg.tv_norm, iterations, cfg.tolerance, gamma=gamma, relaxation=cfg.pd_relaxation)
 
 
 def solve_level(pyr: Pyramid, level: int, cfg: FlowConfig, backend: Backend, state: PDState, on_finest: bool,

@@ -132,7 +132,6 @@ class SolveParams:
     incompressibility: float = 0.0  # beta of (beta/2)|div v|^2, absolute like alpha (volumes only)
     gamma: float = 0.0  # > 0: the joint model's data term J_gamma instead of the L1 one (models.prox_data_joint)
     relaxation: float = 1.0  # rho of the over-relaxed iteration (module docstring, :func:`relax`); 1 = plain
-    step_balance: float = 1.0  # b: tau * b, sigma / b (tau sigma unchanged; :func:`balanced`); 1 = the model's steps
 
 
 # A level solver updates the state in place and returns the number of iterations it ran.
@@ -147,7 +146,7 @@ def solve_numpy(problem: Problem, state: PDState, p: SolveParams) -> int:
     """
     spec = p.spec
     dims, incompressible = state.v.ndim - 1, p.incompressibility > 0.0
-    tau, sigma = balanced(*step_sizes(spec, dims, incompressible), p.step_balance)
+    tau, sigma = step_sizes(spec, dims, incompressible)
     tau_data = tau / p.alpha  # prox of tau * (1/alpha) D
     rel1 = p.alpha1 / p.alpha  # weight of S(w) relative to the first TV term
     rel_inc = p.incompressibility / p.alpha  # weight of the div v penalty relative to the first TV term
@@ -245,13 +244,6 @@ def shift_slow_modes(problem: Problem, state: PDState, p: SolveParams) -> None:
                      for v in (state.v, moved))
     if after < before:
         state.v = moved
-
-
-def balanced(tau: float, sigma: float, balance: float) -> tuple[float, float]:
-    """(tau * balance, sigma / balance): the primal and dual steps moved against each other, their product (and so
-    the convergence condition tau sigma ||K||^2 <= 1) unchanged; balance < 1 moves step length to the dual side.
-    balance = 1: the steps themselves."""
-    return tau * balance, sigma / balance
 
 
 def relax(new: np.ndarray, old: np.ndarray, rho: float) -> np.ndarray:

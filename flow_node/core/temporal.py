@@ -123,8 +123,7 @@ def stream_schedule(cfg: FlowConfig) -> FlowConfig:
                        census_iterations=0, census_finest_iterations=0, census_finest_warps=0,
                        levels=levels, alpha=cfg.stream_alpha or cfg.alpha,
                        census_alpha=0.0 if cfg.stream_alpha else cfg.census_alpha,
-                       pd_relaxation=cfg.stream_relaxation or cfg.pd_relaxation,
-                       pd_step_balance=cfg.stream_step_balance or cfg.pd_step_balance)
+                       pd_relaxation=cfg.stream_relaxation or cfg.pd_relaxation)
 
 
 def refine_prediction(pyr: Pyramid, cfg: FlowConfig, backend: Backend, predicted: PDState,
