@@ -128,7 +128,17 @@ def test_config_fields_reach_the_solver() -> None:
     assert stream_schedule(cfg).pd_relaxation == pytest.approx(1.3)  # stream_relaxation 0: pd_relaxation's
     streamed = stream_schedule(cfg.replace(stream_relaxation=1.6))
     assert level_params(streamed, 0, 10).relaxation == pytest.approx(1.6)
-    assert level_params(FlowConfig.preset("fastest"), 0, 10).relaxation == 1.0
+    assert level_params(FlowConfig.preset("stream_fast"), 0, 10).relaxation == 1.0
+
+
+@pytest.mark.parametrize("preset", ["fastest", "stream_fast", "stream_lite"])
+def test_fastest_relaxes_its_single_pairs_the_stream_presets_do_not(preset: str) -> None:
+    """fastest solves over-relaxed at rho 1.3 on every level (the relax rule, 2026-12-08); the stream presets,
+    fastest's fields otherwise, keep rho 1 on single pairs and fallbacks."""
+    cfg = FlowConfig.preset(preset)
+    want = 1.3 if preset == "fastest" else 1.0
+    assert [level_params(cfg, level, cfg.iterations).relaxation for level in range(cfg.levels)] == pytest.approx(
+        [want] * cfg.levels)
 
 
 def test_stream_lite_relaxes_its_refinement_only() -> None:
