@@ -241,10 +241,11 @@ PRESETS: dict[str, dict[str, Any]] = {
     # finest 3 x 10 since issue 26's round 4; round 6: finest 3 x 8, a 3x3 median after a level's warps but its
     # last, the result check on ~5,000 pixels). stream_fast keeps the census EPS / alpha fastest had before task
     # feps (0.01 / 0.35: fastest's 0.007 / 0.36 lost the stream regime 1.5 %, above), so it solves a single pair as
-    # fastest with those two fields and the default census_noise_k (fastest 2 since task lownoise) does. Task stacc
-    # (2026-12-07): the carried duals restart from zero (stream_duals 0; the flow alone is carried) and the schedule
-    # is coarse 1 x 10, finest 3 x 10: stream regime tune 320x240 0.0384 -> 0.0318 (realtime 0.0366), 640x480
-    # 0.0318 -> 0.0263, at 0.98-1.02x the CPU per frame (bench/results/suite/stream/stacc/summary.md); then, for
+    # fastest with those two fields, the default census_noise_k (fastest 2 since task lownoise) and the plain
+    # primal-dual iteration (fastest over-relaxes at rho 1.3 since 2026-12-08; not tried on the stream presets) does.
+    # Task stacc (2026-12-07): the carried duals restart from zero (stream_duals 0; the flow alone is carried) and
+    # the schedule is coarse 1 x 10, finest 3 x 10: stream regime tune 320x240 0.0384 -> 0.0318 (realtime 0.0366),
+    # 640x480 0.0318 -> 0.0263, at 0.98-1.02x the CPU per frame (bench/results/suite/stream/stacc/summary.md); then, for
     # time (the lead, same day, tune split): coarse 1 x 6, finest 2 x 14, 0.91x that CPU at 320x240 / 0.92x at
     # 640x480 for tune 0.0324 / 0.0273 (realtime 0.0366 / 0.0351), bags +1.7 %
     # (bench/results/suite/stream/lead_s25/summary.md)
