@@ -135,20 +135,23 @@ def test_stream_mode_off_is_the_single_pair_solve() -> None:
     assert a.stats.stream == b.stats.stream == ""
     # the stream presets solve a single pair exactly as their base presets do, with either data term; stream_fast
     # keeps the census EPS / alpha fastest had before task feps (the stream regime lost 1.5 % with fastest's) and the
-    # default noise floor K (fastest's 2 since task lownoise)
+    # default noise floor K (fastest's 2 since task lownoise), and the plain iteration (fastest's rho 1.3 since
+    # 2026-12-08)
     stream_fast = FlowConfig.preset("stream_fast")
     assert (stream_fast.census_eps, stream_fast.census_alpha) == (0.01, 0.35)
     assert stream_fast.census_noise_k == FlowConfig().census_noise_k
+    assert stream_fast.pd_relaxation == FlowConfig().pd_relaxation == 1.0
     base = FlowConfig.preset("fastest").replace(census_eps=0.01, census_alpha=0.35,
-                                                census_noise_k=FlowConfig().census_noise_k)
+                                                census_noise_k=FlowConfig().census_noise_k, pd_relaxation=1.0)
     for photometric in ("normalise", "census"):
         flows = [FlowEstimator(cfg.replace(backend="numpy", photometric=photometric)).estimate_grey(
             seq[0], seq[1]).flow for cfg in (stream_fast, base)]
         np.testing.assert_array_equal(*flows)
-    # stream_lite: fastest at quarter size with census DELTA 0.003 (task litezd) and the default noise floor K
+    # stream_lite: fastest at quarter size with census DELTA 0.003 (task litezd), the default noise floor K and the
+    # plain iteration on single pairs
     lite = FlowConfig.preset("stream_lite")
     base = FlowConfig.preset("fastest").replace(finest_level=2, census_delta=0.003,
-                                                census_noise_k=FlowConfig().census_noise_k)
+                                                census_noise_k=FlowConfig().census_noise_k, pd_relaxation=1.0)
     assert lite.photometric == base.photometric == "census"
     flows = [FlowEstimator(cfg.replace(backend="numpy")).estimate_grey(seq[0], seq[1]).flow for cfg in (lite, base)]
     np.testing.assert_array_equal(*flows)
